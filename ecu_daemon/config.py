@@ -1,0 +1,327 @@
+"""TOML configuration -> validated, typed settings.
+
+One place for defaults and for error messages: a typo or a wrong type in the file is reported
+as one line naming the key (``ConfigError``), never as a traceback from deep inside the program.
+``show-config`` prints :func:`to_toml` of the effective settings, so everything printed here is
+also accepted back.
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import math
+import sys
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import tomli_w
+
+from .samples import INPUT_NAMES
+
+PACKAGE_ROOT = Path(__file__).resolve().parent
+
+
+class ConfigError(ValueError):
+    """A configuration problem, phrased for the person who wrote the file."""
+
+
+def find_data_file(name: str, base: Path | None = None) -> Path:
+    """Resolve a data file (DBC) given relative to the config, the CWD, or the installed data.
+
+    Order: absolute path; next to the config file; current directory; the repository / sdist
+    ``dbc/`` folder beside the package; ``<prefix>/share/ecu-daemon``. The first that exists wins,
+    so a user's own DBC always shadows ours.
+    """
+    p = Path(name).expanduser()
+    if p.is_absolute():
+        return p
+    candidates = []
+    if base is not None:
+        candidates.append(base / p)
+    candidates += [Path.cwd() / p, PACKAGE_ROOT.parent / p, PACKAGE_ROOT / p,
+                   Path(sys.prefix) / "share" / "ecu-daemon" / p]
+    for c in candidates:
+        if c.exists():
+            return c
+    return candidates[0]
+
+
+@dataclass
+class CanSettings:
+    interface: str = "virtual"
+    channel: str = "ecu-daemon"
+    bitrate: int = 500000
+    dbc: str = "dbc/ecu_daemon_inputs.dbc"
+    output_dbc: str = "dbc/ecu_daemon_outputs.dbc"
+    send_outputs: bool = True
+    #: extra keyword arguments handed to ``can.Bus`` unchanged (python-can's own conventions)
+    bus_kwargs: dict = field(default_factory=dict)
+
+
+@dataclass
+class GnssSettings:
+    port: str = "/dev/ttyACM0"
+    baudrate: int = 115200
+    protocol: str = "auto"  # auto | ubx | nmea
+    delay_s: float = 0.2  # latency prior: receive time minus time of validity
+    lever_arm_m: list = field(default_factory=lambda: [0.0, 0.0])  # antenna position from CG, x fwd, y left
+    estimate_delay: bool = True
+    max_delay_s: float = 0.8  # ring-buffer horizon; later samples are clamped to it and counted
+    min_fix_type: int = 2
+    max_speed_acc_mps: float = 1.0
+    nmea_speed_acc_mps: float = 0.15  # assumed 1-sigma when the protocol gives none (NMEA)
+    timeout_s: float = 2.0
+
+
+@dataclass
+class VehicleSettings:
+    mass_kg: float = 1600.0
+    yaw_inertia_kgm2: float = 2600.0
+    cg_to_front_axle_m: float = 1.2
+    cg_to_rear_axle_m: float = 1.5
+    track_m: float = 1.58
+    wheel_radius_m: float = 0.32
+    steering_ratio: float = 15.0
+    cornering_stiffness_front_n_per_rad: float = 100000.0
+    cornering_stiffness_rear_n_per_rad: float = 120000.0
+    cg_height_m: float = 0.55
+    driven_axle: str = "front"  # front | rear | all (wheel slip: which wheels to trust for speed)
+
+
+@dataclass
+class InputMapping:
+    message: Any = ""  # message name or frame id (int)
+    signal: str = ""
+    signals: list = field(default_factory=list)
+    scale: float = 1.0
+    offset: float = 0.0
+    min: float = -math.inf  # plausibility range of the SI value
+    max: float = math.inf
+    timeout_s: float = 0.0  # 0: ten times the observed cycle time
+    counter: str = ""  # name of a rolling-counter signal in the message to check, "" = none
+    checksum: str = "none"  # none | e2e_p2 (AUTOSAR E2E profile 2, CRC8H2F) | toyota
+
+    def signal_names(self) -> list[str]:
+        return list(self.signals) if self.signals else [self.signal]
+
+
+def _default_inputs() -> dict[str, InputMapping]:
+    """The mapping for our own chassis DBC (``dbc/ecu_daemon_inputs.dbc``), already SI."""
+    m = {}
+    for corner in ("fl", "fr", "rl", "rr"):
+        m[f"wheel_speed_{corner}"] = InputMapping(
+            message="WHEEL_SPEEDS", signal=f"WHEEL_SPEED_{corner.upper()}", min=-5.0, max=120.0,
+            counter="COUNTER", checksum="e2e_p2")
+    m["steering_wheel_angle"] = InputMapping(message="STEERING", signal="STEERING_WHEEL_ANGLE",
+                                             min=-15.0, max=15.0, counter="COUNTER", checksum="e2e_p2")
+    m["yaw_rate"] = InputMapping(message="IMU", signal="YAW_RATE", min=-3.0, max=3.0,
+                                 counter="COUNTER", checksum="e2e_p2")
+    m["accel_x"] = InputMapping(message="IMU", signal="ACCEL_X", min=-30.0, max=30.0,
+                                counter="COUNTER", checksum="e2e_p2")
+    m["accel_y"] = InputMapping(message="IMU", signal="ACCEL_Y", min=-30.0, max=30.0,
+                                counter="COUNTER", checksum="e2e_p2")
+    return m
+
+
+@dataclass
+class EstimatorSettings:
+    dt_s: float = 0.006
+    delay_compensation: bool = True
+    adapt_cornering_stiffness: bool = True
+    gnss_gate_sigma: float = 5.0
+    # process noise (continuous-time spectral densities)
+    accel_noise_mps2: float = 0.35
+    yaw_rate_noise_radps: float = 0.004
+    yaw_rate_bias_walk: float = 2e-5
+    accel_bias_walk: float = 1.5e-3
+    wheel_scale_walk: float = 2e-5
+    wheel_speed_noise_mps: float = 0.08
+
+
+@dataclass
+class DaemonSettings:
+    state_file: str = "/var/lib/ecu-daemon/state.json"
+    log_level: str = "info"
+    realtime_priority: int = 0  # SCHED_FIFO priority of the tick thread, 0 = leave as is
+
+
+@dataclass
+class Config:
+    can: CanSettings = field(default_factory=CanSettings)
+    gnss: GnssSettings = field(default_factory=GnssSettings)
+    vehicle: VehicleSettings = field(default_factory=VehicleSettings)
+    inputs: dict = field(default_factory=_default_inputs)
+    estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
+    daemon: DaemonSettings = field(default_factory=DaemonSettings)
+    #: directory of the config file, for resolving relative paths (not part of the TOML)
+    base_dir: Path | None = None
+
+    def dbc_path(self) -> Path:
+        return find_data_file(self.can.dbc, self.base_dir)
+
+    def output_dbc_path(self) -> Path:
+        return find_data_file(self.can.output_dbc, self.base_dir)
+
+
+_SECTIONS = {"can": CanSettings, "gnss": GnssSettings, "vehicle": VehicleSettings,
+             "estimator": EstimatorSettings, "daemon": DaemonSettings}
+
+
+def _did_you_mean(word: str, options) -> str:
+    close = difflib.get_close_matches(word, list(options), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _coerce(where: str, default: Any, value: Any) -> Any:
+    """Check a TOML value against the type of its default; ints are accepted for floats."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{where}: expected a number, got {value!r}")
+        v = float(value)
+        if math.isnan(v):
+            raise ConfigError(f"{where}: NaN is not allowed")
+        return v
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+        return value
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected a string, got {value!r}")
+        return value
+    if isinstance(default, list):
+        if not isinstance(value, list):
+            raise ConfigError(f"{where}: expected a list, got {value!r}")
+        return value
+    if isinstance(default, dict):
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where}: expected a table, got {value!r}")
+        return value
+    return value
+
+
+def _fill(cls, where: str, table: Any, base=None):
+    if not isinstance(table, dict):
+        raise ConfigError(f"[{where}] must be a table")
+    obj = base if base is not None else cls()
+    names = {f.name for f in dataclasses.fields(cls)}
+    for key, value in table.items():
+        if key not in names:
+            raise ConfigError(f"unknown key '{key}' in [{where}]{_did_you_mean(key, names)}")
+        setattr(obj, key, _coerce(f"[{where}] {key}", getattr(obj, key), value))
+    return obj
+
+
+def _validate(cfg: Config) -> None:
+    def positive(section: str, obj, *names):
+        for n in names:
+            v = getattr(obj, n)
+            if not (v > 0 and math.isfinite(v)):
+                raise ConfigError(f"[{section}] {n} must be a positive number, got {v!r}")
+
+    positive("vehicle", cfg.vehicle, "mass_kg", "yaw_inertia_kgm2", "cg_to_front_axle_m",
+             "cg_to_rear_axle_m", "track_m", "wheel_radius_m",
+             "cornering_stiffness_front_n_per_rad", "cornering_stiffness_rear_n_per_rad")
+    if cfg.vehicle.steering_ratio == 0 or not math.isfinite(cfg.vehicle.steering_ratio):
+        raise ConfigError("[vehicle] steering_ratio must be a non-zero number")
+    if cfg.vehicle.driven_axle not in ("front", "rear", "all"):
+        raise ConfigError(f"[vehicle] driven_axle must be front, rear or all, got {cfg.vehicle.driven_axle!r}")
+    positive("gnss", cfg.gnss, "baudrate", "max_delay_s", "max_speed_acc_mps", "nmea_speed_acc_mps",
+             "timeout_s")
+    if cfg.gnss.protocol not in ("auto", "ubx", "nmea"):
+        raise ConfigError(f"[gnss] protocol must be auto, ubx or nmea, got {cfg.gnss.protocol!r}")
+    if not (0.0 <= cfg.gnss.delay_s <= cfg.gnss.max_delay_s):
+        raise ConfigError(f"[gnss] delay_s must be between 0 and max_delay_s ({cfg.gnss.max_delay_s}),"
+                          f" got {cfg.gnss.delay_s}")
+    arm = cfg.gnss.lever_arm_m
+    if len(arm) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in arm):
+        raise ConfigError(f"[gnss] lever_arm_m must be [x, y] in metres, got {arm!r}")
+    cfg.gnss.lever_arm_m = [float(a) for a in arm]
+    positive("estimator", cfg.estimator, "dt_s", "gnss_gate_sigma")
+    if cfg.daemon.log_level.lower() not in ("debug", "info", "warning", "error"):
+        raise ConfigError(f"[daemon] log_level must be debug, info, warning or error, got {cfg.daemon.log_level!r}")
+    for name, m in cfg.inputs.items():
+        if isinstance(m.message, bool) or not isinstance(m.message, (str, int)) or m.message in ("", None):
+            raise ConfigError(f"[inputs.{name}] message must be a message name or a frame id")
+        if m.signals and m.signal:
+            raise ConfigError(f"[inputs.{name}] give either 'signal' or 'signals', not both")
+        if not m.signals and not m.signal:
+            raise ConfigError(f"[inputs.{name}] needs 'signal' (or 'signals = [...]')")
+        if not all(isinstance(s, str) and s for s in m.signal_names()):
+            raise ConfigError(f"[inputs.{name}] signals must be non-empty strings")
+        if m.scale == 0:
+            raise ConfigError(f"[inputs.{name}] scale must not be 0")
+        if m.checksum not in ("none", "e2e_p2", "toyota"):
+            raise ConfigError(f"[inputs.{name}] checksum must be none, e2e_p2 or toyota, got {m.checksum!r}")
+        if not m.min < m.max:
+            raise ConfigError(f"[inputs.{name}] min must be below max")
+    missing = [n for n in INPUT_NAMES if n not in cfg.inputs]
+    if missing:
+        raise ConfigError("missing input mapping(s): " + ", ".join(f"[inputs.{n}]" for n in missing))
+
+
+def from_dict(data: dict, base_dir: Path | None = None) -> Config:
+    """Build a validated Config from a parsed TOML document (missing keys take defaults)."""
+    cfg = Config(base_dir=base_dir)
+    for key, table in data.items():
+        if key == "inputs":
+            if not isinstance(table, dict):
+                raise ConfigError("[inputs] must be a table of [inputs.NAME] tables")
+            for name, sub in table.items():
+                if name not in INPUT_NAMES:
+                    raise ConfigError(f"unknown input [inputs.{name}]{_did_you_mean(name, INPUT_NAMES)};"
+                                      f" known: {', '.join(INPUT_NAMES)}")
+                # A user table replaces our default mapping for that input entirely.
+                m = InputMapping(min=-math.inf, max=math.inf)
+                cfg.inputs[name] = _fill(InputMapping, f"inputs.{name}", sub, base=m)
+        elif key in _SECTIONS:
+            _fill(_SECTIONS[key], key, table, base=getattr(cfg, key))
+        else:
+            raise ConfigError(f"unknown section [{key}]{_did_you_mean(key, list(_SECTIONS) + ['inputs'])}")
+    _validate(cfg)
+    return cfg
+
+
+def load(path: str | Path | None) -> Config:
+    """Load and validate a TOML file; ``None`` gives the defaults (our own DBCs, virtual bus)."""
+    if path is None:
+        cfg = Config()
+        _validate(cfg)
+        return cfg
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"cannot read config {p}: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"config {p} is not UTF-8 text") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"config {p} is not valid TOML: {e}") from None
+    return from_dict(data, base_dir=p.resolve().parent)
+
+
+def to_dict(cfg: Config) -> dict:
+    out: dict[str, Any] = {}
+    for key in ("can", "gnss", "vehicle", "estimator", "daemon"):
+        out[key] = dataclasses.asdict(getattr(cfg, key))
+    inputs = {}
+    for name in INPUT_NAMES:
+        d = dataclasses.asdict(cfg.inputs[name])
+        d = {k: v for k, v in d.items()
+             if not ((k == "signals" and not v) or (k == "signal" and not v)
+                     or (k in ("min", "max") and math.isinf(v)))}
+        inputs[name] = d
+    out["inputs"] = inputs
+    return out
+
+
+def to_toml(cfg: Config) -> str:
+    return tomli_w.dumps(to_dict(cfg))

@@ -1,0 +1,74 @@
+"""Typed, timestamped samples: the only things that flow into the estimator core.
+
+Everything here is already in SI units and ISO 8855 axes (x forward, y left, z up, yaw rate
+positive turning left). Conversion from DBC physical values / NMEA / UBX happens once, at the
+edge (``signals.py``, ``gnss/``), never inside the estimator.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+#: The scalar inputs the estimator understands (the names of the ``[inputs.NAME]`` tables).
+INPUT_NAMES = (
+    "wheel_speed_fl",
+    "wheel_speed_fr",
+    "wheel_speed_rl",
+    "wheel_speed_rr",
+    "steering_wheel_angle",
+    "yaw_rate",
+    "accel_x",
+    "accel_y",
+)
+
+#: Integer index of each input, used by the estimator's fast path.
+INPUT_INDEX = {name: i for i, name in enumerate(INPUT_NAMES)}
+
+
+class InputSample(NamedTuple):
+    """One scalar sensor value from CAN, in SI / ISO 8855, stamped with its receive time.
+
+    ``t`` is seconds on the input time base (the log's clock in replay, the monotonic clock live).
+    ``index`` is ``INPUT_INDEX[name]``. Units: wheel speeds m/s (ground speed of that wheel
+    computed with the configured wheel radius), steering-wheel angle rad (positive left),
+    yaw rate rad/s (positive left), accelerations m/s^2.
+    """
+
+    t: float
+    index: int
+    value: float
+
+
+# GNSS fix types (same numbering as UBX NAV-PVT fixType).
+FIX_NONE = 0
+FIX_DR = 1
+FIX_2D = 2
+FIX_3D = 3
+FIX_GNSS_DR = 4
+FIX_TIME = 5
+
+
+@dataclass(frozen=True, slots=True)
+class GnssSample:
+    """One GNSS velocity solution as received.
+
+    ``t`` is the host receive time (same clock as the CAN inputs); the fix is valid earlier, at
+    ``t - latency``; the estimator owns the latency estimate. Velocities are of the antenna,
+    north/east in m/s. ``speed_acc_mps`` is the receiver's 1-sigma speed accuracy, or NaN when
+    the protocol does not report it (NMEA RMC/VTG). ``fix_ok`` is the receiver's own validity
+    (UBX gnssFixOK flag / NMEA status 'A' and mode not 'N').
+    """
+
+    t: float
+    vel_n_mps: float
+    vel_e_mps: float
+    speed_acc_mps: float
+    fix_type: int
+    fix_ok: bool
+    num_sv: int = 0
+    protocol: str = ""  # "ubx" | "nmea"
+    fix_time_utc_s: float = float("nan")  # receiver's epoch (UTC seconds) when known
+    head_acc_rad: float = float("nan")
+    lat_deg: float = float("nan")
+    lon_deg: float = float("nan")
+    h_acc_m: float = float("nan")
