@@ -92,7 +92,7 @@ class VehicleSettings:
 
 @dataclass
 class InputMapping:
-    message: Any = ""  # message name or frame id (int)
+    message: Any = None  # message name or frame id (int); None: not given (any type passes _coerce)
     signal: str = ""
     signals: list = field(default_factory=list)
     scale: float = 1.0
@@ -133,7 +133,7 @@ class EstimatorSettings:
     gnss_gate_sigma: float = 5.0
     # process noise (continuous-time spectral densities)
     accel_noise_mps2: float = 0.35
-    yaw_rate_noise_radps: float = 0.004
+    yaw_rate_noise_radps: float = 0.0005
     yaw_rate_bias_walk: float = 2e-5
     accel_bias_walk: float = 1.5e-3
     wheel_scale_walk: float = 2e-5

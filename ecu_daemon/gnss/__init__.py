@@ -1,0 +1,9 @@
+"""GNSS input: receiver byte stream (UBX NAV-PVT, NMEA RMC/VTG/GGA/GST) -> GnssSample.
+
+* ``stream.GnssStreamParser`` -- framing, checksums, auto-detection, counters (the entry point).
+* ``ubx`` / ``nmea`` -- message content -> SI samples (unit conversions happen there, once).
+* ``logfile`` -- the GNSS capture log format (read, write, replay to samples).
+* ``encode`` -- realistic receiver output for the simulator and tests.
+"""
+from .logfile import GnssLogError, GnssLogWriter, read_gnss_log, samples_from_log  # noqa: F401
+from .stream import STAT_KEYS, GnssStreamParser  # noqa: F401

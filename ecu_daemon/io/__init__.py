@@ -1,0 +1,11 @@
+"""The imperative shell of the live daemon: everything that touches a clock, a socket or a tty.
+
+``can_bus``   python-can bus, asyncio reception, kernel time -> monotonic, error frames, bus-off TX gate
+``serial_port``  GNSS tty in the event loop, receive timestamps, unplug / reconnect
+``tick``      the 6 ms thread on absolute deadlines, lateness statistics
+``health``    the Diagnostics snapshot assembled from all the parts
+``recorder``  ``--record DIR``: replayable capture of what was received
+``state_store``  atomic persistence of the learned quantities
+``notify``    systemd READY / WATCHDOG / STATUS / STOPPING
+``logging_setup``  journald-friendly, rate-limited stderr logging
+"""

@@ -1,0 +1,91 @@
+"""Command line: run | replay | demo | show-config | evaluate | simulate.
+
+Each subcommand's module contributes its own options (``add_arguments``) and entry point
+(``main(args) -> int``) and is imported lazily, so ``show-config`` does not pay for numpy or
+python-can. Every expected failure (bad config, unreadable file) ends as one line on stderr and a
+non-zero exit status, never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__
+
+#: subcommand -> (module, help)
+SUBCOMMANDS = {
+    "run": ("ecu_daemon.daemon", "run the live daemon on a CAN bus and a GNSS serial port"),
+    "replay": ("ecu_daemon.replay", "run the estimator offline on a CAN log (+ GNSS capture)"),
+    "demo": ("ecu_daemon.demo", "live daemon on a built-in simulated drive (virtual bus + pseudo-terminal)"),
+    "show-config": ("ecu_daemon.cli", "print the effective configuration as TOML"),
+    "evaluate": ("ecu_daemon.evaluate", "score a replay CSV against simulator truth, with plots"),
+    "simulate": ("ecu_daemon.sim.cli", "simulate a drive: CAN log, GNSS capture, truth CSV"),
+}
+
+
+class UserError(Exception):
+    """An expected failure reported as one line (bad file, bad option)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:  # show-config
+    parser.add_argument("--config", "-C", help="TOML configuration file (default: built-in defaults)")
+
+
+def main_show_config(args: argparse.Namespace) -> int:
+    from . import config
+
+    cfg = config.load(args.config)
+    sys.stdout.write(config.to_toml(cfg))
+    return 0
+
+
+def build_parser() -> tuple[argparse.ArgumentParser, dict]:
+    parser = argparse.ArgumentParser(prog="ecu-daemon", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"ecu-daemon {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    entries = {}
+    for name, (modname, help_) in SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=help_, description=help_)
+        if name == "show-config":
+            add_arguments(p)
+            entries[name] = main_show_config
+            continue
+        try:
+            mod = importlib.import_module(modname)
+        except ImportError as e:  # a module still missing must not break the other commands
+            entries[name] = _unavailable(name, e)
+            continue
+        mod.add_arguments(p)
+        entries[name] = mod.main
+    return parser, entries
+
+
+def _unavailable(name, err):
+    def fail(args):
+        raise UserError(f"'{name}' is not available: {err}")
+
+    return fail
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .config import ConfigError
+
+    parser, entries = build_parser()
+    args = parser.parse_args(argv)
+    if not args.command:
+        parser.print_help()
+        return 2
+    try:
+        return int(entries[args.command](args) or 0)
+    except (ConfigError, UserError) as e:
+        print(f"ecu-daemon {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,571 @@
+"""``ecu-daemon run``: the live daemon, the imperative shell around the pure estimator.
+
+Threads and data flow::
+
+    event loop (asyncio, main thread)                 tick thread (io/tick.py)
+    ---------------------------------                 ------------------------
+    CAN frame  -> ClockMapper -> SignalDecoder --+    every 6 ms at k*dt + grace:
+    GNSS bytes -> stamp -> GnssStreamParser -----+--> drain samples (time order) -> Estimator
+                                                 |    advance_to(k*dt) -> OutputEncoder -> bus.send
+    housekeeping (20 Hz): diagnostics snapshot <-+    WATCHDOG=1
+      recording, CSV, STATUS=, state persistence <--- estimates / sent frames (deque)
+
+The estimator is owned by the tick thread alone; the loop hands it samples through a deque
+(append/popleft are atomic), so there is no lock on the hot path. Samples carry receive times
+on the monotonic clock (CAN: kernel timestamps mapped once, see ``io/can_bus.py``; GNSS: time of
+the read), rounded to 1 us so that the recording replays to the same times.
+
+Live/replay equivalence: step k of the estimator uses the samples with t <= k*dt in both runs,
+on the same clock and the same grid. Live, the step runs ``grace`` (1 ms) after its time; a
+sample that reaches the tick thread after its step ran is applied at the next step instead
+(``late_samples``, counted here and by the estimator). That count is the only source of
+difference between ``estimates.csv`` of a recording and ``ecu-daemon replay`` of it.
+"""
+from __future__ import annotations
+
+import argparse
+import asyncio
+import gc
+import logging
+import math
+import os
+import signal
+import sys
+import threading
+import time
+import tomllib
+from collections import deque
+from pathlib import Path
+
+import can
+
+from . import config as config_mod
+from .cli import UserError
+from .config import Config, ConfigError
+from .diagnostics import Diagnostics
+from .estimator import Estimate, Estimator
+from .estimator.estimate import STATUS_INPUT_STALE
+from .gnss.stream import GnssStreamParser
+from .io import health as health_mod
+from .io.can_bus import CanIO, resolve_bus_config
+from .io.logging_setup import setup_logging
+from .io.notify import SystemdNotifier
+from .io.serial_port import GnssSerial
+from .io.state_store import StateFileError, load_state, save_state
+from .io.tick import TickStats, TickThread
+from .outputs import OutputEncoder
+from .samples import GnssSample, InputSample
+from .signals import SignalDecoder
+
+log = logging.getLogger("ecu_daemon.daemon")
+
+INPUT_GRACE_S = 0.001  # the step for time T runs at T + grace: frames stamped <= T get there first
+HOUSEKEEPING_S = 0.05
+DIAG_S = 0.05
+FLUSH_S = 1.0
+STATUS_S = 5.0
+PERSIST_S = 60.0
+SWITCH_INTERVAL_S = 0.0005  # GIL hand-over: the tick thread waits at most this for a busy loop
+
+
+def no_estimate(t: float, cfg: Config) -> Estimate:
+    """What is published before the estimator has its first sample: invalid, calibration = priors."""
+    n = math.nan
+    v = cfg.vehicle
+    return Estimate(t, n, n, n, n, n, n, n, n, n, n, n, n, n, n, n, cfg.gnss.delay_s, 1.0, 0.0,
+                    v.cornering_stiffness_front_n_per_rad, v.cornering_stiffness_rear_n_per_rad,
+                    False, False, False, False, STATUS_INPUT_STALE, 0, 0, 0)
+
+
+class Daemon:
+    """The live daemon; also the engine of ``ecu-daemon demo`` and the integration tests.
+
+    ``clock`` is the monotonic time base of everything (the demo passes a ScaledClock and the
+    matching ``speed``); ``estimate_sink(list[Estimate])`` is called in the loop thread with
+    every batch of estimates (the demo's live view).
+    """
+
+    def __init__(self, cfg: Config, *, bus_config: dict | None = None, record_dir: str | Path | None = None,
+                 clock=time.monotonic, speed: float = 1.0, notifier: SystemdNotifier | None = None,
+                 estimate_sink=None, input_grace_s: float = INPUT_GRACE_S) -> None:
+        self.cfg = cfg
+        self.bus_config = dict(bus_config) if bus_config else {"interface": cfg.can.interface,
+                                                                "channel": cfg.can.channel}
+        self.record_dir = record_dir
+        self.clock = clock
+        self.speed = speed
+        self.notifier = notifier or SystemdNotifier()
+        self.estimate_sink = estimate_sink
+        self.grace_s = input_grace_s
+        self.dt = cfg.estimator.dt_s
+        # live state, read by tests / demo / status
+        self.tick_stats = TickStats()
+        self.diag = Diagnostics()
+        self.latest: Estimate | None = None
+        self.late_samples = 0
+        self.samples_pushed = 0
+        self.frames_sent = 0
+        self.steps = 0
+        self.running = False
+        self.ready = threading.Event()
+        self.stopped = threading.Event()
+        self.learned_restored = False
+        # internals
+        self._samples: deque = deque()
+        self._out: deque = deque()
+        self._last_step_t = -math.inf
+        self._learned_req = False
+        self._learned_snap: dict | None = None
+        self._stop_evt: asyncio.Event | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wd_next = 0.0
+        self._wd_interval = self.notifier.watchdog_s / 3.0 if self.notifier.watchdog_s > 0 else 0.0
+        self._gnss_last: GnssSample | None = None
+        self._gnss_silent = False
+        self._stale_mask: dict = {}
+        self.estimator = None
+        self.decoder = None
+        self.encoder = None
+        self.canio: CanIO | None = None
+        self.serial: GnssSerial | None = None
+        self.parser: GnssStreamParser | None = None
+        self.recorder = None
+        self.tick: TickThread | None = None
+        self.cpu = health_mod.CpuMeter()
+
+    # ----------------------------------------------------------------------------- lifecycle
+    def request_stop(self) -> None:
+        """Thread-safe: ask the daemon to shut down cleanly (what SIGTERM/SIGINT do)."""
+        loop, evt = self._loop, self._stop_evt
+        if loop is None or evt is None:
+            return
+        if threading.current_thread() is threading.main_thread() and _running_loop() is loop:
+            evt.set()
+        else:
+            loop.call_soon_threadsafe(evt.set)
+
+    async def run(self, duration: float | None = None) -> int:
+        self._loop = loop = asyncio.get_running_loop()
+        self._stop_evt = asyncio.Event()
+        handlers = self._install_signal_handlers(loop)
+        old_switch = sys.getswitchinterval()
+        try:
+            self._setup()
+            # Everything allocated so far (modules, DBCs, config) lives as long as the process:
+            # take it out of the cyclic GC's scans so a full collection does not stall the tick.
+            gc.collect()
+            gc.freeze()
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
+            self._start(loop)
+            if duration is not None:
+                loop.call_later(duration / self.speed, self.request_stop)
+            self.running = True
+            self.ready.set()
+            self.notifier.ready(f"running on {self._bus_name()}")
+            log.info("ecu-daemon running: CAN %s, GNSS %s, %d Hz estimator%s", self._bus_name(),
+                     self.cfg.gnss.port or "off", round(1 / self.dt),
+                     f", recording into {self.record_dir}" if self.recorder else "")
+            await self._housekeeping()
+        finally:
+            self.running = False
+            self._shutdown()
+            sys.setswitchinterval(old_switch)
+            self._restore_loop_priority()
+            gc.unfreeze()
+            for sig in handlers:
+                loop.remove_signal_handler(sig)
+            self.stopped.set()
+        return 0
+
+    def _install_signal_handlers(self, loop) -> list:
+        done = []
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            try:
+                loop.add_signal_handler(sig, self._on_signal, sig)
+                done.append(sig)
+            except (ValueError, RuntimeError, NotImplementedError):
+                pass  # not the main thread (tests, embedding): the caller stops us
+        return done
+
+    def _on_signal(self, sig) -> None:
+        log.info("%s received: shutting down", signal.Signals(sig).name)
+        self._stop_evt.set()
+
+    def _bus_name(self) -> str:
+        return f"{self.bus_config.get('interface')}:{self.bus_config.get('channel')}"
+
+    def _setup(self) -> None:
+        cfg = self.cfg
+        learned = self._restore_learned()
+        self.decoder = SignalDecoder(cfg)
+        self.encoder = OutputEncoder(cfg)
+        self.estimator = Estimator(cfg, learned)
+        if self.record_dir:
+            from .io.recorder import Recorder
+            port = Path(cfg.gnss.port or "gnss")
+            self.recorder = Recorder(self.record_dir, can_channel=str(self.bus_config.get("channel") or "can0"),
+                                     gnss_port=port.parent.name + port.name if port.name.isdigit() else port.name)
+        if cfg.gnss.port:
+            self.parser = GnssStreamParser(cfg.gnss.protocol, cfg.gnss.nmea_speed_acc_mps,
+                                           name=f"GNSS {cfg.gnss.port}",
+                                           raw_sink=self.recorder.on_gnss if self.recorder else None)
+        try:
+            bus = can.Bus(**self.bus_config)
+        except (can.CanError, OSError, ValueError, TypeError, ImportError) as e:
+            if self.recorder:
+                self.recorder.close()
+            raise UserError(f"cannot open CAN bus {self._bus_name()}: {e}") from None
+        self.canio = CanIO(bus, self.decoder.frame_ids, clock=self.clock, on_frame=self._on_frame,
+                           on_error_frame=self._on_error_frame)
+
+    def _restore_learned(self) -> dict | None:
+        path = self.cfg.daemon.state_file
+        if not path:
+            return None
+        try:
+            learned = load_state(path)
+        except StateFileError as e:
+            log.warning("%s; ignoring it and starting from the configured priors", e)
+            return None
+        if learned is not None:
+            self.learned_restored = True
+            log.info("restored learned state from %s", path)
+        return learned
+
+    def _raise_loop_priority(self) -> None:
+        """With ``realtime_priority`` the loop thread runs SCHED_FIFO one below the tick.
+
+        Why: the tick needs the GIL, and a normal-priority loop thread preempted by another
+        process while holding it would make the real-time tick wait for a whole time slice
+        (priority inversion through the GIL). Threads started afterwards (python-can's reader
+        thread for interfaces without a file descriptor) inherit the policy.
+        """
+        prio = self.cfg.daemon.realtime_priority
+        if prio <= 0 or not hasattr(os, "sched_setscheduler"):
+            return
+        try:
+            self._old_sched = (os.sched_getscheduler(0), os.sched_getparam(0))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(max(1, prio - 1)))
+        except OSError as e:
+            self._old_sched = None
+            log.warning("cannot use SCHED_FIFO for the event loop (%s); running without it", e.strerror or e)
+
+    def _restore_loop_priority(self) -> None:
+        if getattr(self, "_old_sched", None):
+            try:
+                os.sched_setscheduler(0, *self._old_sched)
+            except OSError:
+                pass
+            self._old_sched = None
+
+    def _start(self, loop) -> None:
+        self._raise_loop_priority()
+        self.canio.start(loop)
+        if self.parser is not None:
+            self.serial = GnssSerial(self.cfg.gnss.port, self.cfg.gnss.baudrate, on_data=self._on_gnss_bytes,
+                                     clock=self.clock)
+            self.serial.start(loop)
+        self.tick = TickThread(self.dt, self._on_tick, offset_s=self.grace_s, clock=self.clock,
+                               speed=self.speed, realtime_priority=self.cfg.daemon.realtime_priority,
+                               stats=self.tick_stats)
+        self.tick.start()
+
+    def _shutdown(self) -> None:
+        self.notifier.stopping()
+        if self.tick is not None:
+            self.tick.stop()  # no more sending from here on
+        if self.canio is not None:
+            self.canio.stop()
+            self.canio.drain()  # frames already received go into the recording too
+        if self.serial is not None:
+            self.serial.drain()  # what the receiver already delivered is not lost
+            self.serial.close()
+        if self.parser is not None:
+            self._samples.extend(self.parser.finish())
+        self._drain_out()
+        if self.recorder is not None:
+            self.recorder.close()
+        self._persist(final=True)
+        if self.canio is not None:
+            self.canio.shutdown()
+        self.notifier.close()
+        if self.tick is None:
+            return  # failed at start-up: the error says it all
+        s = self.tick_stats.snapshot()
+        h = self.canio.health if self.canio else None
+        log.info("stopped after %d ticks: lateness p50 %.0f us, p99 %.0f us, max %.0f us; %d overruns;"
+                 " %d late samples; %d frames sent, %d suppressed, %d tx failures",
+                 s.ticks, s.late_p50_s * 1e6, s.late_p99_s * 1e6, s.late_max_total_s * 1e6, s.overruns,
+                 self.late_samples, h.tx_sent if h else 0, h.tx_suppressed if h else 0,
+                 h.tx_failures if h else 0)
+
+    # ----------------------------------------------------------------------------- loop thread
+    def _on_frame(self, t: float, msg: can.Message) -> None:
+        if self.recorder is not None:
+            self.recorder.on_can(t, msg)
+        samples = self.decoder.decode(t, msg.arbitration_id, msg.data, msg.is_extended_id)
+        if samples:
+            self._samples.extend(samples)
+
+    def _on_error_frame(self, t: float, msg: can.Message) -> None:
+        if self.recorder is not None:  # BusHealth has counted it; the recording keeps it too
+            self.recorder.on_can(t, msg)
+
+    def _on_gnss_bytes(self, t: float, data: bytes) -> None:
+        for s in self.parser.feed(t, data):
+            self._gnss_last = s
+            self._samples.append(s)
+
+    async def _housekeeping(self) -> None:
+        stop = self._stop_evt
+        now = self.clock()
+        next_diag = next_flush = now
+        next_status = now + STATUS_S
+        next_persist = now + PERSIST_S
+        persist_task = None
+        while not stop.is_set():
+            try:
+                await asyncio.wait_for(stop.wait(), HOUSEKEEPING_S)
+            except asyncio.TimeoutError:
+                pass
+            now = self.clock()
+            self._drain_out()
+            if now >= next_diag:
+                next_diag = now + DIAG_S
+                self._update_diagnostics(now)
+            if now >= next_flush:
+                next_flush = now + FLUSH_S
+                if self.recorder is not None:
+                    self.recorder.flush()
+                self.canio.poll_library_state()
+                self._check_gnss(now)
+            if now >= next_status:
+                next_status = now + STATUS_S
+                self.notifier.status(self.diag.summary())
+            if self._learned_snap is not None:
+                snap, self._learned_snap = self._learned_snap, None
+                if persist_task is None or persist_task.done():
+                    persist_task = asyncio.get_running_loop().run_in_executor(None, self._save, snap)
+            if now >= next_persist:
+                next_persist = now + PERSIST_S
+                self._learned_req = True
+        if persist_task is not None:
+            await persist_task
+
+    def _drain_out(self) -> None:
+        out = self._out
+        rec = self.recorder
+        batch = []
+        while out:
+            kind, payload = out.popleft()
+            if kind == "est":
+                batch.extend(payload)
+                if rec is not None:
+                    for e in payload:
+                        rec.on_estimate(e)
+            elif rec is not None:
+                t, msgs = payload
+                for m in msgs:
+                    rec.on_output(t, m)
+        if batch:
+            self.latest = batch[-1]
+            if self.estimate_sink is not None:
+                self.estimate_sink(batch)
+
+    def _update_diagnostics(self, now: float) -> None:
+        stale = self.decoder.check_stale(now)
+        self._stale_mask = stale_validity_mask(stale)
+        est = self.latest
+        delay = est.gnss_delay_s if est is not None else self.cfg.gnss.delay_s
+        self.diag = health_mod.build_diagnostics(
+            now, decoder=self.decoder, gnss_stats=self.parser.stats if self.parser else None,
+            gnss_last=self._gnss_last, gnss_connected=bool(self.serial and self.serial.connected),
+            gnss_delay_s=delay, bus=self.canio.health, tick=self.tick_stats.snapshot(),
+            cpu_pct=self.cpu.update())
+
+    def _check_gnss(self, now: float) -> None:
+        if self.serial is None or not self.serial.connected:
+            return
+        last = self._gnss_last.t if self._gnss_last is not None else None
+        silent = last is None or now - last > self.cfg.gnss.timeout_s
+        if silent and not self._gnss_silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s:
+            log.warning("GNSS: no velocity solution from %s for more than %.1f s", self.cfg.gnss.port,
+                        self.cfg.gnss.timeout_s)
+        elif self._gnss_silent and not silent:
+            log.info("GNSS: receiving velocity solutions again")
+        self._gnss_silent = silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s
+
+    def _save(self, learned: dict) -> None:
+        path = self.cfg.daemon.state_file
+        if not path or not learned:
+            return
+        try:
+            save_state(path, learned, saved_at=time.time())
+        except (OSError, TypeError, ValueError) as e:
+            log.error("cannot save learned state to %s: %s", path, getattr(e, "strerror", None) or e)
+
+    def _persist(self, final: bool = False) -> None:
+        if self.estimator is None or (self.tick is not None and self.tick.is_alive()):
+            return
+        self._save(self.estimator.learned_state())
+
+    # ----------------------------------------------------------------------------- tick thread
+    def _on_tick(self, k: int, now: float) -> None:
+        est = self.estimator
+        q = self._samples
+        if q:
+            batch = []
+            pop = q.popleft
+            try:
+                while True:
+                    batch.append(pop())
+            except IndexError:
+                pass
+            batch.sort(key=_sample_t)
+            last = self._last_step_t
+            for s in batch:
+                if s.t <= last:
+                    self.late_samples += 1
+                if type(s) is InputSample:
+                    est.push_input(s)
+                else:
+                    est.push_gnss(s)
+            self.samples_pushed += len(batch)
+        t_step = k * self.dt
+        ests = est.advance_to(t_step)
+        self._last_step_t = t_step
+        if self._learned_req:
+            self._learned_req = False
+            self._learned_snap = est.learned_state()
+        if self._wd_interval:
+            rt = time.monotonic()
+            if rt >= self._wd_next:
+                self._wd_next = rt + self._wd_interval
+                self.notifier.watchdog()
+        if ests:
+            self.steps += len(ests)
+            self._out.append(("est", ests))
+        if not self.cfg.can.send_outputs:
+            return
+        diag = self.diag
+        mask = self._stale_mask
+        if not ests:
+            ests = [no_estimate(t_step, self.cfg)]
+        elif mask:
+            ests = [e._replace(status=e.status | STATUS_INPUT_STALE, **mask) for e in ests]
+        if len(ests) == 1:
+            frames = self.encoder.frames(k, ests[0], diag)
+        else:  # catching up: every step's frames are computed (counters advance), newest per id sent
+            by_id = {}
+            for e in ests:
+                for m in self.encoder.frames(round(e.t / self.dt), e, diag):
+                    by_id[m.arbitration_id] = m
+            frames = list(by_id.values())
+        sent = []
+        send = self.canio.send
+        for m in frames:
+            if send(m):
+                sent.append(m)
+        if sent:
+            self.frames_sent += len(sent)
+            if self.recorder is not None:
+                self._out.append(("out", (t_step, sent)))
+
+
+_IMU = ("yaw_rate", "accel_x", "accel_y")
+_WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
+_ALL_INVALID = {"sideslip_valid": False, "heading_valid": False, "velocity_valid": False, "biases_valid": False}
+
+
+def stale_validity_mask(stale: list[str]) -> dict:
+    """Validity flags to clear on the published frames while these inputs are stale.
+
+    The decoder declares an input stale after 10 missed cycles of its observed rate (or its
+    ``timeout_s``). IMU -> everything; a wheel speed -> velocity and sideslip; steering ->
+    sideslip (the single-track model needs it). The estimator's own flags still apply on top.
+    """
+    if not stale:
+        return {}
+    s = set(stale)
+    if s.intersection(_IMU):
+        return dict(_ALL_INVALID)
+    mask = {}
+    if s.intersection(_WHEELS):
+        mask.update(velocity_valid=False, sideslip_valid=False)
+    if "steering_wheel_angle" in s:
+        mask["sideslip_valid"] = False
+    return mask
+
+
+def _sample_t(s) -> float:
+    return s.t
+
+
+def _running_loop():
+    try:
+        return asyncio.get_running_loop()
+    except RuntimeError:
+        return None
+
+
+# --------------------------------------------------------------------------------- command line
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from can.cli import add_bus_arguments
+
+    parser.add_argument("--config", "-C", help="TOML configuration file (default: built-in defaults)")
+    add_bus_arguments(parser, group_title="CAN bus (overrides [can] and python-can's own configuration)")
+    parser.add_argument("--gnss-port", metavar="PORT", help="GNSS serial port (overrides [gnss] port;"
+                        " 'none' disables GNSS)")
+    parser.add_argument("--record", metavar="DIR", help="record the received CAN frames and GNSS messages"
+                        " (replayable), the estimates and the sent frames into DIR")
+    parser.add_argument("--state-file", metavar="FILE", help="learned-state file (overrides [daemon] state_file;"
+                        " 'none' disables persistence)")
+    parser.add_argument("--no-send", action="store_true", help="listen only: do not transmit estimates")
+    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    parser.add_argument("--log-level", choices=("debug", "info", "warning", "error"),
+                        help="overrides [daemon] log_level")
+
+
+def explicit_can_keys(config_path: str | None) -> set[str]:
+    """The keys the user actually wrote in ``[can]`` (they beat python-can's own configuration)."""
+    if not config_path:
+        return set()
+    try:
+        with open(config_path, "rb") as f:
+            can_table = tomllib.load(f).get("can", {})
+    except (OSError, tomllib.TOMLDecodeError):
+        return set()
+    return set(can_table) if isinstance(can_table, dict) else set()
+
+
+def apply_overrides(cfg: Config, args: argparse.Namespace) -> None:
+    if getattr(args, "gnss_port", None):
+        cfg.gnss.port = "" if args.gnss_port.lower() == "none" else args.gnss_port
+    if getattr(args, "state_file", None):
+        cfg.daemon.state_file = "" if args.state_file.lower() == "none" else args.state_file
+    if getattr(args, "no_send", False):
+        cfg.can.send_outputs = False
+    if getattr(args, "log_level", None):
+        cfg.daemon.log_level = args.log_level
+    if getattr(args, "duration", None) is not None and not args.duration > 0:
+        raise ConfigError("--duration must be a positive number of seconds")
+
+
+def bus_overrides(args: argparse.Namespace) -> dict:
+    out = {}
+    for key in ("interface", "channel", "bitrate", "fd", "data_bitrate", "timing"):
+        if key in args:
+            out[key] = getattr(args, key)
+    if "bus_kwargs" in args:
+        out.update(args.bus_kwargs)
+    return out
+
+
+def main(args: argparse.Namespace) -> int:
+    cfg = config_mod.load(args.config)
+    apply_overrides(cfg, args)
+    setup_logging(cfg.daemon.log_level)
+    bus_config = resolve_bus_config(cfg.can, explicit_can_keys(args.config), bus_overrides(args))
+    log.info("CAN bus: %s", ", ".join(f"{k}={v}" for k, v in sorted(bus_config.items())))
+    daemon = Daemon(cfg, bus_config=bus_config, record_dir=args.record)
+    return asyncio.run(daemon.run(duration=args.duration))

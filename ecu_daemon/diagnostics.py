@@ -1,0 +1,77 @@
+"""The daemon's health snapshot, as carried by the EST_DIAG frame of the output DBC.
+
+The shell fills one :class:`Diagnostics` from the input decoder, the GNSS reader, the CAN bus and
+the tick thread; ``outputs.py`` encodes it (one multiplexed page per frame). Plain numbers in
+engineering units; ``inf``/``nan`` mean "never" / "unknown" and are encoded as such.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from .samples import INPUT_NAMES
+
+# CAN controller state (EST_DIAG.CAN_BUS_STATE); same numbering as io/can_bus.py (ordinal = severity)
+BUS_ACTIVE = 0
+BUS_WARNING = 1
+BUS_PASSIVE = 2
+BUS_OFF = 3
+BUS_STATE_NAMES = {BUS_ACTIVE: "active", BUS_WARNING: "warning", BUS_PASSIVE: "passive", BUS_OFF: "bus-off"}
+
+#: error kinds counted per input by the decoder (``signals.InputHealth.errors``)
+ERROR_KINDS = ("dlc", "decode", "range", "counter", "checksum", "stale")
+
+
+@dataclass(slots=True)
+class InputDiagnostics:
+    """Health of one ``[inputs.NAME]`` signal. Error counts are cumulative (wrap on the wire)."""
+
+    age_ms: float = math.inf  # since the last good sample; inf = never received
+    rate_hz: float = 0.0  # good samples per second
+    dlc_errors: int = 0
+    decode_errors: int = 0
+    range_errors: int = 0  # out of [min, max] or not finite
+    counter_errors: int = 0
+    checksum_errors: int = 0
+    stale_count: int = 0  # times the input went stale
+
+
+def _all_inputs() -> dict[str, InputDiagnostics]:
+    return {name: InputDiagnostics() for name in INPUT_NAMES}
+
+
+@dataclass(slots=True)
+class Diagnostics:
+    """One health snapshot of the whole daemon."""
+
+    inputs: dict[str, InputDiagnostics] = field(default_factory=_all_inputs)  # keyed by INPUT_NAMES
+    gnss_fix_type: int = 0  # samples.FIX_* numbering
+    gnss_num_sv: int = 0
+    gnss_speed_acc_mps: float = math.nan  # receiver's 1-sigma speed accuracy; nan = unknown
+    gnss_receive_age_ms: float = math.inf  # since the last GNSS sample arrived; inf = never
+    gnss_latency_ms: float = math.nan  # estimator's current latency estimate
+    gnss_checksum_errors: int = 0
+    gnss_parse_errors: int = 0
+    gnss_serial_connected: bool = False
+    can_bus_state: int = BUS_ACTIVE
+    can_error_frames: int = 0
+    can_tx_failures: int = 0
+    tick_late_p50_us: float = 0.0
+    tick_late_p99_us: float = 0.0
+    tick_late_max_us: float = 0.0
+    tick_overruns: int = 0
+    cpu_load_pct: float = 0.0  # percent of one core
+
+    def summary(self) -> str:
+        """One human line (for systemd ``STATUS=`` and logs)."""
+        stale = [n for n, d in self.inputs.items() if not d.age_ms < 1000.0]
+        errs = sum(d.dlc_errors + d.decode_errors + d.range_errors + d.counter_errors + d.checksum_errors
+                   for d in self.inputs.values())
+        gnss_age = "never" if math.isinf(self.gnss_receive_age_ms) else f"{self.gnss_receive_age_ms:.0f} ms"
+        return (f"inputs {len(self.inputs) - len(stale)}/{len(self.inputs)} fresh"
+                + (f" (stale: {', '.join(stale)})" if stale else "")
+                + f", input errors {errs}; gnss fix {self.gnss_fix_type} sv {self.gnss_num_sv} age {gnss_age}"
+                + f"{'' if self.gnss_serial_connected else ' (port closed)'}"
+                + f"; can {BUS_STATE_NAMES.get(self.can_bus_state, '?')} err {self.can_error_frames}"
+                + f" txfail {self.can_tx_failures}; tick p99 {self.tick_late_p99_us:.0f} us"
+                + f" overruns {self.tick_overruns}; cpu {self.cpu_load_pct:.0f}%")

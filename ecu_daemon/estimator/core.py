@@ -1,0 +1,394 @@
+"""The fixed-step estimator: samples in, one Estimate per 6 ms step out.
+
+Design (one filter, several aiding sources, see the package docstring for the contract):
+
+* ``kinematic.py`` predicts [vx, vy, heading, b_r, b_ax, b_ay, k_w] from the IMU every step;
+* ``fusion/wheel_speed.py`` corrects vx (and the wheel scale) from the undriven wheels;
+* ``fusion/single_track.py`` adds the single-track model's lateral velocity as a pseudo-measurement
+  whose weight follows its conditioning, and adapts the cornering stiffness;
+* ``fusion/standstill.py`` zero-velocity and gyro-bias-at-rest updates;
+* ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
+  history (``history.py``), and ``latency.py`` identifies the latency online.
+
+Steps sit on the absolute grid t_k = k * dt, so live and replay runs of the same samples produce
+the same steps. Everything here is deterministic floating-point arithmetic on the inputs.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from ..config import Config
+from ..samples import INPUT_INDEX, GnssSample, InputSample
+from . import estimate as est_mod
+from .estimate import Estimate
+from .fusion.gnss_velocity import ALIGN_SPEED, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
+from .fusion.single_track import SingleTrackFusion
+from .fusion.standstill import StandstillFusion
+from .fusion.wheel_speed import WheelSpeedFusion
+from .history import (AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_THETA, AUX_WHEEL,
+                      StepHistory)
+from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
+from .latency import LatencyEstimator
+
+I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
+                                                   "wheel_speed_rl", "wheel_speed_rr"))
+I_STEER = INPUT_INDEX["steering_wheel_angle"]
+I_YAW = INPUT_INDEX["yaw_rate"]
+I_AX = INPUT_INDEX["accel_x"]
+I_AY = INPUT_INDEX["accel_y"]
+WHEELS = (I_FL, I_FR, I_RL, I_RR)
+
+MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
+SIDESLIP_STD_VALID = math.radians(1.0)
+HEADING_STD_VALID = math.radians(2.0)
+GNSS_FRESH_S = 1.0
+LEARNED_VERSION = 1
+
+
+class Estimator:
+    def __init__(self, cfg: Config, learned: dict | None = None):
+        es = cfg.estimator
+        veh = cfg.vehicle
+        gn = cfg.gnss
+        self.cfg = cfg
+        self.dt = dt = es.dt_s
+        self.model = KinematicModel(dt, es.accel_noise_mps2, es.yaw_rate_noise_radps,
+                                    es.yaw_rate_bias_walk, es.accel_bias_walk, es.wheel_scale_walk)
+        self.hist = StepHistory(int(math.ceil((gn.max_delay_s + 0.3) / dt)) + 2)
+        self.delay_compensation = es.delay_compensation
+        learned = self._check_learned(learned)
+        self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
+                                        gn.max_delay_s, gn.estimate_delay)
+        self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
+                                       gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
+        self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
+        self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
+        self.single_track = SingleTrackFusion(
+            veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
+            veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
+            es.adapt_cornering_stiffness, learned)
+        self.steer_ratio = veh.steering_ratio
+        self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
+        self._learned0 = learned
+        # input timeouts (s): configured, else generous defaults for 50-100 Hz CAN signals
+        self.timeouts = [0.25] * len(INPUT_INDEX)
+        for name, m in cfg.inputs.items():
+            if m.timeout_s > 0:
+                self.timeouts[INPUT_INDEX[name]] = m.timeout_s
+        self.held = [math.nan] * len(INPUT_INDEX)
+        self.held_t = [-math.inf] * len(INPUT_INDEX)
+        self.queue: deque = deque()
+        self.k: int | None = None
+        self.initialized = False
+        self.aligned = False
+        self.wheel_new = False
+        self.theta = 0.0
+        self.r_lp = 0.0
+        self.rdot = 0.0
+        self.last_gnss_fused_t = -math.inf
+        self.last_gnss_rejected = False
+        self.late_inputs = 0
+        self.resets = 0
+        self._reset_flag = False
+        self._lp_r = dt / (0.03 + dt)
+        self._lp_rdot = dt / (0.05 + dt)
+
+    # ----------------------------------------------------------------------------------------
+    # public contract
+    def push_input(self, s: InputSample) -> None:
+        self.queue.append(s)
+
+    def push_gnss(self, g: GnssSample) -> None:
+        self.queue.append(g)
+
+    def advance_to(self, t: float) -> list[Estimate]:
+        out: list[Estimate] = []
+        dt = self.dt
+        q = self.queue
+        if self.k is None:
+            if not q:
+                return out
+            self.k = math.ceil(q[0].t / dt - 1e-9)
+        k = self.k
+        while k * dt <= t + 1e-9:
+            tk = k * dt
+            while q and q[0].t <= tk + 1e-9:
+                self._apply(q.popleft(), k)
+            out.append(self._step(k, tk))
+            k += 1
+            self.k = k
+        return out
+
+    def learned_state(self) -> dict:
+        if not self.initialized:
+            return dict(self._learned0)
+        x = self.hist.X[self.hist.slot(self.hist.last)]
+        return {
+            "version": LEARNED_VERSION,
+            "yaw_rate_bias_radps": float(x[BR]),
+            "accel_x_bias_mps2": float(x[BAX]),
+            "accel_y_bias_mps2": float(x[BAY]),
+            "wheel_scale": float(x[KW]),
+            "accel_y_gain": float(x[GAY]),
+            **self.single_track.learned(),
+            "steering_offset_rad": float(self.steer_offset),
+            "gnss_delay_s": float(self.latency.delay_s),
+        }
+
+    # ----------------------------------------------------------------------------------------
+    @staticmethod
+    def _check_learned(learned: dict | None) -> dict:
+        """Keep only finite, plausible learned values (a restored file must not poison the filter)."""
+        if not learned or learned.get("version") != LEARNED_VERSION:
+            return {}
+        limits = {"yaw_rate_bias_radps": 0.1, "accel_x_bias_mps2": 2.0, "accel_y_bias_mps2": 2.0,
+                  "wheel_scale": (0.8, 1.2), "accel_y_gain": 0.2, "kappa_r": (1e-4, 1.0), "kappa_f": (1e-4, 1.0),
+                  "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
+                  "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0)}
+        out = {"version": LEARNED_VERSION}
+        for key, lim in limits.items():
+            v = learned.get(key)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                continue
+            lo, hi = lim if isinstance(lim, tuple) else (-lim, lim)
+            if lo <= v <= hi:
+                out[key] = float(v)
+        return out
+
+    def _apply(self, s, k: int) -> None:
+        if isinstance(s, InputSample):
+            if self.initialized and s.t < (k - 1) * self.dt - 1e-9:
+                self.late_inputs += 1
+            i = s.index
+            self.held[i] = s.value
+            self.held_t[i] = s.t
+            if i in WHEELS:
+                self.wheel_new = True
+        elif isinstance(s, GnssSample):
+            self._on_gnss(s, k)
+
+    def _initialize(self, k: int, wheel_speed: float) -> None:
+        L = self._learned0
+        h = self.hist
+        h.reset(k)
+        i = h.slot(k)
+        x = h.X[i]
+        x[:] = 0.0
+        kw = L.get("wheel_scale", 1.0)
+        x[VX] = wheel_speed * kw if math.isfinite(wheel_speed) else 0.0
+        x[BR] = L.get("yaw_rate_bias_radps", 0.0)
+        x[BAX] = L.get("accel_x_bias_mps2", 0.0)
+        x[BAY] = L.get("accel_y_bias_mps2", 0.0)
+        x[KW] = kw
+        have = "yaw_rate_bias_radps" in L
+        x[GAY] = L.get("accel_y_gain", 0.0)
+        std = np.array([1.0, 0.5, math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3,
+                        0.005 if "wheel_scale" in L else 0.03, 0.02 if "accel_y_gain" in L else 0.05])
+        h.P[i] = np.diag(std ** 2)
+        h.A[i] = np.eye(NX)
+        self.initialized = True
+        self.aligned = False
+
+    def _reset(self, k: int) -> None:
+        """Re-initialise after divergence / non-finite state, keeping what was learned."""
+        self.resets += 1
+        self._reset_flag = True
+        self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
+        self.initialized = False
+
+    # ----------------------------------------------------------------------------------------
+    def _step(self, k: int, t: float) -> Estimate:
+        held = self.held
+        held_t = self.held_t
+        r_m = held[I_YAW]
+        ax_m = held[I_AX]
+        ay_m = held[I_AY]
+        tmo = self.timeouts
+        imu_ok = (t - held_t[I_YAW] <= tmo[I_YAW] and t - held_t[I_AX] <= tmo[I_AX]
+                  and t - held_t[I_AY] <= tmo[I_AY])
+        wheels_ok = all(t - held_t[w] <= tmo[w] for w in WHEELS)
+        wheel_z = self.wheels.measured_speed(held[I_FL], held[I_FR], held[I_RL], held[I_RR]) \
+            if wheels_ok else math.nan
+        if not self.initialized:
+            if not imu_ok:
+                return self._invalid(t)
+            self._initialize(k, wheel_z)
+            self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]
+        h = self.hist
+        i = h.slot(k)
+        if h.last >= h.first:  # predict from the previous step
+            ip = h.slot(k - 1)
+            x = h.X[i]
+            np.copyto(x, h.X[ip])
+            if imu_ok:
+                self.model.predict(x, h.P[ip], h.P[i], r_m, ax_m, ay_m)
+            else:  # hold: no rotation, no acceleration, covariance still grows
+                self.model.predict(x, h.P[ip], h.P[i], x[BR], x[BAX], x[BAY])
+            A = self.model.F.copy()
+        else:
+            x = h.X[i]
+            A = h.A[i].copy()
+        P = h.P[i]
+        r = (r_m - x[BR]) if imu_ok else 0.0
+        ay = (ay_m - x[BAY] - x[GAY] * ay_m) if imu_ok else 0.0
+        ax = (ax_m - x[BAX]) if imu_ok else 0.0
+        dt = self.dt
+        r_lp_prev = self.r_lp
+        self.r_lp += self._lp_r * (r - self.r_lp)
+        self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
+        self.theta += r * dt
+        steer_sw = held[I_STEER]
+        steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
+        delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
+
+        # --- aiding sources at this step -------------------------------------------------
+        status = 0
+        wheels_max = max(abs(held[w]) for w in WHEELS) if wheels_ok else math.inf
+        if self.standstill.detect(wheels_max) and imu_ok:
+            status |= est_mod.STATUS_STANDSTILL
+            for f in self.standstill.fuse(x, P, r_m):
+                A = f @ A
+            r = r_m - x[BR]
+        else:
+            if wheels_ok and self.wheel_new:
+                f = self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax)
+                if f is not None:
+                    A = f @ A
+            if imu_ok:
+                f = self.single_track.fuse(x, P, r, ay, self.rdot)
+                if f is not None:
+                    A = f @ A
+            if steer_ok and imu_ok and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
+                self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
+        self.wheel_new = False
+        h.A[i] = A
+        aux = h.aux[i]
+        aux[AUX_R] = r
+        aux[AUX_AY] = ay
+        aux[AUX_AX] = ax
+        aux[AUX_RDOT] = self.rdot
+        aux[AUX_WHEEL] = wheel_z
+        aux[AUX_THETA] = self.theta
+        aux[AUX_DELTA] = delta
+        h.last = k
+        if k % 64 == 0:
+            P += P.T
+            P *= 0.5
+        if not (np.isfinite(x).all() and P[VX, VX] < 1e4 and P[VY, VY] < 1e4 and P[PSI, PSI] >= 0):
+            self._reset(k)
+            return self._invalid(t)
+        return self._estimate(t, x, P, r, status, imu_ok, wheels_ok)
+
+    def _invalid(self, t: float) -> Estimate:
+        nan = math.nan
+        status = est_mod.STATUS_INPUT_STALE
+        if self._reset_flag:
+            status |= est_mod.STATUS_RESET
+            self._reset_flag = False
+        return Estimate(t, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan,
+                        self.latency.delay_s, nan, self.steer_offset,
+                        self.single_track.cornering_stiffness_front,
+                        self.single_track.cornering_stiffness_rear, False, False, False, False, status,
+                        self.gnss.fused, self.gnss.rejected, self.gnss.late)
+
+    def _estimate(self, t, x, P, r, status, imu_ok, wheels_ok) -> Estimate:
+        vx = x[VX]
+        vy = x[VY]
+        sp2 = vx * vx + vy * vy
+        if sp2 > 0.25:
+            beta = math.atan2(vy, vx)
+            var_b = (vx * vx * P[VY, VY] - 2.0 * vx * vy * P[VX, VY] + vy * vy * P[VX, VX]) / (sp2 * sp2)
+            beta_std = math.sqrt(var_b) if var_b > 0 else 0.0
+        else:
+            beta = 0.0
+            beta_std = math.pi
+        gnss_fresh = t - self.last_gnss_fused_t <= GNSS_FRESH_S
+        if gnss_fresh:
+            status |= est_mod.STATUS_GNSS_FRESH
+        if abs(r) > 0.17:  # 10 deg/s: the two-GPS / kinematic observability rule of 000/003
+            status |= est_mod.STATUS_KINEMATIC_OBSERVABLE
+        else:
+            status |= est_mod.STATUS_MODEL_FALLBACK
+        if not (imu_ok and wheels_ok):
+            status |= est_mod.STATUS_INPUT_STALE
+        if self.aligned:
+            status |= est_mod.STATUS_HEADING_ALIGNED
+        if self.last_gnss_rejected:
+            status |= est_mod.STATUS_GNSS_REJECTED
+        if self._reset_flag:
+            status |= est_mod.STATUS_RESET
+            self._reset_flag = False
+        psi_std = math.sqrt(max(P[PSI, PSI], 0.0))
+        vel_valid = imu_ok and (wheels_ok or gnss_fresh)
+        st = self.single_track
+        return Estimate(
+            t, beta, beta_std, x[PSI], psi_std, vx, vy,
+            math.sqrt(max(P[VX, VX], 0.0)), math.sqrt(max(P[VY, VY], 0.0)),
+            r, x[BR], math.sqrt(max(P[BR, BR], 0.0)), x[BAX], math.sqrt(max(P[BAX, BAX], 0.0)),
+            x[BAY], math.sqrt(max(P[BAY, BAY], 0.0)), self.latency.delay_s, x[KW], self.steer_offset,
+            st.cornering_stiffness_front, st.cornering_stiffness_rear,
+            vel_valid and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
+            imu_ok and self.aligned and psi_std < HEADING_STD_VALID,
+            vel_valid,
+            imu_ok and P[BR, BR] < math.radians(0.2) ** 2,
+            status, self.gnss.fused, self.gnss.rejected, self.gnss.late)
+
+    # ----------------------------------------------------------------------------------------
+    def _on_gnss(self, g: GnssSample, k: int) -> None:
+        """Fuse a GNSS sample received just before step k (history holds steps up to k-1)."""
+        fus = self.gnss
+        h = self.hist
+        if not self.initialized or h.last < h.first:
+            return
+        if not fus.usable(g):
+            fus.rejected += 1
+            self.last_gnss_rejected = True
+            return
+        speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
+        course = fus.course(g)
+        self.latency.observe(k, speed, course, h)
+        delay = self.latency.delay_s if self.delay_compensation else 0.0
+        s, late = h.clamp_step(round((g.t - delay) / self.dt))
+        if late:
+            fus.late += 1
+        if not self.aligned or fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS:
+            ok = fus.fuse_speed(h, s, g)
+            if speed > ALIGN_SPEED:
+                self._align(s, g)
+        else:
+            ok = fus.fuse(h, s, g)
+            if ok:
+                i = h.slot(s)
+                a = h.aux[i]
+                xs = h.X[i]
+                self.single_track.adapt_from(xs[VX], xs[VY], h.P[i][VY, VY], a[AUX_R], a[AUX_AY],
+                                             a[AUX_RDOT], a[AUX_DELTA])
+        self.last_gnss_rejected = not ok
+        if ok:
+            self.last_gnss_fused_t = k * self.dt
+
+    def _align(self, s: int, g: GnssSample) -> None:
+        """Set the heading from the GNSS course at stored step s and carry it to the present."""
+        h = self.hist
+        i = h.slot(s)
+        x = h.X[i]
+        r = h.aux[i, AUX_R]
+        vax = x[VX] - r * self.gnss.lever_y
+        vay = x[VY] + r * self.gnss.lever_x
+        beta_ant = math.atan2(vay, vax)
+        psi = (self.gnss.course(g) + beta_ant) % (2.0 * math.pi)
+        dpsi = psi - x[PSI]
+        speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
+        var = (self.gnss.sigma(g) / speed) ** 2 + h.P[i][VY, VY] / max(vax * vax, 1.0) \
+            + math.radians(0.5) ** 2
+        old = h.oldest()
+        idx = np.arange(old, h.last + 1) % h.n
+        h.X[idx, PSI] = (h.X[idx, PSI] + dpsi) % (2.0 * math.pi)
+        h.P[idx, PSI, :] = 0.0
+        h.P[idx, :, PSI] = 0.0
+        h.P[idx, PSI, PSI] = var
+        self.aligned = True
+        self.gnss.consecutive_rejects = 0

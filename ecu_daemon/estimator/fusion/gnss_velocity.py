@@ -1,0 +1,128 @@
+"""GNSS velocity (north/east of the antenna), fused at its time of validity.
+
+Quality first (fix type, receiver validity, speed accuracy), then the time of validity
+(receive time minus the latency estimate), then an innovation gate (normalised innovation
+squared against chi-square), then the update at the stored step and the shift to the present
+(``history.StepHistory.correct``).
+
+Before the heading is known (after start-up or a reset) the velocity *direction* cannot be
+fused linearly; then only the speed is fused, and the heading is aligned from the GNSS course
+once the car moves fast enough (course = heading - sideslip, clockwise-from-north convention).
+A run of consecutive gate rejections (a real jump, or a diverged filter) re-aligns instead of
+locking the filter out for ever (the NIS lock-out the Yoon thesis warns about).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...samples import GnssSample
+from ..history import AUX_R, StepHistory
+from ..kinematic import NX, PSI, VX, VY, antenna_velocity_ne, gnss_jacobian
+
+ALIGN_SPEED = 4.0  # m/s: course is good to ~ sigma_v / v rad
+MAX_CONSECUTIVE_REJECTS = 10
+# chi-square, 2 degrees of freedom, for a gate of n sigma: exp(-g/2) = tail(n sigma, 1-D)
+CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
+
+
+class GnssVelocityFusion:
+    def __init__(self, lever_x: float, lever_y: float, min_fix_type: int, max_speed_acc: float,
+                 nmea_speed_acc: float, gate_sigma: float):
+        self.lever_x = lever_x
+        self.lever_y = lever_y
+        self.min_fix_type = min_fix_type
+        self.max_speed_acc = max_speed_acc
+        self.nmea_speed_acc = nmea_speed_acc
+        self.gate = CHI2_2DOF.get(gate_sigma, gate_sigma * gate_sigma + 4.0)
+        self.fused = 0
+        self.rejected = 0
+        self.late = 0
+        self.consecutive_rejects = 0
+        self.last_reason = ""
+
+    def sigma(self, g: GnssSample) -> float:
+        acc = g.speed_acc_mps
+        if not math.isfinite(acc):
+            acc = self.nmea_speed_acc
+        return max(acc, 0.02)
+
+    def usable(self, g: GnssSample) -> bool:
+        if not (g.fix_ok and g.fix_type >= self.min_fix_type and g.fix_type != 5):
+            self.last_reason = f"no usable fix (type {g.fix_type})"
+            return False
+        if not (math.isfinite(g.vel_n_mps) and math.isfinite(g.vel_e_mps)):
+            self.last_reason = "non-finite velocity"
+            return False
+        if abs(g.vel_n_mps) > 150 or abs(g.vel_e_mps) > 150:
+            self.last_reason = "implausible velocity"
+            return False
+        acc = g.speed_acc_mps
+        if math.isfinite(acc) and acc > self.max_speed_acc:
+            self.last_reason = f"speed accuracy {acc:.2f} m/s above limit"
+            return False
+        return True
+
+    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample) -> bool:
+        """Speed-only update (heading unknown)."""
+        i = hist.slot(s)
+        x = hist.X[i]
+        P = hist.P[i]
+        r = hist.aux[i, AUX_R]
+        vax = x[VX] - r * self.lever_y
+        vay = x[VY] + r * self.lever_x
+        sp = math.hypot(vax, vay)
+        zs = math.hypot(g.vel_n_mps, g.vel_e_mps)
+        if sp < 0.5:
+            h = np.zeros(NX)
+            h[VX] = 1.0
+        else:
+            h = np.zeros(NX)
+            h[VX] = vax / sp
+            h[VY] = vay / sp
+        sig = self.sigma(g)
+        Ph = P @ h
+        S = float(h @ Ph) + sig * sig
+        y = zs - (sp if sp >= 0.5 else x[VX])
+        if y * y > 25.0 * S and self.consecutive_rejects < MAX_CONSECUTIVE_REJECTS:
+            self.consecutive_rejects += 1
+            self.rejected += 1
+            self.last_reason = "speed innovation gate"
+            return False
+        K = Ph / S
+        hist.correct(s, K * y, np.outer(K, Ph))
+        self.consecutive_rejects = 0
+        self.fused += 1
+        return True
+
+    def fuse(self, hist: StepHistory, s: int, g: GnssSample, gate: bool = True) -> bool:
+        """Full 2-D velocity update at stored step s. Returns False if gated out."""
+        i = hist.slot(s)
+        x = hist.X[i]
+        P = hist.P[i]
+        r = hist.aux[i, AUX_R]
+        vn, ve = antenna_velocity_ne(x, r, self.lever_x, self.lever_y)
+        H = gnss_jacobian(x, r, self.lever_x, self.lever_y)
+        sig2 = self.sigma(g) ** 2
+        y = np.array([g.vel_n_mps - vn, g.vel_e_mps - ve])
+        PHt = P @ H.T
+        S = H @ PHt
+        S[0, 0] += sig2
+        S[1, 1] += sig2
+        Sinv = np.linalg.inv(S)
+        nis = float(y @ Sinv @ y)
+        if gate and nis > self.gate:
+            self.consecutive_rejects += 1
+            self.rejected += 1
+            self.last_reason = f"innovation gate (NIS {nis:.1f})"
+            return False
+        K = PHt @ Sinv
+        hist.correct(s, K @ y, K @ PHt.T)
+        self.consecutive_rejects = 0
+        self.fused += 1
+        return True
+
+    @staticmethod
+    def course(g: GnssSample) -> float:
+        return math.atan2(g.vel_e_mps, g.vel_n_mps) % (2.0 * math.pi)

@@ -1,0 +1,39 @@
+"""Standstill: zero-velocity updates and the yaw-rate bias at rest.
+
+At rest the true velocity and yaw rate are zero, so the gyro reading *is* its bias (Park 002 §2.2
+uses r = 0 while straight; at rest it holds exactly). Detected from the wheel speeds (all below a
+crawl) held for a short time, so a brief zero crossing does not count.
+"""
+from __future__ import annotations
+
+from ..kalman import index_update
+from ..kinematic import BR, VX, VY
+
+STANDSTILL_SPEED = 0.05  # m/s, every wheel below this
+STANDSTILL_HOLD_S = 0.3
+
+
+class StandstillFusion:
+    def __init__(self, dt: float, gyro_noise: float):
+        self.hold_steps = int(STANDSTILL_HOLD_S / dt)
+        self.count = 0
+        self.gyro_R = max(gyro_noise, 1e-3) ** 2 * 4.0
+
+    def detect(self, wheels_max: float) -> bool:
+        if wheels_max < STANDSTILL_SPEED:
+            self.count += 1
+        else:
+            self.count = 0
+        return self.count >= self.hold_steps
+
+    def fuse(self, x, P, r_m: float):
+        """Returns the list of I - K H factors applied (may be empty)."""
+        out = []
+        for i in (VX, VY):
+            f = index_update(x, P, -x[i], i, 1e-4)
+            if f is not None:
+                out.append(f)
+        f = index_update(x, P, r_m - x[BR], BR, self.gyro_R, gate_sigma=6.0)
+        if f is not None:
+            out.append(f)
+        return out

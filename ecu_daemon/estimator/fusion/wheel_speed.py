@@ -1,0 +1,58 @@
+"""Wheel speeds -> longitudinal velocity (with the wheel-radius scale state k_w).
+
+Uses the wheels least disturbed by drive torque: the rear pair on a front-driven car and vice
+versa (Park 002 eq. 1). Averaging a left/right pair cancels the yaw-rate term (r * track / 2);
+the front pair sees vx cos(delta) + (vy + lf r) sin(delta). Slip under braking/traction is
+handled by inflating the noise with |ax| and by the innovation gate (a locked or spinning wheel
+fails it rather than dragging vx).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kalman import scalar_update
+from ..kinematic import BR, KW, NX, VX, VY
+
+WHEEL_GATE_SIGMA = 5.0
+
+
+class WheelSpeedFusion:
+    def __init__(self, driven_axle: str, lf: float, noise_mps: float):
+        self.use_front = driven_axle == "rear"
+        self.use_all = driven_axle == "all"
+        self.lf = lf
+        self.noise2 = noise_mps * noise_mps
+        self.h = np.zeros(NX)
+        self.rejected = 0
+
+    def measured_speed(self, fl: float, fr: float, rl: float, rr: float) -> float:
+        """The raw wheel-derived speed this source fuses (configured radius, no scale)."""
+        if self.use_all:
+            return 0.25 * (fl + fr + rl + rr)
+        if self.use_front:
+            return 0.5 * (fl + fr)
+        return 0.5 * (rl + rr)
+
+    def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float):
+        kw = x[KW]
+        h = self.h
+        if self.use_front or self.use_all:
+            frac = 1.0 if self.use_front else 0.5  # 'all': half of the mean comes from the front pair
+            c = 1.0 - frac + frac * math.cos(delta)
+            s = frac * math.sin(delta)
+            v = x[VX] * c + (x[VY] + self.lf * r) * s
+            h[VX] = c / kw
+            h[VY] = s / kw
+            h[BR] = -self.lf * s / kw
+        else:
+            v = x[VX]
+            h[VX] = 1.0 / kw
+        pred = v / kw
+        h[KW] = -pred / kw
+        R = self.noise2 + (0.02 * ax) ** 2 + (0.002 * pred) ** 2
+        IKH = scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA)
+        if IKH is None:
+            self.rejected += 1
+        return IKH

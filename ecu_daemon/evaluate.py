@@ -1,0 +1,320 @@
+"""``ecu-daemon evaluate``: score a replay's estimate CSV against the simulator's ``truth.csv``.
+
+Truth is interpolated onto the estimate times (heading unwrapped first, errors wrapped to
+[-pi, pi)). The first ``settle_s`` seconds of the estimate are excluded from every statistic
+(filters converge). Accelerometer biases are compared with ``accel_*_bias_eff_mps2`` when the
+truth has it: what the sensor reads standing still on that road (bias plus gravity via bank,
+grade and the body roll the bank causes), which is what a bias state can observe (see
+``Estimate.accel_y_bias_mps2``).
+
+Per quantity: RMS, max |error| and mean error over all rows after settling; RMS over the rows
+the estimate flags valid, and the fraction valid. Biases and the GNSS delay also get the final
+value and its (relative) error. Sideslip additionally reports how often |error| <= 2 sigma.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+TRUTH_REQUIRED = ("t", "sideslip_rad", "heading_rad", "vx_mps", "vy_mps", "yaw_rate_bias_radps",
+                  "accel_x_bias_mps2", "accel_y_bias_mps2", "gnss_delay_s")
+ESTIMATE_REQUIRED = ("t", "sideslip_rad", "sideslip_std_rad", "heading_rad", "heading_std_rad", "vx_mps",
+                     "vy_mps", "yaw_rate_bias_radps", "accel_x_bias_mps2", "accel_y_bias_mps2",
+                     "gnss_delay_s", "sideslip_valid", "heading_valid")
+
+#: quantity -> (truth column, estimate column, validity column or None, display unit, display factor)
+SIGNALS = {
+    "sideslip": ("sideslip_rad", "sideslip_rad", "sideslip_valid", "deg", 180 / math.pi),
+    "heading": ("heading_rad", "heading_rad", "heading_valid", "deg", 180 / math.pi),
+    "vx": ("vx_mps", "vx_mps", "velocity_valid", "m/s", 1.0),
+    "vy": ("vy_mps", "vy_mps", "velocity_valid", "m/s", 1.0),
+}
+#: bias-like quantities: (truth column(s) in order of preference, estimate column, unit, factor)
+BIASES = {
+    "yaw_rate_bias": (("yaw_rate_bias_radps",), "yaw_rate_bias_radps", "deg/s", 180 / math.pi),
+    "accel_x_bias": (("accel_x_bias_eff_mps2", "accel_x_bias_mps2"), "accel_x_bias_mps2", "m/s^2", 1.0),
+    "accel_y_bias": (("accel_y_bias_eff_mps2", "accel_y_bias_mps2"), "accel_y_bias_mps2", "m/s^2", 1.0),
+    "gnss_delay": (("gnss_delay_s",), "gnss_delay_s", "s", 1.0),
+    "wheel_scale": (("wheel_scale",), "wheel_scale", "", 1.0),
+    "steering_offset": (("steering_offset_rad",), "steering_offset_rad", "deg", 180 / math.pi),
+    "cornering_stiffness_front": (("cornering_stiffness_front_n_per_rad",),
+                                  "cornering_stiffness_front_n_per_rad", "kN/rad", 1e-3),
+    "cornering_stiffness_rear": (("cornering_stiffness_rear_n_per_rad",),
+                                 "cornering_stiffness_rear_n_per_rad", "kN/rad", 1e-3),
+}
+
+
+class EvaluationError(ValueError):
+    """An unusable input file, described in one line."""
+
+
+_BOOL = {"true": 1.0, "false": 0.0, "1": 1.0, "0": 0.0, "1.0": 1.0, "0.0": 0.0}
+
+
+def read_csv(path: str | Path, required: tuple[str, ...], what: str) -> dict[str, np.ndarray]:
+    """Columns of a header-first CSV as float arrays (booleans True/False -> 1/0)."""
+    p = Path(path)
+    try:
+        f = open(p, newline="", encoding="utf-8")
+    except OSError as e:
+        raise EvaluationError(f"cannot read {what} {p}: {e.strerror or e}") from None
+    with f:
+        try:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            if header is None:
+                raise EvaluationError(f"{what} {p} is empty")
+            header = [h.strip() for h in header]
+            missing = [c for c in required if c not in header]
+            if missing:
+                raise EvaluationError(f"{what} {p}: missing column(s) {', '.join(missing)}")
+            rows = list(reader)
+        except UnicodeDecodeError:
+            raise EvaluationError(f"{what} {p} is not UTF-8 text") from None
+        except csv.Error as e:
+            raise EvaluationError(f"{what} {p}: not a CSV file: {e}") from None
+    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    if not rows:
+        raise EvaluationError(f"{what} {p} has a header but no data rows")
+    short = next((i for i, r in enumerate(rows) if len(r) < len(header)), None)
+    if short is not None:
+        raise EvaluationError(f"{what} {p}:{short + 2}: {len(rows[short])} fields, the header has {len(header)}")
+    cols: dict[str, np.ndarray] = {}
+    for j, name in enumerate(header):
+        cells = [r[j].strip() for r in rows]
+        try:
+            cols[name] = np.array(cells, dtype=float)
+            continue
+        except ValueError:
+            pass
+        out = np.empty(len(rows))
+        for i, cell in enumerate(cells):
+            try:
+                out[i] = float(cell)
+            except ValueError:
+                b = _BOOL.get(cell.lower())
+                if b is not None:
+                    out[i] = b
+                elif name in required:
+                    raise EvaluationError(f"{what} {p}:{i + 2}: column {name}: {cell!r} is not a number") from None
+                else:
+                    out[i] = math.nan
+        cols[name] = out
+    t = cols["t"]
+    if not np.all(np.isfinite(t)):
+        raise EvaluationError(f"{what} {p}: column t has non-finite values")
+    if np.any(np.diff(t) < 0):
+        raise EvaluationError(f"{what} {p}: column t is not in time order")
+    return cols
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def _stats(err: np.ndarray) -> dict:
+    err = err[np.isfinite(err)]
+    if len(err) == 0:
+        return {"rms": math.nan, "max_abs": math.nan, "mean": math.nan}
+    return {"rms": float(np.sqrt(np.mean(err ** 2))), "max_abs": float(np.max(np.abs(err))),
+            "mean": float(np.mean(err))}
+
+
+def evaluate(truth_csv: str | Path, estimate_csv: str | Path, settle_s: float = 10.0) -> dict:
+    """Error statistics of an estimate CSV against a truth CSV (see module doc); SI units."""
+    truth = read_csv(truth_csv, TRUTH_REQUIRED, "truth CSV")
+    est = read_csv(estimate_csv, ESTIMATE_REQUIRED, "estimate CSV")
+    return _evaluate(truth, est, settle_s)
+
+
+def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
+    tt, te = truth["t"], est["t"]
+    lo, hi = max(tt[0], te[0] + settle_s), tt[-1]
+    sel = (te >= lo) & (te <= hi)
+    if not np.any(sel):
+        raise EvaluationError(f"no estimate rows inside the truth time span {tt[0]:.3f}..{tt[-1]:.3f} s"
+                              f" after settling ({settle_s:g} s); estimate spans {te[0]:.3f}..{te[-1]:.3f} s")
+    t = te[sel]
+    out: dict = {"rows": int(sel.sum()), "t_start": float(t[0]), "t_end": float(t[-1]), "settle_s": settle_s}
+    for name, (tc, ec, vc, _, _) in SIGNALS.items():
+        if name == "heading":
+            ref = np.interp(t, tt, np.unwrap(truth[tc]))
+            err = _wrap(est[ec][sel] - ref)
+        else:
+            ref = np.interp(t, tt, truth[tc])
+            err = est[ec][sel] - ref
+        s = _stats(err)
+        if vc in est:
+            valid = est[vc][sel] > 0.5
+            s["fraction_valid"] = float(valid.mean())
+            s["rms_valid"] = _stats(err[valid])["rms"] if valid.any() else math.nan
+            s["max_abs_valid"] = _stats(err[valid])["max_abs"] if valid.any() else math.nan
+        std_col = ec.replace("_rad", "_std_rad") if name in ("sideslip", "heading") else None
+        if std_col and std_col in est:
+            std = est[std_col][sel]
+            s["within_2sigma"] = float(np.mean(np.abs(err) <= 2 * std))
+        out[name] = s
+        out[name]["_err"] = err
+    for name, (tcs, ec, _, _) in BIASES.items():
+        tc = next((c for c in tcs if c in truth), None)
+        if tc is None or ec not in est:
+            continue
+        ref = np.interp(t, tt, truth[tc])
+        err = est[ec][sel] - ref
+        s = _stats(err)
+        final_truth = float(ref[-1])
+        final = float(est[ec][sel][-1])
+        s.update(final=final, truth=final_truth, final_error=final - final_truth,
+                 relative_error=abs(final - final_truth) / abs(final_truth) if final_truth else math.nan)
+        s["_err"] = err
+        out[name] = s
+    out["_t"] = t
+    return out
+
+
+def public(result: dict) -> dict:
+    """``result`` without the per-row error arrays (for JSON)."""
+    return {k: (public(v) if isinstance(v, dict) else v) for k, v in result.items() if not k.startswith("_")}
+
+
+def format_table(result: dict) -> str:
+    lines = [f"{result['rows']} estimate rows, {result['t_start']:.3f}..{result['t_end']:.3f} s"
+             f" (first {result['settle_s']:g} s excluded)",
+             f"{'quantity':<26}{'unit':>7}{'rms':>10}{'max':>10}{'mean':>10}{'rms@valid':>11}{'valid':>7}"
+             f"{'in 2sig':>8}"]
+    for name, (_, _, _, unit, k) in SIGNALS.items():
+        s = result[name]
+        rv = s.get("rms_valid", math.nan)
+        fv = s.get("fraction_valid", math.nan)
+        w2 = s.get("within_2sigma")
+        rv_s = f"{rv * k:.3f}" if rv == rv else "-"
+        fv_s = f"{fv * 100:.0f}%" if fv == fv else "-"
+        lines.append(f"{name:<26}{unit:>7}{s['rms'] * k:>10.3f}{s['max_abs'] * k:>10.3f}{s['mean'] * k:>10.3f}"
+                     f"{rv_s:>11}{fv_s:>7}" + (f"{w2 * 100:>7.0f}%" if w2 is not None else ""))
+    lines.append(f"{'bias / parameter':<26}{'unit':>7}{'final':>10}{'truth':>10}{'error':>10}{'rel err':>11}"
+                 f"{'rms':>8}")
+    for name, (_, _, unit, k) in BIASES.items():
+        s = result.get(name)
+        if s is None:
+            continue
+        rel = s["relative_error"]
+        lines.append(f"{name:<26}{unit:>7}{s['final'] * k:>10.4g}{s['truth'] * k:>10.4g}"
+                     f"{s['final_error'] * k:>10.3g}{(f'{rel * 100:.1f}%' if rel == rel else '-'):>11}"
+                     f"{s['rms'] * k:>8.3g}")
+    return "\n".join(lines)
+
+
+def _thin(cols: dict, max_points: int = 4000) -> dict:
+    """Every n-th row so a plot has at most ~max_points (drawing time; statistics use all rows)."""
+    step = max(1, math.ceil(len(cols["t"]) / max_points))
+    return {k: v[::step] for k, v in cols.items()}
+
+
+def plot(truth_csv: str | Path, estimate_csv: str | Path, out_dir: str | Path) -> list[Path]:
+    """PNG plots of estimate vs truth over time; returns the files written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    truth = _thin(read_csv(truth_csv, TRUTH_REQUIRED, "truth CSV"))
+    est = _thin(read_csv(estimate_csv, ESTIMATE_REQUIRED, "estimate CSV"))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tt, te = truth["t"], est["t"]
+    t0 = tt[0]
+    d = 180 / math.pi
+    files = []
+
+    def save(fig, name):
+        fig.tight_layout()
+        p = out / name
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        files.append(p)
+
+    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    b, s = est["sideslip_rad"] * d, est["sideslip_std_rad"] * d
+    ax[0].fill_between(te - t0, b - 2 * s, b + 2 * s, color="tab:blue", alpha=0.2, label="estimate +-2 sigma")
+    ax[0].plot(te - t0, b, color="tab:blue", lw=1, label="estimate")
+    ax[0].plot(tt - t0, truth["sideslip_rad"] * d, color="k", lw=1, label="truth")
+    ax[0].set_ylabel("sideslip (deg)")
+    ax[0].legend(loc="upper right")
+    ax[1].plot(te - t0, est["sideslip_valid"], drawstyle="steps-post", label="sideslip_valid")
+    ax[1].plot(te - t0, est["heading_valid"] * 0.9, drawstyle="steps-post", label="heading_valid (x0.9)")
+    ax[1].set_ylabel("valid")
+    ax[1].set_xlabel(f"t - {t0:.1f} s")
+    ax[1].legend(loc="lower right")
+    save(fig, "sideslip.png")
+
+    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    ax[0].plot(tt - t0, truth["heading_rad"] * d, "k", lw=1, label="truth")
+    ax[0].plot(te - t0, est["heading_rad"] * d, "tab:blue", lw=1, label="estimate")
+    ax[0].set_ylabel("heading (deg, cw from north)")
+    ax[0].legend(loc="upper right")
+    err = _wrap(est["heading_rad"] - np.interp(te, tt, np.unwrap(truth["heading_rad"]))) * d
+    hs = est["heading_std_rad"] * d
+    ax[1].fill_between(te - t0, -2 * hs, 2 * hs, color="tab:blue", alpha=0.2, label="+-2 sigma")
+    ax[1].plot(te - t0, err, "tab:red", lw=1, label="error")
+    ax[1].set_ylabel("heading error (deg)")
+    ax[1].set_xlabel(f"t - {t0:.1f} s")
+    ax[1].legend(loc="upper right")
+    save(fig, "heading.png")
+
+    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    for a, col, lab in ((ax[0], "vx_mps", "vx (m/s)"), (ax[1], "vy_mps", "vy (m/s)")):
+        a.plot(tt - t0, truth[col], "k", lw=1, label="truth")
+        a.plot(te - t0, est[col], "tab:blue", lw=1, label="estimate")
+        a.set_ylabel(lab)
+        a.legend(loc="upper right")
+    ax[1].set_xlabel(f"t - {t0:.1f} s")
+    save(fig, "velocities.png")
+
+    fig, ax = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
+    for a, name in zip(ax, ("yaw_rate_bias", "accel_x_bias", "accel_y_bias", "gnss_delay")):
+        tcs, ec, unit, k = BIASES[name]
+        tc = next(c for c in tcs if c in truth)
+        a.plot(tt - t0, truth[tc] * k, "k", lw=1, label="truth")
+        a.plot(te - t0, est[ec] * k, "tab:blue", lw=1, label="estimate")
+        a.set_ylabel(f"{name} ({unit})")
+        a.legend(loc="upper right")
+    ax[-1].set_xlabel(f"t - {t0:.1f} s")
+    save(fig, "biases.png")
+    return files
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--truth", required=True, help="truth.csv from 'ecu-daemon simulate'")
+    parser.add_argument("--estimate", required=True, help="estimate CSV from 'ecu-daemon replay'")
+    parser.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
+    parser.add_argument("--settle-s", type=float, default=10.0,
+                        help="seconds at the start of the estimate left out of the statistics (default 10)")
+    parser.add_argument("--json", action="store_true", help="print the statistics as JSON instead of a table")
+
+
+def main(args: argparse.Namespace) -> int:
+    from .cli import UserError
+
+    if not (args.settle_s >= 0 and math.isfinite(args.settle_s)):
+        raise UserError(f"--settle-s must be >= 0, got {args.settle_s}")
+    try:
+        result = evaluate(args.truth, args.estimate, settle_s=args.settle_s)
+        files = plot(args.truth, args.estimate, args.plots) if args.plots else []
+    except EvaluationError as e:
+        raise UserError(str(e)) from None
+    except OSError as e:
+        raise UserError(f"cannot write plots to {args.plots}: {e.strerror or e}") from None
+    if args.json:
+        json.dump(public(result), sys.stdout, indent=2, allow_nan=True)
+        sys.stdout.write("\n")
+    else:
+        print(format_table(result))
+        for f in files:
+            print(f"wrote {f}")
+    return 0

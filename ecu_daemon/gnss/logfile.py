@@ -1,0 +1,150 @@
+"""The GNSS capture log: one received message per line, next to the candump-format CAN log.
+
+Format (a public contract; the CAN log uses the same clock)::
+
+    (1700000000.123456) ttyACM0 $GNRMC,221320.25,A,5107.40740,N,00145.92593,W,24.687,345.60,141123,,,A,V*20
+    (1700000000.131002) ttyACM0 B56201075C00E8030000...
+
+* ``(seconds.micros)``: host receive time of the message's last byte, as in candump ``-l``.
+* ``PORT``: the serial device name (no whitespace).
+* ``PAYLOAD``: an NMEA sentence as received, without its line ending; or anything else (a UBX
+  or RTCM3 frame, bytes the parser could not frame) as uppercase hex of the raw bytes.
+* Blank lines and lines starting with ``#`` are ignored.
+
+``read_gnss_log`` gives payloads back as the raw bytes (NMEA text + CR LF, hex decoded), so
+feeding them to a ``GnssStreamParser`` reproduces the original stream.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Iterator
+from typing import IO
+
+from ..samples import GnssSample
+from .stream import GnssStreamParser
+
+__all__ = ["GnssLogError", "read_gnss_log", "GnssLogWriter", "samples_from_log"]
+
+_LINE = re.compile(r"^\((?P<t>[^)]*)\) (?P<port>\S+) (?P<payload>\S.*)$")
+_TIME = re.compile(r"^\d+\.\d+$")
+_HEX = re.compile(r"^[0-9A-Fa-f]+$")
+_CHECKSUM_TAIL = re.compile(rb"\*[0-9A-Fa-f]{2}$")
+
+
+class GnssLogError(ValueError):
+    """A GNSS capture log that cannot be read; the message is ``file:line: what is wrong``."""
+
+
+def read_gnss_log(path: str | os.PathLike) -> Iterator[tuple[float, str, bytes]]:
+    """Yield ``(t, port, payload_bytes)`` per line; raises GnssLogError on the first bad line."""
+    try:
+        f = open(path, "rb")
+    except OSError as exc:
+        raise GnssLogError(f"{path}: cannot read GNSS log: {exc.strerror or exc}") from None
+    with f:
+        lineno = 0
+        try:
+            for lineno, raw in enumerate(f, 1):
+                item = _parse_line(path, lineno, raw)
+                if item is not None:
+                    yield item
+        except OSError as exc:
+            raise GnssLogError(f"{path}:{lineno + 1}: read error: {exc.strerror or exc}") from None
+
+
+def _parse_line(path, lineno: int, raw: bytes) -> tuple[float, str, bytes] | None:
+    line = raw.rstrip(b"\r\n")
+    stripped = line.strip()
+    if not stripped or stripped.startswith(b"#"):
+        return None
+    where = f"{path}:{lineno}"
+    try:
+        text = line.decode("ascii")
+    except UnicodeDecodeError:
+        raise GnssLogError(f"{where}: line is not ASCII text") from None
+    m = _LINE.match(text)
+    if not m:
+        raise GnssLogError(f"{where}: expected '(seconds.micros) PORT PAYLOAD', got {text[:60]!r}")
+    if not _TIME.match(m["t"]):
+        raise GnssLogError(f"{where}: bad timestamp {m['t']!r} (expected seconds.micros)")
+    payload = m["payload"]
+    if payload[0] in "$!":
+        return float(m["t"]), m["port"], payload.encode("ascii") + b"\r\n"
+    if not _HEX.match(payload):
+        raise GnssLogError(f"{where}: payload is neither an NMEA sentence nor hex: {payload[:40]!r}")
+    if len(payload) % 2:
+        raise GnssLogError(f"{where}: odd-length hex payload ({len(payload)} digits)")
+    return float(m["t"]), m["port"], bytes.fromhex(payload)
+
+
+def _nmea_text(payload: bytes) -> str | None:
+    """The sentence text when ``payload`` is one whole NMEA sentence, else None (-> hex)."""
+    if payload[:1] not in (b"$", b"!"):
+        return None
+    body = payload.rstrip(b"\r\n")
+    ended = len(body) != len(payload)
+    if len(body) < 2 or not all(0x20 <= b <= 0x7E for b in body):
+        return None
+    if body[-1:] == b" " or not (ended or _CHECKSUM_TAIL.search(body)):
+        return None  # a fragment: keep the exact bytes
+    return body.decode("ascii")
+
+
+class GnssLogWriter:
+    """Appends received messages to a GNSS capture log (see module docstring for the format).
+
+    ``write(t, payload)`` takes one message's raw bytes -- ideally what ``GnssStreamParser``'s
+    ``raw_sink`` hands over -- and decides NMEA text versus hex from the bytes. Lines are
+    flushed on ``flush()``/``close()`` (call them from the SIGTERM path).
+    """
+
+    def __init__(self, path: str | os.PathLike, port: str = "ttyACM0", *, append: bool = False) -> None:
+        port = os.path.basename(str(port)) or str(port)
+        if not port or any(c.isspace() for c in port):
+            raise ValueError(f"port name must be non-empty without whitespace, got {port!r}")
+        self.path, self.port = path, port
+        self._f: IO[str] | None = open(path, "a" if append else "w", encoding="ascii", newline="\n")
+
+    def write(self, t: float, payload: bytes) -> None:
+        if self._f is None:
+            raise ValueError("GnssLogWriter is closed")
+        if not payload:
+            return
+        if not math.isfinite(t) or t < 0:
+            raise ValueError(f"timestamp must be finite and >= 0, got {t!r}")
+        text = _nmea_text(payload)
+        self._f.write(f"({t:.6f}) {self.port} {text if text is not None else payload.hex().upper()}\n")
+
+    def flush(self) -> None:
+        if self._f is not None:
+            self._f.flush()
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+            self._f = None
+
+    def __enter__(self) -> "GnssLogWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def samples_from_log(path: str | os.PathLike, parser_kwargs: dict | None = None, *,
+                     parsers: dict[str, GnssStreamParser] | None = None) -> Iterator[GnssSample]:
+    """Replay a capture log through one GnssStreamParser per port, each line at its timestamp.
+
+    Pass a dict as ``parsers`` to get the parsers (and their ``stats``) back, keyed by port.
+    """
+    if parsers is None:
+        parsers = {}
+    for t, port, payload in read_gnss_log(path):
+        parser = parsers.get(port)
+        if parser is None:
+            parser = parsers[port] = GnssStreamParser(**(parser_kwargs or {}))
+        yield from parser.feed(t, payload)
+    for parser in parsers.values():
+        yield from parser.finish()

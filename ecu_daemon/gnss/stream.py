@@ -1,0 +1,361 @@
+"""One serial byte stream (UBX + NMEA + RTCM3 interleaved, split anywhere, with garbage) -> GnssSamples.
+
+The framing is done here rather than by pyubx2's ``UBXReader`` because a reader that trusts a
+corrupted length field swallows the good frames behind it. Rules:
+
+* A frame candidate starts at ``B5 62`` (UBX), ``$`` or ``!`` (NMEA) or ``D3`` (RTCM3). A UBX/RTCM3
+  candidate whose class, length or checksum is wrong is rejected by skipping **one** byte and
+  rescanning, so any good frame inside or behind it is still found. An NMEA candidate ends at
+  the first byte that is not printable ASCII; a sentence cut short that way is skipped whole
+  (it cannot contain another frame start) and counted as truncated.
+* Every byte that ends up in no accepted frame is counted in ``garbage_bytes``.
+* Each byte carries the ``t`` of the ``feed`` call that delivered it; a frame is stamped with the
+  time of its last byte (NMEA: its first line-ending byte), so the result does not depend on how
+  the stream was chunked, even when a bogus length field makes the parser wait for more bytes.
+
+Errors are counted in ``stats``, described in ``last_error`` and logged as one line per kind,
+at most once per ``log_interval_s`` of stream time (with the count of suppressed repeats).
+"""
+from __future__ import annotations
+
+import logging
+import re
+from collections import deque
+from typing import Callable
+
+from ..samples import GnssSample
+from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
+from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, NAV_PVT, UbxDecoder, UbxError, ubx_checksum
+
+__all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q"]
+
+log = logging.getLogger("ecu_daemon.gnss")
+
+STAT_KEYS = ("ubx_frames", "nmea_sentences", "rtcm_frames", "samples", "checksum_errors",
+             "garbage_bytes", "unsupported", "truncated", "malformed", "ignored", "suppressed")
+
+#: NMEA 0183 allows 82 characters; proprietary sentences (PUBX,03, PSTM...) run longer.
+NMEA_MAX_LEN = 1024
+_START = re.compile(rb"[\xb5$!\xd3]")
+_NMEA_BODY = re.compile(rb"[\x20\x22\x23\x25-\x7e]*")  # printable ASCII except the starts '$' and '!'
+_SENTENCE_HEAD = re.compile(rb"[$!][A-Z0-9]{4}")  # what makes a cut-off fragment a "truncated" sentence
+_NEED, _NOT, _BAD, _FRAG, _UBX, _NMEA, _RTCM = range(7)
+
+
+def _crc24q_table() -> list[int]:
+    table = []
+    for i in range(256):
+        crc = i << 16
+        for _ in range(8):
+            crc = (crc << 1) ^ 0x1864CFB if crc & 0x800000 else crc << 1
+        table.append(crc & 0xFFFFFF)
+    return table
+
+
+_CRC24Q = _crc24q_table()
+
+
+def crc24q(data: bytes | bytearray | memoryview) -> int:
+    """The RTCM3 CRC (Qualcomm CRC-24Q)."""
+    crc = 0
+    for b in data:
+        crc = ((crc << 8) & 0xFFFFFF) ^ _CRC24Q[(crc >> 16) ^ b]
+    return crc
+
+
+class _ErrorReporter:
+    """One log line per error kind per interval (stream time), carrying the suppressed count."""
+
+    def __init__(self, name: str, interval_s: float) -> None:
+        self.name, self.interval = name, interval_s
+        self._state: dict[str, list] = {}
+
+    def __call__(self, t: float, kind: str, text: str) -> None:
+        st = self._state.get(kind)
+        if st is None or not (st[0] <= t < st[0] + self.interval):
+            more = f" (+{st[1]} more since last report)" if st and st[1] else ""
+            log.warning("%s: %s%s", self.name, text, more)
+            self._state[kind] = [t, 0]
+        else:
+            st[1] += 1
+
+
+class GnssStreamParser:
+    """Incremental parser for one receiver byte stream.
+
+    ``protocol``: ``"auto"`` (UBX and NMEA both used; while NAV-PVT keeps arriving -- within
+    ``prefer_ubx_s`` -- NMEA samples are dropped and counted as ``suppressed`` so one receiver
+    emitting both does not double every epoch), ``"ubx"`` or ``"nmea"`` (frames of the other
+    protocol are framed and counted as ``ignored``). RTCM3 frames are always skipped.
+
+    ``nmea_speed_acc_mps``: nominal NMEA speed accuracy, used only to derive the accuracy of
+    course-less NMEA epochs; other NMEA samples carry ``speed_acc_mps = NaN``.
+    ``raw_sink(t, data)``: optional; receives every accepted frame (NMEA with its line ending when
+    present) and every run of rejected bytes, in stream order -- what ``GnssLogWriter`` records.
+    """
+
+    def __init__(self, protocol: str = "auto", nmea_speed_acc_mps: float | None = 0.15, *,
+                 name: str = "gnss", raw_sink: Callable[[float, bytes], None] | None = None,
+                 log_interval_s: float = 10.0, prefer_ubx_s: float = 2.0) -> None:
+        if protocol not in ("auto", "ubx", "nmea"):
+            raise ValueError(f"protocol must be auto, ubx or nmea, got {protocol!r}")
+        self.protocol = protocol
+        self.stats: dict[str, int] = dict.fromkeys(STAT_KEYS, 0)
+        self.last_error = ""
+        self._report = _ErrorReporter(name, log_interval_s)
+        self._sink = raw_sink
+        self._prefer_ubx_s = prefer_ubx_s
+        self._ubx = UbxDecoder()
+        self._nmea = NmeaEpochAssembler(nmea_speed_acc_mps)
+        self._buf = bytearray()
+        self._base = 0  # absolute stream offset of _buf[0]
+        self._marks: deque[tuple[int, float]] = deque()  # (absolute end offset, t) per feed
+        self._skip_lf = 0  # previous sentence ended in CR at the end of a read (2: it was rejected)
+        self._junk = bytearray()  # rejected bytes not yet handed to raw_sink
+        self._junk_t = 0.0
+        self._last_pvt_t: float | None = None
+
+    # ------------------------------------------------------------------------------ public API
+
+    def feed(self, t: float, data: bytes) -> list[GnssSample]:
+        """Add bytes received at host time ``t``; return the samples they completed."""
+        if not data:
+            return []
+        self._buf += data
+        self._marks.append((self._base + len(self._buf), float(t)))
+        out: list[GnssSample] = []
+        self._scan(out, final=False)
+        return out
+
+    def finish(self) -> list[GnssSample]:
+        """End of stream (or the port closed): resolve what is pending, count a cut-off frame.
+
+        The parser stays usable; the next ``feed`` starts from an empty buffer.
+        """
+        out: list[GnssSample] = []
+        self._scan(out, final=True)
+        self._emit_nmea(self._nmea.flush(), out)
+        self._flush_junk()
+        self._skip_lf = 0
+        return out
+
+    # ------------------------------------------------------------------------------ framing
+
+    def _scan(self, out: list, final: bool) -> None:
+        buf, n, pos = self._buf, len(self._buf), 0
+        if self._skip_lf and n:
+            if buf[0] == 0x0A:
+                pos = 1
+                if self._skip_lf == 2:  # the LF of a rejected sentence is rejected with it
+                    self._account_reject(1)
+            self._skip_lf = 0
+        truncated_counted = False
+        while pos < n:
+            m = _START.search(buf, pos)
+            s = m.start() if m else n
+            if s > pos:
+                self._reject(pos, s)
+            if m is None:
+                pos = n
+                break
+            kind, end = self._frame_at(buf, s, n)
+            if kind == _NEED and final:
+                if not truncated_counted:
+                    truncated_counted = True
+                    self._error(self._t_at(n - 1), "truncated", "truncated",
+                                f"stream ended inside a frame ({n - s} bytes pending)")
+                kind, end = (_FRAG, n) if buf[s] in (0x24, 0x21) else (_NOT, s + 1)
+            if kind == _NEED:
+                pos = s
+                break
+            if kind == _NOT or kind == _BAD:
+                self._reject(s, s + 1)
+                pos = s + 1
+            elif kind == _FRAG:
+                if (end < n or not final) and _SENTENCE_HEAD.match(buf, s):
+                    self._error(self._t_at(end - 1), "truncated", "truncated",
+                                f"NMEA sentence cut off after {end - s} bytes")
+                self._reject(s, end)
+                pos = end
+            else:
+                self._flush_junk()
+                pos = self._dispatch(kind, s, end, out)
+        del buf[:pos]
+        self._base += pos
+        marks = self._marks
+        while marks and marks[0][0] <= self._base:
+            marks.popleft()
+        if final and self._junk:
+            self._flush_junk()
+
+    def _frame_at(self, buf: bytearray, s: int, n: int) -> tuple[int, int]:
+        """Classify the candidate at ``s``: (_NEED | _NOT | _BAD | _FRAG | _UBX | _NMEA | _RTCM, end)."""
+        c = buf[s]
+        avail = n - s
+        if c == 0x24 or c == 0x21:  # '$' or '!' (encapsulation sentences, e.g. AIS)
+            e = _NMEA_BODY.match(buf, s + 1).end()
+            if e - s > NMEA_MAX_LEN:
+                return _FRAG, e
+            if e == n:
+                return _NEED, 0
+            term = buf[e]
+            if term != 0x0D and term != 0x0A:
+                return _FRAG, e
+            return _NMEA, e
+        if c == 0xB5:
+            if avail < 2:
+                return _NEED, 0
+            if buf[s + 1] != 0x62:
+                return _NOT, 0
+            if avail < 3:
+                return _NEED, 0
+            if buf[s + 2] not in UBX_CLASS_BYTES:
+                return _NOT, 0
+            if avail < 6:
+                return _NEED, 0
+            length = buf[s + 4] | buf[s + 5] << 8
+            if length > UBX_MAX_PAYLOAD:
+                return _NOT, 0
+            end = s + 8 + length
+            if end > n:
+                return _NEED, 0
+            if ubx_checksum(buf[s + 2:end - 2]) != buf[end - 2:end]:
+                self._error(self._t_at(end - 1), "checksum", "checksum_errors",
+                            f"UBX {buf[s + 2]:02X} {buf[s + 3]:02X} checksum error ({length} byte payload)")
+                return _BAD, 0
+            return _UBX, end
+        # 0xD3: RTCM3 -- 6 reserved bits zero, 10-bit length, payload, CRC-24Q
+        if avail < 3:
+            return _NEED, 0
+        if buf[s + 1] & 0xFC:
+            return _NOT, 0
+        end = s + 6 + ((buf[s + 1] & 0x03) << 8 | buf[s + 2])
+        if end > n:
+            return _NEED, 0
+        if crc24q(buf[s:end - 3]) != int.from_bytes(buf[end - 3:end], "big"):
+            self._error(self._t_at(end - 1), "checksum", "checksum_errors", "RTCM3 CRC error")
+            return _BAD, 0
+        return _RTCM, end
+
+    # ------------------------------------------------------------------------------ dispatch
+
+    def _dispatch(self, kind: int, s: int, end: int, out: list) -> int:
+        """Handle the accepted frame at [s, end); return where the scan continues."""
+        buf = self._buf
+        if kind == _NMEA:
+            e = end  # index of the first line-ending byte
+            t = self._t_at(e)
+            end = e + 1
+            cr_at_end = False
+            if buf[e] == 0x0D:
+                if end < len(buf):
+                    end += buf[end] == 0x0A
+                else:
+                    cr_at_end = True  # its LF, if any, arrives with the next read
+            if self._sink:
+                self._sink(t, bytes(buf[s:end]))
+            accepted = self._nmea_sentence(t, bytes(buf[s:e]).rstrip(b" "), out)
+            if not accepted:
+                self._account_reject(end - s)
+            if cr_at_end:
+                self._skip_lf = 1 if accepted else 2
+            return end
+        t = self._t_at(end - 1)
+        if self._sink:
+            self._sink(t, bytes(buf[s:end]))
+        if kind == _RTCM:
+            self.stats["rtcm_frames"] += 1
+        else:
+            self.stats["ubx_frames"] += 1
+            self._ubx_frame(t, bytes(buf[s:end]), out)
+        return end
+
+    def _ubx_frame(self, t: float, frame: bytes, out: list) -> None:
+        cls_id = (frame[2], frame[3])
+        if self.protocol == "nmea":
+            self.stats["ignored"] += 1
+            return
+        if not UbxDecoder.supported(cls_id):
+            self.stats["unsupported"] += 1
+            return
+        try:
+            sample = self._ubx.decode(t, frame)
+        except UbxError as exc:
+            self._error(t, "malformed", "malformed", str(exc))
+            return
+        if cls_id == NAV_PVT:
+            self._last_pvt_t = t
+        if sample is not None:
+            self.stats["samples"] += 1
+            out.append(sample)
+
+    def _nmea_sentence(self, t: float, sentence: bytes, out: list) -> bool:
+        """Check and use one sentence; False when its checksum rejects it."""
+        ok = nmea_checksum_ok(sentence)
+        if not ok:
+            what = "without *hh checksum" if ok is None else "checksum error"
+            self._error(t, "checksum", "checksum_errors", f"NMEA {what}: {sentence[:16].decode('ascii')}...")
+            return False
+        self.stats["nmea_sentences"] += 1
+        if self.protocol == "ubx":
+            self.stats["ignored"] += 1
+            return True
+        text = sentence.decode("ascii")
+        if text[1] == "P" or text[3:6] not in USED_KINDS:
+            self.stats["unsupported"] += 1
+            return True
+        others = self._nmea.other_talker_sentences
+        try:
+            samples = self._nmea.add(t, text)
+        except NmeaError as exc:
+            self._error(t, "malformed", "malformed", str(exc))
+            return True
+        if self._nmea.other_talker_sentences != others:
+            self.stats["ignored"] += 1
+        self._emit_nmea(samples, out)
+        return True
+
+    def _emit_nmea(self, samples: list[GnssSample], out: list) -> None:
+        for smp in samples:
+            if (self.protocol == "auto" and self._last_pvt_t is not None
+                    and abs(smp.t - self._last_pvt_t) <= self._prefer_ubx_s):
+                self.stats["suppressed"] += 1
+                continue
+            self.stats["samples"] += 1
+            out.append(smp)
+
+    # ------------------------------------------------------------------------------ bookkeeping
+
+    def _t_at(self, i: int) -> float:
+        """Receive time of buffer index ``i`` (the feed that delivered that byte)."""
+        a = self._base + i
+        for end, t in self._marks:
+            if a < end:
+                return t
+        return self._marks[-1][1]
+
+    def _reject(self, s: int, e: int) -> None:
+        """Bytes [s, e) belong to no frame: count them, keep them for raw_sink, report the run."""
+        self._account_reject(e - s)
+        self._junk += self._buf[s:e]
+        self._junk_t = self._t_at(e - 1)
+
+    def _account_reject(self, n: int) -> None:
+        self.stats["garbage_bytes"] += n
+
+    def _flush_junk(self) -> None:
+        """A run of rejected bytes ended: report it once and hand it to raw_sink."""
+        if self._junk:
+            n = len(self._junk)
+            self._error(self._junk_t, "garbage", None,
+                        f"skipped {n} byte{'s' if n > 1 else ''} outside any valid frame"
+                        f" (starting {bytes(self._junk[:8]).hex(' ')})")
+            if self._sink:
+                self._sink(self._junk_t, bytes(self._junk))
+            self._junk.clear()
+
+    def _error(self, t: float, kind: str, counter: str | None, text: str) -> None:
+        if counter:
+            self.stats[counter] += 1
+        self.last_error = text
+        self._report(t, kind, text)

@@ -1,0 +1,347 @@
+"""The CAN side of the shell: open the bus, receive without blocking asyncio, send with back-off.
+
+Time base. ``Message.timestamp`` is on the interface's clock: kernel CLOCK_REALTIME for socketcan,
+``time.time()`` of the sender for ``virtual``, a log's clock for a replay with preserved
+timestamps. None of them is monotonic and NTP may slew or step them. :class:`ClockMapper` converts
+every timestamp ONCE, at reception, to the daemon's monotonic clock::
+
+    d      = now_monotonic - msg.timestamp      (= clock offset + reception latency, latency >= 0)
+    offset = min(d) over the last ~5 s          (minimum-latency estimate of the clock offset)
+    t      = msg.timestamp + offset             (then rounded to 1 us, kept non-decreasing)
+
+The minimum over a sliding window follows slow drift (NTP slew, crystal) and a forward clock
+step at once; a backward step shows up as a whole block whose minimum is far above the estimate,
+which resets the window. ``t <= now`` always holds, so no sample is ever stamped in the future,
+and the relative timing of frames keeps the kernel's precision, not Python's scheduling jitter.
+Rounding to 1 us makes the candump recording (6 decimals) reproduce exactly the times the
+estimator saw.
+
+Bus health: error frames (class bits in the id, controller state in data[1], error counters in
+data[6..7], as in linux/can/error.h) drive :class:`BusHealth`; while the controller is bus-off,
+:meth:`CanIO.send` suppresses transmission (counted) until a restart/active error frame or a
+received data frame shows the controller is back, or a growing retry interval expires.
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import time
+from collections import deque
+from typing import Callable, Iterable
+
+import can
+
+log = logging.getLogger("ecu_daemon.can")
+
+# linux/can/error.h
+CAN_ERR_TX_TIMEOUT = 0x001
+CAN_ERR_LOSTARB = 0x002
+CAN_ERR_CRTL = 0x004
+CAN_ERR_PROT = 0x008
+CAN_ERR_TRX = 0x010
+CAN_ERR_ACK = 0x020
+CAN_ERR_BUSOFF = 0x040
+CAN_ERR_BUSERROR = 0x080
+CAN_ERR_RESTARTED = 0x100
+CAN_ERR_CNT = 0x200
+CAN_ERR_CRTL_RX_WARNING = 0x04
+CAN_ERR_CRTL_TX_WARNING = 0x08
+CAN_ERR_CRTL_RX_PASSIVE = 0x10
+CAN_ERR_CRTL_TX_PASSIVE = 0x20
+CAN_ERR_CRTL_ACTIVE = 0x40
+
+# bus states reported in diagnostics (ordinal = severity)
+BUS_ACTIVE, BUS_WARNING, BUS_PASSIVE, BUS_OFF = 0, 1, 2, 3
+BUS_STATE_NAMES = ("active", "warning", "passive", "bus-off")
+
+
+class ClockMapper:
+    """Message clock -> monotonic clock by a windowed minimum-latency offset (see module doc)."""
+
+    def __init__(self, block_s: float = 1.0, blocks: int = 5, step_s: float = 0.05,
+                 quantum_s: float = 1e-6) -> None:
+        self.block_s, self.step_s, self.quantum_s = block_s, step_s, quantum_s
+        self._history: deque[float] = deque(maxlen=blocks)
+        self._block_start = -math.inf
+        self._block_min = math.inf
+        self.offset_s = math.nan
+        self.last_t = -math.inf
+        self.steps = 0  # clock steps detected (window resets)
+        self.untimestamped = 0  # messages without a usable timestamp (stamped at reception)
+
+    def map(self, ts: float, now: float) -> float:
+        q = self.quantum_s
+        if not (ts > 0.0 and math.isfinite(ts)):
+            self.untimestamped += 1
+            t = round(now / q) * q
+        else:
+            d = now - ts
+            if now - self._block_start >= self.block_s:
+                self._close_block(now)
+            if d < self._block_min:
+                self._block_min = d
+            off = self._block_min
+            for h in self._history:
+                if h < off:
+                    off = h
+            self.offset_s = off
+            t = round((ts + off) / q) * q
+        if t < self.last_t:
+            t = self.last_t
+        self.last_t = t
+        return t
+
+    def _close_block(self, now: float) -> None:
+        bm = self._block_min
+        if math.isfinite(bm):
+            if self._history and bm - min(self._history) > self.step_s:
+                self.steps += 1
+                log.warning("CAN timestamp clock stepped back by %.3f s; time base re-synchronised",
+                            bm - min(self._history))
+                self._history.clear()
+            self._history.append(bm)
+        self._block_start = now
+        self._block_min = math.inf
+
+
+class BusHealth:
+    """Error-frame bookkeeping and the bus-off transmit gate."""
+
+    RETRY_MIN_S = 0.5
+    RETRY_MAX_S = 30.0
+    TX_FAIL_LIMIT = 3  # consecutive send failures before transmission pauses
+    TX_PAUSE_MIN_S = 0.01
+    TX_PAUSE_MAX_S = 1.0
+
+    def __init__(self) -> None:
+        self.state = BUS_ACTIVE
+        self.error_frames = 0
+        self.bus_off_count = 0
+        self.restarts = 0
+        self.tx_error_counter = 0
+        self.rx_error_counter = 0
+        self.tx_failures = 0
+        self.tx_suppressed = 0
+        self.tx_sent = 0
+        self.last_error_class = 0
+        self._retry_s = self.RETRY_MIN_S
+        self._tx_resume_at = -math.inf
+        self._consecutive_fail = 0
+        self._pause_s = self.TX_PAUSE_MIN_S
+
+    @property
+    def bus_off(self) -> bool:
+        return self.state == BUS_OFF
+
+    def on_error_frame(self, msg: can.Message, now: float) -> None:
+        self.error_frames += 1
+        cls = msg.arbitration_id & 0x1FFFFFFF
+        self.last_error_class = cls
+        data = bytes(msg.data)
+        if len(data) >= 8 and (cls & CAN_ERR_CNT or data[6] or data[7]):
+            self.tx_error_counter, self.rx_error_counter = data[6], data[7]
+        if cls & CAN_ERR_BUSOFF:
+            if self.state != BUS_OFF:
+                self.bus_off_count += 1
+                log.error("CAN bus-off (error class 0x%03X): transmission suspended", cls)
+            self.state = BUS_OFF
+            self._tx_resume_at = now + self._retry_s
+            self._retry_s = min(self._retry_s * 2, self.RETRY_MAX_S)
+            return
+        if cls & CAN_ERR_RESTARTED or (cls & CAN_ERR_CRTL and len(data) > 1 and data[1] & CAN_ERR_CRTL_ACTIVE):
+            self._recover("controller restarted" if cls & CAN_ERR_RESTARTED else "controller error-active")
+            return
+        if cls & CAN_ERR_CRTL and len(data) > 1:
+            c = data[1]
+            if c & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE):
+                new = BUS_PASSIVE
+            elif c & (CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING):
+                new = BUS_WARNING
+            else:
+                new = self.state
+            if self.state != BUS_OFF and new != self.state:
+                log.warning("CAN controller is error-%s (class 0x%03X, ctrl 0x%02X)",
+                            BUS_STATE_NAMES[new], cls, c)
+                self.state = new
+
+    def on_data_frame(self) -> None:
+        """A frame from another node arrived: a bus-off controller cannot receive, so it is back."""
+        if self.state == BUS_OFF:
+            self._recover("frames received again")
+
+    def on_library_state(self, state, now: float) -> None:
+        """python-can's ``BusState`` where the interface reports one (ERROR ~ bus-off)."""
+        if state == can.BusState.ERROR and self.state != BUS_OFF:
+            self.bus_off_count += 1
+            self.state = BUS_OFF
+            self._tx_resume_at = now + self._retry_s
+            log.error("CAN interface reports error state: transmission suspended")
+
+    def _recover(self, why: str) -> None:
+        if self.state == BUS_OFF:
+            self.restarts += 1
+            log.warning("CAN bus recovered from bus-off (%s); transmission resumed", why)
+        self.state = BUS_ACTIVE
+        self._retry_s = self.RETRY_MIN_S
+        self._tx_resume_at = -math.inf
+
+    def may_send(self, now: float) -> bool:
+        if now >= self._tx_resume_at:
+            return True
+        self.tx_suppressed += 1
+        return False
+
+    def on_send_ok(self) -> None:
+        self.tx_sent += 1
+        self._consecutive_fail = 0
+        self._pause_s = self.TX_PAUSE_MIN_S
+
+    def on_send_failed(self, now: float, err: Exception) -> None:
+        self.tx_failures += 1
+        self._consecutive_fail += 1
+        log.warning("CAN send failed: %s", err)
+        if self._consecutive_fail >= self.TX_FAIL_LIMIT:
+            self._tx_resume_at = max(self._tx_resume_at, now + self._pause_s)
+            self._pause_s = min(self._pause_s * 2, self.TX_PAUSE_MAX_S)
+            self._consecutive_fail = 0
+
+
+def resolve_bus_config(cfg_can, explicit_keys: Iterable[str] = (), overrides: dict | None = None) -> dict:
+    """Effective ``can.Bus`` keyword arguments.
+
+    Precedence: command-line flags > keys written in the TOML ``[can]`` table (and its
+    ``bus_kwargs``) > python-can's own configuration (``can.rc``, ``CAN_INTERFACE`` /
+    ``CAN_CHANNEL`` / ``CAN_BITRATE`` / ``CAN_CONFIG``, ``/etc/can.conf``, ``~/.canrc``) > our
+    built-in defaults (``virtual`` bus).
+    """
+    from can.exceptions import CanInterfaceNotImplementedError
+
+    from ..config import ConfigError
+
+    explicit = set(explicit_keys)
+    given: dict = dict(cfg_can.bus_kwargs)
+    for key in ("interface", "channel", "bitrate"):
+        if key in explicit:
+            given[key] = getattr(cfg_can, key)
+    given.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    try:
+        merged = dict(can.util.load_config(config=dict(given)))
+    except CanInterfaceNotImplementedError as e:
+        if given.get("interface"):
+            raise ConfigError(f"[can] interface: {e}") from None
+        merged = dict(can.util.load_config(config={**given, "interface": cfg_can.interface}))
+    except ValueError as e:
+        raise ConfigError(f"python-can configuration: {e}") from None
+    if merged.get("channel") is None:
+        merged["channel"] = cfg_can.channel
+    if merged.get("bitrate") is None:
+        merged["bitrate"] = cfg_can.bitrate
+    return {k: v for k, v in merged.items() if v is not None}
+
+
+def _has_own_filtering(bus) -> bool:
+    """True if the interface filters in the kernel / hardware (socketcan), not in Python."""
+    cls = bus if isinstance(bus, type) else type(bus)
+    return cls._apply_filters is not can.BusABC._apply_filters
+
+
+class CanIO:
+    """One python-can bus: filtered reception into ``on_frame``/``on_error_frame`` on the loop, sends.
+
+    ``frame_ids`` are (id, is_extended) pairs the decoder consumes. Interfaces that filter in the
+    kernel or hardware (socketcan) get them as ``can_filters``; for the rest (virtual) the check
+    is a set lookup here, because python-can's software filter would also drop error frames.
+    """
+
+    def __init__(self, bus: can.BusABC, frame_ids: Iterable[tuple[int, bool]], *,
+                 clock: Callable[[], float] = time.monotonic,
+                 on_frame: Callable[[float, can.Message], None],
+                 on_error_frame: Callable[[float, can.Message], None] | None = None) -> None:
+        self.bus = bus
+        self.clock = clock
+        self.mapper = ClockMapper()
+        self.health = BusHealth()
+        self.on_frame = on_frame
+        self.on_error_frame = on_error_frame
+        self.wanted = {(int(i), bool(e)) for i, e in frame_ids}
+        self.rx_frames = 0
+        self.rx_ignored = 0
+        self.callback_errors = 0
+        self.kernel_filters = False
+        self._notifier: can.Notifier | None = None
+        if _has_own_filtering(bus) and self.wanted:
+            bus.set_filters([{"can_id": i, "can_mask": 0x1FFFFFFF if e else 0x7FF, "extended": e}
+                             for i, e in sorted(self.wanted)])
+            self.kernel_filters = True
+
+    def start(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._notifier = can.Notifier(self.bus, [self._on_message], timeout=0.2, loop=loop)
+
+    def _on_message(self, msg: can.Message) -> None:
+        now = self.clock()
+        try:
+            if msg.is_error_frame:
+                self.health.on_error_frame(msg, now)
+                if self.on_error_frame is not None:
+                    self.on_error_frame(self.mapper.map(msg.timestamp, now), msg)
+                return
+            if not msg.is_rx:
+                return  # our own transmission echoed back (receive_own_messages)
+            self.health.on_data_frame()
+            if not self.kernel_filters and (msg.arbitration_id, msg.is_extended_id) not in self.wanted:
+                self.rx_ignored += 1
+                return
+            self.rx_frames += 1
+            t = self.mapper.map(msg.timestamp, now)
+            self.on_frame(t, msg)
+        except Exception as e:  # a listener error must not kill reception (python-can #1912)
+            self.callback_errors += 1
+            log.error("error handling CAN frame 0x%X: %s: %s", msg.arbitration_id,
+                      e.__class__.__name__, e)
+
+    def drain(self, max_frames: int = 100000) -> int:
+        """Handle the frames already waiting in the bus (after :meth:`stop`, at shutdown)."""
+        n = 0
+        try:
+            while n < max_frames:
+                msg = self.bus.recv(0)
+                if msg is None:
+                    break
+                self._on_message(msg)
+                n += 1
+        except (can.CanError, OSError):
+            pass
+        return n
+
+    def poll_library_state(self) -> None:
+        try:
+            self.health.on_library_state(self.bus.state, self.clock())
+        except Exception:  # interfaces that do not implement it
+            pass
+
+    def send(self, msg: can.Message) -> bool:
+        """Send without blocking; False if suppressed (bus-off / back-off) or failed (counted)."""
+        h = self.health
+        now = self.clock()
+        if not h.may_send(now):
+            return False
+        try:
+            self.bus.send(msg, timeout=0)
+        except (can.CanOperationError, OSError) as e:
+            h.on_send_failed(now, e)
+            return False
+        h.on_send_ok()
+        return True
+
+    def stop(self) -> None:
+        if self._notifier is not None:
+            self._notifier.stop(timeout=1.0)
+            self._notifier = None
+
+    def shutdown(self) -> None:
+        self.stop()
+        try:
+            self.bus.shutdown()
+        except Exception as e:
+            log.warning("closing the CAN bus: %s", e)

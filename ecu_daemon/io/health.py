@@ -1,0 +1,74 @@
+"""Assemble the daemon's :class:`~ecu_daemon.diagnostics.Diagnostics` from its parts.
+
+The parts keep their own counters (decoder per input, GNSS parser stats, serial port, bus
+health, tick statistics); this module only reads them, in the event-loop thread, a few times a
+second, and publishes one immutable snapshot that the tick thread encodes into the EST_DIAG frame.
+"""
+from __future__ import annotations
+
+import math
+import os
+import time
+
+from ..diagnostics import BUS_ACTIVE, BUS_OFF, BUS_PASSIVE, Diagnostics
+from ..samples import GnssSample
+from . import can_bus
+from .tick import TickSnapshot
+
+_BUS_MAP = {can_bus.BUS_ACTIVE: BUS_ACTIVE, can_bus.BUS_WARNING: BUS_ACTIVE,
+            can_bus.BUS_PASSIVE: BUS_PASSIVE, can_bus.BUS_OFF: BUS_OFF}
+
+
+class CpuMeter:
+    """CPU use of this process in percent of one core, over the interval since the last call."""
+
+    def __init__(self) -> None:
+        self._wall = time.monotonic()
+        self._cpu = time.process_time()
+        self.pct = 0.0
+
+    def update(self) -> float:
+        wall, cpu = time.monotonic(), time.process_time()
+        if wall - self._wall > 0.2:
+            self.pct = 100.0 * (cpu - self._cpu) / (wall - self._wall)
+            self._wall, self._cpu = wall, cpu
+        return self.pct
+
+
+def thread_cpu_s(native_id: int | None) -> float:
+    """CPU seconds used by one thread of this process (Linux /proc), NaN if unknown."""
+    if native_id is None:
+        return math.nan
+    try:
+        with open(f"/proc/self/task/{native_id}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return math.nan
+
+
+def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
+                      gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth,
+                      tick: TickSnapshot, cpu_pct: float) -> Diagnostics:
+    d = Diagnostics()
+    d.inputs = decoder.input_diagnostics(t)
+    if gnss_last is not None:
+        d.gnss_fix_type = gnss_last.fix_type if gnss_last.fix_ok else 0
+        d.gnss_num_sv = gnss_last.num_sv
+        d.gnss_speed_acc_mps = gnss_last.speed_acc_mps
+        d.gnss_receive_age_ms = max(0.0, (t - gnss_last.t) * 1000.0)
+    d.gnss_latency_ms = gnss_delay_s * 1000.0
+    if gnss_stats:
+        d.gnss_checksum_errors = gnss_stats.get("checksum_errors", 0)
+        d.gnss_parse_errors = (gnss_stats.get("malformed", 0) + gnss_stats.get("truncated", 0)
+                               + gnss_stats.get("garbage_bytes", 0))
+    d.gnss_serial_connected = gnss_connected
+    d.can_bus_state = _BUS_MAP.get(bus.state, BUS_ACTIVE)
+    d.can_error_frames = bus.error_frames
+    d.can_tx_failures = bus.tx_failures
+    d.tick_late_p50_us = tick.late_p50_s * 1e6
+    d.tick_late_p99_us = tick.late_p99_s * 1e6
+    d.tick_late_max_us = tick.late_max_s * 1e6
+    d.tick_overruns = tick.overruns
+    d.cpu_load_pct = cpu_pct
+    return d

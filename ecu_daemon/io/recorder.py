@@ -1,0 +1,96 @@
+"""``--record DIR``: what the live daemon received, in the formats ``ecu-daemon replay`` reads.
+
+Files (all stamped on the daemon's monotonic clock, the same one the estimator used):
+
+* ``can.log``  -- every received input frame, candump ``-L`` format, timestamps already converted
+  to the monotonic clock and rounded to 1 us exactly as the estimator saw them;
+* ``gnss.log`` -- every GNSS message (and every run of unframed bytes) as received, in the
+  GNSS capture format, stamped with the receive time the parser used;
+* ``estimates.csv`` -- the live estimates, one row per step, for comparison with a replay;
+* ``outputs.log`` -- the frames the daemon sent, candump ``-L``, stamped with the tick time.
+
+``ecu-daemon replay --can DIR/can.log --gnss DIR/gnss.log`` then reproduces ``estimates.csv``
+except for inputs that arrived after the tick that would have used them (counted live as
+``late_samples``). All writes happen in the event-loop thread; :meth:`flush` runs periodically
+and on SIGTERM, so a stopped daemon leaves complete files.
+"""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import can
+import numpy as np
+
+from ..canlog import CandumpWriter, CanLogError
+from ..estimator import ESTIMATE_FIELDS
+from ..gnss.logfile import GnssLogWriter
+
+log = logging.getLogger("ecu_daemon.record")
+
+
+class Recorder:
+    def __init__(self, directory: str | Path, *, can_channel: str = "can0", gnss_port: str = "ttyACM0") -> None:
+        self.dir = Path(directory)
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            self.can = CandumpWriter(self.dir / "can.log", channel=can_channel)
+            self.outputs = CandumpWriter(self.dir / "outputs.log", channel=can_channel)
+            self.gnss = GnssLogWriter(self.dir / "gnss.log", gnss_port)
+            self._csv = open(self.dir / "estimates.csv", "w", encoding="ascii", newline="\n")
+        except (OSError, CanLogError) as e:
+            from ..cli import UserError
+            raise UserError(f"cannot record into {self.dir}: {getattr(e, 'strerror', None) or e}") from None
+        self._csv.write(",".join(ESTIMATE_FIELDS) + "\n")
+        self.frames = 0
+        self.gnss_messages = 0
+        self.estimates = 0
+        self.write_errors = 0
+        self._closed = False
+
+    def _guard(self, fn, *args) -> None:
+        if self._closed:
+            return
+        try:
+            fn(*args)
+        except (OSError, ValueError) as e:  # disk full etc.: keep the daemon running, say so
+            self.write_errors += 1
+            log.error("recording into %s failed: %s", self.dir, e)
+
+    def on_can(self, t: float, msg: can.Message) -> None:
+        """A received frame (data or error frame) stamped with its monotonic receive time."""
+        self.frames += 1
+        self._guard(self.can.write_frame, t, msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
+                    msg.is_error_frame)
+
+    def on_gnss(self, t: float, payload: bytes) -> None:
+        self.gnss_messages += 1
+        self._guard(self.gnss.write, t, payload)
+
+    def on_output(self, t: float, msg: can.Message) -> None:
+        self._guard(self.outputs.write_frame, t, msg.arbitration_id, bytes(msg.data), False, False)
+
+    def on_estimate(self, est) -> None:
+        self.estimates += 1
+        self._guard(self._csv.write, ",".join(_fmt(v) for v in est) + "\n")
+
+    def flush(self) -> None:
+        for f in (self.can, self.outputs, self.gnss, self._csv):
+            self._guard(f.flush)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self.flush()
+        for f in (self.can, self.outputs, self.gnss, self._csv):
+            self._guard(f.close)
+        self._closed = True
+
+
+def _fmt(v) -> str:
+    """Exact, numpy-agnostic text: floats round-trip (repr), flags as 0/1."""
+    if isinstance(v, (bool, np.bool_)):
+        return "1" if v else "0"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return repr(float(v))

@@ -1,0 +1,345 @@
+"""Estimate (+ Diagnostics) -> the CAN frames of the output DBC, with counters, CRCs and validity.
+
+The DBC (``dbc/ecu_daemon_outputs.dbc``) decides layout and timing; this module only knows which
+:class:`Estimate` / :class:`Diagnostics` field feeds which DBC signal (``_ESTIMATE_SOURCES``,
+``_diag_source``), so a new output signal is one DBC line plus one table entry. Everything else is
+bound once at start-up: cycle times become step periods, every signal gets its saturation limits
+(the DBC range, within what the bits can carry), and messages of the same period are staggered
+over the steps so that no step sends a burst (CAN interfaces queue only ~10 frames by default).
+
+Per frame: values outside a signal's range are saturated and non-finite ones sent as 0; either
+clears the frame's validity bit. Then ``Message.encode(strict=False)`` (the range check already
+happened here), a 4-bit COUNTER per message and the E2E profile-2 CRC in byte 0.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from pathlib import Path
+
+import can
+
+from .config import Config, ConfigError
+from .diagnostics import Diagnostics
+from .estimator import estimate as estimate_module
+from .estimator.estimate import ESTIMATE_FIELDS, Estimate
+from .integrity import data_id_for, e2e_p2_crc, next_counter
+from .signals import RateLimitedLog, load_dbc
+
+log = logging.getLogger(__name__)
+
+TWO_PI = 2.0 * math.pi
+
+# how a value is brought into a signal's range
+_SAT = 0  # clamp to [lo, hi]; clamping or a non-finite value (-> 0, or the limit nearest 0) clears validity
+_ANGLE = 1  # wrap into [0, 2*pi); non-finite -> 0 and invalid
+_WRAP = 2  # integer counter, modulo 2**length
+_UNKNOWN_HI = 3  # clamp; non-finite -> hi (the DBC's NEVER / UNKNOWN value); no validity bit
+_CLAMP = 4  # clamp; non-finite -> 0; no validity bit
+
+#: output DBC signal -> (Estimate field, validity signal of the same frame, mode)
+_ESTIMATE_SOURCES = {
+    "SIDESLIP": ("sideslip_rad", "SIDESLIP_VALID", _SAT),
+    "SIDESLIP_STD": ("sideslip_std_rad", "SIDESLIP_VALID", _SAT),
+    "YAW_RATE": ("yaw_rate_radps", "YAW_RATE_VALID", _SAT),
+    "VX": ("vx_mps", "VELOCITY_VALID", _SAT),
+    "VY": ("vy_mps", "VELOCITY_VALID", _SAT),
+    "VX_STD": ("vx_std_mps", "VELOCITY_VALID", _SAT),
+    "VY_STD": ("vy_std_mps", "VELOCITY_VALID", _SAT),
+    "HEADING": ("heading_rad", "HEADING_VALID", _ANGLE),
+    "HEADING_STD": ("heading_std_rad", "HEADING_VALID", _SAT),
+    "YAW_RATE_BIAS": ("yaw_rate_bias_radps", "BIASES_VALID", _SAT),
+    "ACCEL_X_BIAS": ("accel_x_bias_mps2", "BIASES_VALID", _SAT),
+    "ACCEL_Y_BIAS": ("accel_y_bias_mps2", "BIASES_VALID", _SAT),
+    "YAW_RATE_BIAS_STD": ("yaw_rate_bias_std_radps", "BIASES_VALID", _SAT),
+    "ACCEL_X_BIAS_STD": ("accel_x_bias_std_mps2", "BIASES_VALID", _SAT),
+    "ACCEL_Y_BIAS_STD": ("accel_y_bias_std_mps2", "BIASES_VALID", _SAT),
+    "GNSS_DELAY": ("gnss_delay_s", "CALIBRATION_VALID", _SAT),
+    "WHEEL_SCALE": ("wheel_scale", "CALIBRATION_VALID", _SAT),
+    "STEERING_OFFSET": ("steering_offset_rad", "CALIBRATION_VALID", _SAT),
+    "CORNERING_STIFFNESS_FRONT": ("cornering_stiffness_front_n_per_rad", "CORNERING_VALID", _SAT),
+    "CORNERING_STIFFNESS_REAR": ("cornering_stiffness_rear_n_per_rad", "CORNERING_VALID", _SAT),
+    "GNSS_FUSED": ("gnss_fused", None, _WRAP),
+    "GNSS_REJECTED": ("gnss_rejected", None, _WRAP),
+    "GNSS_LATE": ("gnss_late", None, _WRAP),
+}
+#: validity signal -> the Estimate flag it starts from (None: valid unless a value was clamped)
+_VALID_FLAGS = {
+    "SIDESLIP_VALID": "sideslip_valid",
+    "HEADING_VALID": "heading_valid",
+    "VELOCITY_VALID": "velocity_valid",
+    "BIASES_VALID": "biases_valid",
+    "YAW_RATE_VALID": None,
+    "CALIBRATION_VALID": None,
+    "CORNERING_VALID": None,
+}
+_INTEGRITY = ("CHECKSUM", "COUNTER")
+_DIAG_MUX = "DIAG_PAGE"
+#: EST_DIAG signal prefix -> input name
+_DIAG_INPUT_PREFIX = {"WS_FL": "wheel_speed_fl", "WS_FR": "wheel_speed_fr", "WS_RL": "wheel_speed_rl",
+                      "WS_RR": "wheel_speed_rr", "STEER": "steering_wheel_angle", "YAW_RATE": "yaw_rate",
+                      "ACCEL_X": "accel_x", "ACCEL_Y": "accel_y"}
+_DIAG_INPUT_SUFFIX = {"AGE": ("age_ms", _UNKNOWN_HI), "RATE": ("rate_hz", _CLAMP),
+                      "STALE_COUNT": ("stale_count", _WRAP), "DLC_ERRORS": ("dlc_errors", _WRAP),
+                      "DECODE_ERRORS": ("decode_errors", _WRAP), "RANGE_ERRORS": ("range_errors", _WRAP),
+                      "COUNTER_ERRORS": ("counter_errors", _WRAP), "CHECKSUM_ERRORS": ("checksum_errors", _WRAP)}
+_DIAG_FIELDS = {
+    "GNSS_FIX_TYPE": ("gnss_fix_type", _CLAMP), "GNSS_SERIAL_CONNECTED": ("gnss_serial_connected", _CLAMP),
+    "GNSS_NUM_SV": ("gnss_num_sv", _CLAMP), "GNSS_SPEED_ACC": ("gnss_speed_acc_mps", _UNKNOWN_HI),
+    "GNSS_CHECKSUM_ERRORS": ("gnss_checksum_errors", _WRAP), "GNSS_RX_AGE": ("gnss_receive_age_ms", _UNKNOWN_HI),
+    "GNSS_LATENCY": ("gnss_latency_ms", _UNKNOWN_HI), "GNSS_PARSE_ERRORS": ("gnss_parse_errors", _WRAP),
+    "CAN_BUS_STATE": ("can_bus_state", _CLAMP), "CAN_ERROR_FRAMES": ("can_error_frames", _WRAP),
+    "CAN_TX_FAILURES": ("can_tx_failures", _WRAP), "TICK_LATE_P50": ("tick_late_p50_us", _CLAMP),
+    "TICK_LATE_P99": ("tick_late_p99_us", _CLAMP), "TICK_LATE_MAX": ("tick_late_max_us", _CLAMP),
+    "TICK_OVERRUNS": ("tick_overruns", _WRAP), "CPU_LOAD": ("cpu_load_pct", _CLAMP),
+}
+
+
+class OutputFrameError(ValueError):
+    """An output frame that does not check out (unknown id, length, CRC, counter)."""
+
+
+def _limits(sig) -> tuple[float, float]:
+    """Physical range a signal can carry: the DBC [min|max] within the raw bit range."""
+    n = sig.length
+    rmin, rmax = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
+    a, b = rmin * sig.scale + sig.offset, rmax * sig.scale + sig.offset
+    lo, hi = min(a, b), max(a, b)
+    if sig.minimum is not None:
+        lo = max(lo, float(sig.minimum))
+    if sig.maximum is not None:
+        hi = min(hi, float(sig.maximum))
+    return lo, hi
+
+
+def _diag_source(name: str):
+    """EST_DIAG signal -> (getter(Diagnostics), mode), or None if unknown."""
+    if name in _DIAG_FIELDS:
+        attr, mode = _DIAG_FIELDS[name]
+        return (lambda d, a=attr: getattr(d, a)), mode
+    for prefix, input_name in _DIAG_INPUT_PREFIX.items():
+        if name.startswith(prefix + "_") and name[len(prefix) + 1:] in _DIAG_INPUT_SUFFIX:
+            attr, mode = _DIAG_INPUT_SUFFIX[name[len(prefix) + 1:]]
+            return (lambda d, n=input_name, a=attr: getattr(d.inputs[n], a)), mode
+    return None
+
+
+class _Field:
+    __slots__ = ("signal", "source", "lo", "hi", "zero", "mode", "valid", "modulus")
+
+    def __init__(self, signal, source, mode, valid=None):
+        self.signal = signal.name
+        self.source = source  # Estimate index, or getter(Diagnostics)
+        self.lo, self.hi = _limits(signal)
+        self.zero = min(max(0.0, self.lo), self.hi)  # stand-in for a non-finite value
+        self.mode = mode
+        self.valid = valid
+        self.modulus = 1 << signal.length
+
+
+class _MessagePlan:
+    __slots__ = ("name", "message", "encode", "frame_id", "data_id", "period", "phase", "counter",
+                 "values", "fields", "valid", "status", "pages")
+
+    def __init__(self, message, period: int):
+        self.name = message.name
+        self.message = message
+        self.encode = message.encode
+        self.frame_id = message.frame_id
+        self.data_id = data_id_for(message)
+        self.period = period
+        self.phase = 0
+        self.counter = 0
+        self.values: dict = {}
+        self.fields: list[_Field] = []
+        self.valid: list[tuple[str, int | None]] = []  # (validity signal, Estimate index of its flag)
+        self.status: list[tuple[str, int]] = []  # (status-bit signal, mask)
+        self.pages: list[tuple[int, dict, list[_Field]]] = []  # multiplexed: (page, values, fields)
+
+
+class OutputEncoder:
+    """Builds the output frames due at each estimator step.
+
+    ``schedule``: ``(message name, frame id, period in steps, phase)`` per message; a message is
+    due at step k when ``k % period == phase``. ``saturated`` / ``non_finite``: counts per signal.
+    """
+
+    def __init__(self, cfg: Config, *, log_interval_s: float = 10.0):
+        self.dbc_path: Path = cfg.output_dbc_path()
+        self.db = load_dbc(self.dbc_path, "[can] output_dbc", allow_non_strict=False)
+        self.dt_s = float(cfg.estimator.dt_s)
+        self._log = RateLimitedLog(log, log_interval_s)
+        self.saturated: dict[str, int] = {}
+        self.non_finite: dict[str, int] = {}
+        self._plans = [self._plan(m) for m in self.db.messages]
+        self._stagger()
+        self.schedule = [(p.name, p.frame_id, p.period, p.phase) for p in self._plans]
+        self.frame_ids = sorted(p.frame_id for p in self._plans)
+
+    # ----------------------------------------------------------------------------- set-up
+    def _plan(self, msg) -> _MessagePlan:
+        where = f"[can] output_dbc {self.dbc_path}: message {msg.name}"
+        if msg.is_extended_frame or msg.frame_id > 0x7FF:
+            raise ConfigError(f"{where} must use an 11-bit frame id")
+        if not msg.cycle_time:
+            raise ConfigError(f"{where} has no GenMsgCycleTime")
+        period = msg.cycle_time / (self.dt_s * 1000.0)
+        if period < 1 or abs(period - round(period)) > 1e-6:
+            raise ConfigError(f"{where}: cycle time {msg.cycle_time} ms is not a multiple of the"
+                              f" estimator step {self.dt_s * 1000.0:g} ms")
+        names = {s.name for s in msg.signals}
+        missing = [s for s in _INTEGRITY if s not in names]
+        if missing or msg.get_signal_by_name("CHECKSUM").start != 0 or msg.length < 2:
+            raise ConfigError(f"{where} needs CHECKSUM in byte 0 and a COUNTER (E2E profile 2)")
+        p = _MessagePlan(msg, int(round(period)))
+        if msg.is_multiplexed():
+            self._plan_pages(p, msg, where)
+        else:
+            self._plan_estimate(p, msg, where)
+        return p
+
+    def _plan_estimate(self, p: _MessagePlan, msg, where: str) -> None:
+        for sig in msg.signals:
+            name = sig.name
+            p.values[name] = 0
+            if name in _INTEGRITY:
+                continue
+            if name in _VALID_FLAGS:
+                flag = _VALID_FLAGS[name]
+                p.valid.append((name, None if flag is None else ESTIMATE_FIELDS.index(flag)))
+            elif name.startswith("STATUS_") and isinstance(getattr(estimate_module, name, None), int):
+                p.status.append((name, getattr(estimate_module, name)))
+            elif name in _ESTIMATE_SOURCES:
+                field, valid, mode = _ESTIMATE_SOURCES[name]
+                if valid is not None and valid not in {s.name for s in msg.signals}:
+                    raise ConfigError(f"{where}: signal {name} needs its validity bit {valid} in the same message")
+                p.fields.append(_Field(sig, ESTIMATE_FIELDS.index(field), mode, valid))
+            else:
+                raise ConfigError(f"{where}: signal {name} has no source in ecu_daemon/outputs.py")
+
+    def _plan_pages(self, p: _MessagePlan, msg, where: str) -> None:
+        tree = [n for n in msg.signal_tree if isinstance(n, dict)]
+        if len(tree) != 1 or _DIAG_MUX not in tree[0]:
+            raise ConfigError(f"{where}: a multiplexed output message must be multiplexed by {_DIAG_MUX}")
+        for page, signal_names in sorted(tree[0][_DIAG_MUX].items()):
+            values = {"CHECKSUM": 0, "COUNTER": 0, _DIAG_MUX: page}
+            fields = []
+            for name in signal_names:
+                if not isinstance(name, str):
+                    raise ConfigError(f"{where}: nested multiplexing is not supported")
+                src = _diag_source(name)
+                if src is None:
+                    raise ConfigError(f"{where}: signal {name} has no source in ecu_daemon/outputs.py")
+                values[name] = 0
+                fields.append(_Field(msg.get_signal_by_name(name), src[0], src[1]))
+            p.pages.append((page, values, fields))
+
+    def _stagger(self) -> None:
+        """Give each slower message the phase with the fewest frames already due (greedy)."""
+        periods = [p.period for p in self._plans]
+        hyper = math.lcm(*periods) if periods else 1
+        if hyper > 100000:
+            return
+        load = [0] * hyper
+        for p in sorted(self._plans, key=lambda p: p.period):  # faster first: they have no choice
+            best = min(range(p.period), key=lambda ph: (max(load[ph::p.period]), ph))
+            p.phase = best
+            for k in range(best, hyper, p.period):
+                load[k] += 1
+
+    # ----------------------------------------------------------------------------- per step
+    def frames(self, step_index: int, est: Estimate, diag: Diagnostics | None = None) -> list[can.Message]:
+        """The frames due at estimator step ``step_index`` (``est.t`` is their timestamp)."""
+        out = []
+        t = est.t
+        for p in self._plans:
+            if step_index % p.period != p.phase:
+                continue
+            if p.pages:
+                if diag is None:
+                    continue
+                page, values, fields = p.pages[(step_index // p.period) % len(p.pages)]
+                self._fill(p.name, values, fields, diag, None)
+            else:
+                values = p.values
+                ok = {v: True for v, _ in p.valid}
+                self._fill(p.name, values, p.fields, est, ok)
+                for vsig, flag in p.valid:
+                    values[vsig] = 1 if ok[vsig] and (flag is None or est[flag]) else 0
+                if p.status:
+                    status = est.status
+                    for ssig, mask in p.status:
+                        values[ssig] = 1 if status & mask else 0
+            values["COUNTER"] = p.counter
+            p.counter = (p.counter + 1) & 0xF
+            payload = bytearray(p.encode(values, True, False, False))
+            payload[0] = e2e_p2_crc(payload, p.data_id)
+            out.append(can.Message(timestamp=t, arbitration_id=p.frame_id, is_extended_id=False,
+                                   data=payload, check=False))
+        return out
+
+    def _fill(self, msg_name: str, values: dict, fields: list[_Field], src, ok: dict | None) -> None:
+        """Bring every field of ``src`` into range; ``ok`` (Estimate frames only) collects validity."""
+        isfinite = math.isfinite
+        for f in fields:
+            s = f.source
+            v = src[s] if ok is not None else s(src)  # Estimate: tuple index; Diagnostics: getter
+            mode = f.mode
+            if mode == _WRAP:
+                values[f.signal] = int(v) % f.modulus if isfinite(v) else 0
+                continue
+            if not isfinite(v):
+                if mode == _UNKNOWN_HI:
+                    values[f.signal] = f.hi
+                    continue
+                values[f.signal] = f.zero
+                if ok is not None:
+                    ok[f.valid] = False
+                    self._count("non_finite", msg_name, f, v)
+                continue
+            if mode == _ANGLE:
+                v = v % TWO_PI
+                if v >= f.hi:
+                    v = 0.0
+            elif v < f.lo or v > f.hi:
+                clamped = f.lo if v < f.lo else f.hi
+                if ok is not None and mode == _SAT:
+                    ok[f.valid] = False
+                    self._count("saturated", msg_name, f, v)
+                v = clamped
+            values[f.signal] = v
+
+    def _count(self, kind: str, msg_name: str, f: _Field, v: float) -> None:
+        table = self.non_finite if kind == "non_finite" else self.saturated
+        table[f.signal] = table.get(f.signal, 0) + 1
+        what = f"not finite, sent as {f.zero:g}" if kind == "non_finite" else f"saturated to [{f.lo:g}, {f.hi:g}]"
+        self._log.report((f.signal, kind), logging.WARNING,
+                         f"output {msg_name}.{f.signal} = {float(v):.6g} {what}; {f.valid} cleared")
+
+
+def decode_output_frame(db, msg: can.Message, prev_counter: int | None = None) -> dict:
+    """Decode one output frame and check it (for tests and tools).
+
+    Raises :class:`OutputFrameError` for an unknown or extended id, a wrong length, a CRC that
+    does not match, or (when ``prev_counter`` is given) a COUNTER that does not follow it.
+    Returns the decoded signals (numbers, no choice strings).
+    """
+    if msg.is_extended_id:
+        raise OutputFrameError(f"0x{msg.arbitration_id:X}: output frames use 11-bit ids")
+    try:
+        m = db.get_message_by_frame_id(msg.arbitration_id)
+    except KeyError:
+        raise OutputFrameError(f"0x{msg.arbitration_id:03X} is not an output message") from None
+    data = bytes(msg.data)
+    if len(data) != m.length:
+        raise OutputFrameError(f"{m.name}: {len(data)} data bytes, expected {m.length}")
+    crc = e2e_p2_crc(data, data_id_for(m))
+    if data[0] != crc:
+        raise OutputFrameError(f"{m.name}: CRC 0x{data[0]:02X}, expected 0x{crc:02X}")
+    values = m.decode(data, decode_choices=False)
+    if prev_counter is not None and values["COUNTER"] != next_counter(prev_counter):
+        raise OutputFrameError(f"{m.name}: COUNTER {values['COUNTER']} after {prev_counter}")
+    return values
+
+
+__all__ = ["OutputEncoder", "OutputFrameError", "decode_output_frame"]

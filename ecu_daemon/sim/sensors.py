@@ -1,0 +1,217 @@
+"""Truth -> what real sensors report: biased, noisy CAN input values and a delayed GNSS receiver.
+
+Why a separate step: the estimator must cope with the errors real sensors have, so they are
+added here explicitly and their true values written to ``truth.csv`` (the estimator's bias
+states are scored against them).
+
+Sensor errors (all configurable in :class:`SensorParams`):
+
+* yaw rate: ``r + bias + noise`` (the gyro sits at the CG; body roll is ignored for it).
+* accelerometers: specific force in the *rolled body* frame (so road bank, grade and body roll
+  appear as gravity components) ``+ bias + noise``.
+* wheel speeds: wheel spin times the radius the ABS believes, ``omega * R_true / wheel_scale``,
+  so tyre slip and the radius error show up; below ``wheel_speed_min_mps`` the ABS reports 0
+  (too few tooth edges), as real ones do.
+* steering-wheel angle: true angle ``+ offset + noise`` (offset at the steering wheel).
+* quantisation is done by the DBC encoding, not here.
+
+CAN timing: each message is sent periodically with a random phase; it arrives after a small
+half-normal jitter; optionally the adapter delivers frames in USB batches that share one
+timestamp (as comma's panda does). The value in a frame is the truth at its *send* time.
+
+GNSS: epochs on the UTC grid of ``1/rate_hz``; each reports the *antenna* velocity (lever arm)
+with white noise, and reaches the host ``latency_s`` (+ jitter) after its time of validity.
+UBX: one NAV-PVT per epoch. NMEA: RMC, VTG, GGA per epoch, each sentence a few ms after the
+previous one (serial transmission).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..gnss import encode
+from .vehicle import G, TruthArrays
+
+#: POSIX UTC = simulation time + this (sim t = 1200.0 s is 2024-06-01T08:00:00Z). An integer,
+#: so GNSS epochs on the UTC grid are also on the simulation-time grid.
+UTC_OFFSET_S = 1717228800 - 1200
+EARTH_RADIUS_M = 6378137.0
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    can_rate_hz: float | None = None  # None: the DBC's GenMsgCycleTime, else 100 Hz
+    jitter_s: float = 0.0003  # 1-sigma of the half-normal arrival delay of a frame
+    usb_batch_s: float = 0.0  # > 0: receive stamps rounded up to batches of this period
+    yaw_rate_bias_radps: float = math.radians(0.5)
+    accel_x_bias_mps2: float = 0.1
+    accel_y_bias_mps2: float = 0.15
+    wheel_scale: float = 1.015  # true wheel ground speed / reported (true radius 1.5 % larger)
+    steering_offset_rad: float = math.radians(1.5)  # reading - true, at the steering wheel
+    yaw_rate_noise_radps: float = math.radians(0.08)
+    accel_noise_mps2: float = 0.05
+    wheel_speed_noise_mps: float = 0.02
+    steering_noise_rad: float = math.radians(0.1)
+    wheel_speed_min_mps: float = 0.15
+
+
+@dataclass(frozen=True)
+class GnssParams:
+    protocol: str = "ubx"  # ubx | nmea
+    rate_hz: float = 5.0
+    latency_s: float = 0.4  # receive time - time of validity
+    latency_jitter_s: float = 0.004  # 1-sigma, clipped to +-3 sigma
+    vel_noise_mps: float = 0.05  # white, per axis (low-cost receiver)
+    speed_acc_mps: float = 0.12  # what the receiver reports as sAcc (1-sigma, pessimistic)
+    lever_arm_m: tuple = (0.7, 0.3)  # antenna from the CG, x forward, y left
+    pos_noise_m: float = 0.8  # Gauss-Markov position error (1-sigma) ...
+    pos_tau_s: float = 30.0  # ... and its correlation time
+    num_sv: int = 14
+    nmea_stagger_s: float = 0.004  # delay between the sentences of one NMEA epoch
+    lat0_deg: float = 48.137  # position of the simulation origin
+    lon0_deg: float = 11.575
+    height_m: float = 520.0
+
+
+def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
+    """Truth column ``name`` linearly interpolated at times ``t``."""
+    return np.interp(t, truth.t, truth.col(name))
+
+
+class CanSensors:
+    """Measured values (SI, ISO 8855) of the estimator's eight inputs at arbitrary send times."""
+
+    def __init__(self, truth: TruthArrays, params: SensorParams, rng: np.random.Generator):
+        self.truth = truth
+        self.p = params
+        self.rng = rng
+
+    def measure(self, name: str, t: np.ndarray) -> np.ndarray:
+        p, tr, n = self.p, self.truth, len(t)
+        noise = self.rng.standard_normal(n)
+        if name.startswith("wheel_speed_"):
+            radius = tr.params.wheel_radius_m / p.wheel_scale
+            v = sample(tr, "omega_" + name[-2:], t) * radius
+            v = v + p.wheel_speed_noise_mps * noise
+            v[np.abs(v) < p.wheel_speed_min_mps] = 0.0
+            return v
+        if name == "steering_wheel_angle":
+            return sample(tr, "steer_sw", t) + p.steering_offset_rad + p.steering_noise_rad * noise
+        if name == "yaw_rate":
+            return sample(tr, "r", t) + p.yaw_rate_bias_radps + p.yaw_rate_noise_radps * noise
+        if name == "accel_x":
+            return sample(tr, "acc_x", t) + p.accel_x_bias_mps2 + p.accel_noise_mps2 * noise
+        if name == "accel_y":
+            return sample(tr, "acc_y", t) + p.accel_y_bias_mps2 + p.accel_noise_mps2 * noise
+        raise KeyError(f"unknown input {name!r}")
+
+
+def send_times(t_start: float, t_end: float, period_s: float, rng: np.random.Generator) -> np.ndarray:
+    """Periodic transmit times with a random phase in [0, period)."""
+    first = t_start + rng.uniform(0.0, period_s)
+    n = max(0, int(math.floor((t_end - first) / period_s)) + 1)
+    return first + period_s * np.arange(n)
+
+
+def receive_times(t_send: np.ndarray, params: SensorParams, rng: np.random.Generator) -> np.ndarray:
+    """Host receive stamps: send time + half-normal jitter, optionally batched like a USB adapter."""
+    t = t_send + np.abs(rng.standard_normal(len(t_send))) * params.jitter_s
+    if params.usb_batch_s > 0:
+        b = params.usb_batch_s
+        t = np.ceil(t / b) * b
+    return t
+
+
+# --------------------------------------------------------------------------------- GNSS
+
+
+@dataclass(frozen=True)
+class GnssEpoch:
+    """One receiver solution: truth-derived values with the receiver's errors, before encoding."""
+
+    t_valid: float  # simulation time of validity
+    t_rx: float  # host receive time of the first byte burst of this epoch
+    vel_n: float
+    vel_e: float
+    lat_deg: float
+    lon_deg: float
+
+
+def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator) -> list[GnssEpoch]:
+    """Receiver solutions on the UTC grid, delayed by the latency; only those received in time."""
+    t = truth.t
+    period = 1.0 / params.rate_hz
+    k0 = math.ceil(round(t[0] / period, 9))
+    k1 = math.floor(round(t[-1] / period, 9))
+    tv = np.arange(k0, k1 + 1) * period
+    vx, vy, r, psi = (sample(truth, c, tv) for c in ("vx", "vy", "r", "psi"))
+    north, east = sample(truth, "north", tv), sample(truth, "east", tv)
+    lx, ly = params.lever_arm_m
+    cb, cg = math.cos(truth.road.bank_rad), math.cos(truth.road.grade_rad)
+    # antenna velocity in the body frame, then horizontal N/E (dpsi/dt = -r: heading is clockwise)
+    ux, uy = (vx - r * ly) * cg, (vy + r * lx) * cb
+    cps, sps = np.cos(psi), np.sin(psi)
+    vn_true = ux * cps + uy * sps
+    ve_true = ux * sps - uy * cps
+    n = len(tv)
+    noise = rng.standard_normal((n, 2)) * params.vel_noise_mps
+    jitter = np.clip(rng.standard_normal(n), -3, 3) * params.latency_jitter_s
+    # Gauss-Markov position error
+    a = math.exp(-period / params.pos_tau_s)
+    w = rng.standard_normal((n, 2)) * params.pos_noise_m * math.sqrt(1 - a * a)
+    pe = np.zeros((n, 2))
+    pe[0] = rng.standard_normal(2) * params.pos_noise_m
+    for i in range(1, n):
+        pe[i] = a * pe[i - 1] + w[i]
+    pn = north + lx * cps + ly * sps + pe[:, 0]
+    pe_ = east + lx * sps - ly * cps + pe[:, 1]
+    lat = params.lat0_deg + np.degrees(pn / EARTH_RADIUS_M)
+    lon = params.lon0_deg + np.degrees(pe_ / (EARTH_RADIUS_M * math.cos(math.radians(params.lat0_deg))))
+    t_rx = tv + params.latency_s + jitter
+    t_rx = np.maximum.accumulate(t_rx)  # a receiver never reorders its output
+    out = []
+    for i in range(n):
+        if t_rx[i] > t[-1]:
+            break
+        out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn_true[i] + noise[i, 0]),
+                             float(ve_true[i] + noise[i, 1]), float(lat[i]), float(lon[i])))
+    return out
+
+
+def encode_epoch(ep: GnssEpoch, params: GnssParams) -> list[tuple[float, bytes]]:
+    """The byte messages of one epoch as ``(receive time, payload)``: UBX NAV-PVT or NMEA lines."""
+    utc = ep.t_valid + UTC_OFFSET_S
+    utc = round(utc * 1000.0) / 1000.0  # receivers stamp epochs on whole milliseconds
+    speed = math.hypot(ep.vel_n, ep.vel_e)
+    if params.protocol == "ubx":
+        frame = encode.nav_pvt(**encode.utc_fields(utc), fix_type=3, fix_ok=True, num_sv=params.num_sv,
+                               lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, height_m=params.height_m,
+                               h_acc_m=max(0.5, 1.5 * params.pos_noise_m),
+                               vel_n_mps=ep.vel_n, vel_e_mps=ep.vel_e, speed_acc_mps=params.speed_acc_mps)
+        return [(ep.t_rx, frame)]
+    if params.protocol == "nmea":
+        course = math.degrees(math.atan2(ep.vel_e, ep.vel_n)) % 360.0
+        lines = [
+            encode.nmea_rmc(utc=utc, lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, speed_mps=speed, course_deg=course),
+            encode.nmea_vtg(speed_mps=speed, course_deg=course),
+            encode.nmea_gga(utc=utc, lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, num_sv=params.num_sv,
+                            alt_m=params.height_m),
+        ]
+        return [(ep.t_rx + i * params.nmea_stagger_s, (s + "\r\n").encode("ascii")) for i, s in enumerate(lines)]
+    raise ValueError(f"unknown GNSS protocol {params.protocol!r} (ubx or nmea)")
+
+
+def effective_accel_biases(sp: SensorParams, bank_rad: float, grade_rad: float,
+                           roll_gradient_rad_per_g: float = 0.0) -> tuple[float, float]:
+    """What the accelerometers read standing still on this road, noise-free.
+
+    Sensor bias plus the constant gravity components of grade and bank, including the body roll
+    the bank's lateral force causes: the value a constant-bias state converges to.
+    """
+    fy = G * math.sin(bank_rad) * math.cos(grade_rad)
+    fz = G * math.cos(bank_rad) * math.cos(grade_rad)
+    roll = roll_gradient_rad_per_g / G * fy
+    return (sp.accel_x_bias_mps2 + G * math.sin(grade_rad),
+            sp.accel_y_bias_mps2 + fy * math.cos(roll) + fz * math.sin(roll))

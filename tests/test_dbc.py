@@ -1,0 +1,171 @@
+"""Our two DBC files: strict-loadable, the layout the daemon and the brief rely on, readable by cantools."""
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cantools
+import pytest
+
+from ecu_daemon import config
+from ecu_daemon.canlog import CandumpWriter
+from ecu_daemon.diagnostics import Diagnostics, InputDiagnostics
+from ecu_daemon.estimator import estimate as estimate_module
+from ecu_daemon.estimator.estimate import ESTIMATE_FIELDS, Estimate
+from ecu_daemon.integrity import data_id_for
+from ecu_daemon.outputs import OutputEncoder, _DIAG_FIELDS, _DIAG_INPUT_PREFIX, _DIAG_INPUT_SUFFIX, _ESTIMATE_SOURCES
+
+ROOT = Path(__file__).resolve().parents[1]
+INPUTS_DBC = ROOT / "dbc" / "ecu_daemon_inputs.dbc"
+OUTPUTS_DBC = ROOT / "dbc" / "ecu_daemon_outputs.dbc"
+
+
+@pytest.fixture(scope="module")
+def inputs_db():
+    return cantools.database.load_file(INPUTS_DBC, strict=True)
+
+
+@pytest.fixture(scope="module")
+def outputs_db():
+    return cantools.database.load_file(OUTPUTS_DBC, strict=True)
+
+
+def raw_range(sig):
+    n = sig.length
+    lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
+    return lo * sig.scale + sig.offset, hi * sig.scale + sig.offset
+
+
+@pytest.mark.parametrize("path", [INPUTS_DBC, OUTPUTS_DBC])
+def test_dbc_is_ascii_and_carries_cycle_times_nodes_and_integrity_fields(path):
+    path.read_bytes().decode("ascii")  # cantools reads cp1252 by default: keep it ASCII
+    db = cantools.database.load_file(path, strict=True)
+    ids = [m.frame_id for m in db.messages]
+    assert len(ids) == len(set(ids))
+    node_names = {n.name for n in db.nodes}
+    for m in db.messages:
+        assert not m.is_extended_frame and m.frame_id <= 0x7FF
+        assert m.length == 8
+        assert isinstance(m.cycle_time, int) and m.cycle_time > 0
+        assert m.senders and set(m.senders) <= node_names
+        chk, cnt = m.get_signal_by_name("CHECKSUM"), m.get_signal_by_name("COUNTER")
+        assert (chk.start, chk.length, chk.byte_order, chk.is_signed) == (0, 8, "little_endian", False)
+        assert (cnt.start, cnt.length, cnt.byte_order, cnt.is_signed) == (8, 4, "little_endian", False)
+        assert data_id_for(m) == m.frame_id & 0xFF == m.dbc.attributes["E2EDataId"].value
+    comment = _db_comment(path)  # the E2E scheme is documented in the file itself
+    assert "compute_profile2_crc(payload, frame_id & 0xFF)" in comment and "E2EDataId" in comment
+
+
+def _db_comment(path: Path) -> str:
+    text = path.read_text(encoding="ascii")
+    start = text.index('CM_ "')
+    return text[start:text.index('";', start)]
+
+
+def test_input_dbc_layout_matches_the_default_mapping(inputs_db):
+    ws = inputs_db.get_message_by_name("WHEEL_SPEEDS")
+    st = inputs_db.get_message_by_name("STEERING")
+    imu = inputs_db.get_message_by_name("IMU")
+    assert (ws.frame_id, st.frame_id, imu.frame_id) == (0x0B0, 0x0B2, 0x0B4)
+    assert {m.cycle_time for m in inputs_db.messages} == {10}
+    assert (ws.senders, st.senders, imu.senders) == (["ABS"], ["SAS"], ["IMU"])
+    for corner in ("FL", "FR", "RL", "RR"):
+        s = ws.get_signal_by_name(f"WHEEL_SPEED_{corner}")
+        lo, hi = raw_range(s)
+        assert s.unit == "m/s" and lo <= -10.0 and hi >= 250.0
+        assert s.scale <= 0.032  # best 13 bits allow: 4 wheels + CHECKSUM + COUNTER in 8 bytes
+        assert s.raw_initial is not None and abs(s.raw_initial * s.scale + s.offset) < 1e-9  # starts at 0 m/s
+    angle = st.get_signal_by_name("STEERING_WHEEL_ANGLE")
+    assert angle.is_signed and angle.unit == "rad" and angle.scale <= 0.0005 and raw_range(angle)[1] >= 15.0
+    assert st.get_signal_by_name("STEERING_WHEEL_RATE").unit == "rad/s"
+    yaw = imu.get_signal_by_name("YAW_RATE")
+    assert yaw.is_signed and yaw.unit == "rad/s" and yaw.scale <= 1e-4 and raw_range(yaw)[1] >= 3.0
+    for name in ("ACCEL_X", "ACCEL_Y"):
+        a = imu.get_signal_by_name(name)
+        assert a.is_signed and a.unit == "m/s^2" and a.scale <= 1e-3 and raw_range(a)[1] >= 30.0
+    # every default [inputs.*] mapping names a real message and signal, inside the signal's range
+    for name, m in config.Config().inputs.items():
+        msg = inputs_db.get_message_by_name(m.message)
+        sig = msg.get_signal_by_name(m.signal)
+        lo, hi = raw_range(sig)
+        assert lo <= m.min and m.max <= hi, name
+        assert msg.get_signal_by_name(m.counter).length == 4
+
+
+def test_output_dbc_timing_ids_and_resolution(outputs_db):
+    for m in outputs_db.messages:
+        assert 0x300 <= m.frame_id < 0x400
+        assert m.cycle_time % 6 == 0, m.name
+        assert m.senders == ["ECU_DAEMON"]
+    sideslip = outputs_db.get_message_by_name("EST_SIDESLIP")
+    assert sideslip.cycle_time == 6
+    beta = sideslip.get_signal_by_name("SIDESLIP")
+    assert beta.is_signed and beta.length == 16 and beta.scale <= math.radians(0.001)
+    heading = outputs_db.get_message_by_name("EST_HEADING").get_signal_by_name("HEADING")
+    assert heading.scale <= 1e-4 and raw_range(heading)[1] >= 2 * math.pi
+    diag = outputs_db.get_message_by_name("EST_DIAG")
+    assert diag.is_multiplexed() and diag.cycle_time % 6 == 0
+
+
+def test_every_estimate_and_diagnostics_field_has_an_output_signal(outputs_db):
+    signals = {s.name for m in outputs_db.messages for s in m.signals}
+    fed = {field for field, _, _ in _ESTIMATE_SOURCES.values()}
+    flags = {f for f in ESTIMATE_FIELDS if f.endswith("_valid")}
+    missing = set(ESTIMATE_FIELDS) - fed - flags - {"t", "status"}
+    assert not missing
+    assert all(name in signals for name in _ESTIMATE_SOURCES)
+    status_bits = [n for n in dir(estimate_module) if n.startswith("STATUS_")]
+    assert status_bits and all(n in signals for n in status_bits)
+    diag_fields = {f.name for f in dataclasses.fields(Diagnostics)} - {"inputs"}
+    assert diag_fields == {attr for attr, _ in _DIAG_FIELDS.values()}
+    assert {f.name for f in dataclasses.fields(InputDiagnostics)} == {a for a, _ in _DIAG_INPUT_SUFFIX.values()}
+    for prefix in _DIAG_INPUT_PREFIX:
+        for suffix in _DIAG_INPUT_SUFFIX:
+            assert f"{prefix}_{suffix}" in signals
+
+
+def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
+    """What a person does on the bench: candump -L | cantools decode dbc/ecu_daemon_outputs.dbc."""
+    enc = OutputEncoder(config.Config())
+    est = Estimate(t=12.5, sideslip_rad=0.01, sideslip_std_rad=0.002, heading_rad=1.0, heading_std_rad=0.02,
+                   vx_mps=20.0, vy_mps=0.2, vx_std_mps=0.05, vy_std_mps=0.1, yaw_rate_radps=0.1,
+                   yaw_rate_bias_radps=-0.007, yaw_rate_bias_std_radps=0.001, accel_x_bias_mps2=0.1,
+                   accel_x_bias_std_mps2=0.05, accel_y_bias_mps2=-0.1, accel_y_bias_std_mps2=0.05,
+                   gnss_delay_s=0.2, wheel_scale=0.99, steering_offset_rad=0.01,
+                   cornering_stiffness_front_n_per_rad=1e5, cornering_stiffness_rear_n_per_rad=1.2e5,
+                   sideslip_valid=True, heading_valid=True, velocity_valid=True, biases_valid=True,
+                   status=0, gnss_fused=7, gnss_rejected=1, gnss_late=0)
+    log = tmp_path / "out.log"
+    with CandumpWriter(log) as w:
+        period = max(p for _, _, p, _ in enc.schedule)
+        for k in range(max(period, 2 * 21)):  # every message, and all 21 EST_DIAG pages
+            for msg in enc.frames(k, est, Diagnostics()):
+                w.write(msg)
+    r = subprocess.run([sys.executable, "-m", "cantools", "decode", str(OUTPUTS_DBC)],
+                       stdin=log.open(), capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    db = cantools.database.load_file(OUTPUTS_DBC)
+    for m in db.messages:
+        for s in m.signals:
+            assert f"    {s.name}: " in r.stdout, s.name
+    assert "SIDESLIP: 0.01 rad" in r.stdout and "Unknown frame" not in r.stdout and "Error" not in r.stdout
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
+@pytest.mark.parametrize("path", [INPUTS_DBC, OUTPUTS_DBC])
+def test_generated_c_code_compiles_cleanly(tmp_path, path):
+    """A well-formed DBC also serves a future embedded port: cantools' C generator + gcc -Wall -Werror."""
+    from cantools.database.can.c_source import generate
+
+    name = path.stem
+    header, source, _, _ = generate(cantools.database.load_file(path, strict=True), name, f"{name}.h",
+                                    f"{name}.c", f"{name}_fuzzer.c")
+    (tmp_path / f"{name}.h").write_text(header)
+    (tmp_path / f"{name}.c").write_text(source)
+    r = subprocess.run(["gcc", "-c", "-std=c99", "-Wall", "-Wextra", "-Werror", f"{name}.c"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr

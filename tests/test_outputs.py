@@ -1,0 +1,230 @@
+"""OutputEncoder: Estimate + Diagnostics -> E2E-protected frames of the output DBC, on a real python-can bus."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import can
+import cantools
+import pytest
+
+from ecu_daemon import config
+from ecu_daemon.config import ConfigError
+from ecu_daemon.diagnostics import BUS_OFF, Diagnostics
+from ecu_daemon.estimator.estimate import (STATUS_GNSS_FRESH, STATUS_HEADING_ALIGNED, STATUS_INPUT_STALE,
+                                           Estimate)
+from ecu_daemon.outputs import OutputEncoder, OutputFrameError, decode_output_frame
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT_DBC = ROOT / "dbc" / "ecu_daemon_outputs.dbc"
+
+BASE = dict(t=3.0, sideslip_rad=-0.0123, sideslip_std_rad=0.0021, heading_rad=4.5, heading_std_rad=0.015,
+            vx_mps=23.4, vy_mps=-0.29, vx_std_mps=0.04, vy_std_mps=0.12, yaw_rate_radps=-0.2345,
+            yaw_rate_bias_radps=-0.0072, yaw_rate_bias_std_radps=0.0004, accel_x_bias_mps2=0.12,
+            accel_x_bias_std_mps2=0.03, accel_y_bias_mps2=-0.08, accel_y_bias_std_mps2=0.04,
+            gnss_delay_s=0.2021, wheel_scale=0.9912, steering_offset_rad=0.0123,
+            cornering_stiffness_front_n_per_rad=98765.0, cornering_stiffness_rear_n_per_rad=123456.0,
+            sideslip_valid=True, heading_valid=True, velocity_valid=True, biases_valid=True,
+            status=STATUS_GNSS_FRESH | STATUS_HEADING_ALIGNED, gnss_fused=70001, gnss_rejected=3, gnss_late=1)
+
+#: DBC signal -> Estimate field, for the round-trip check
+FIELDS = {"SIDESLIP": "sideslip_rad", "SIDESLIP_STD": "sideslip_std_rad", "YAW_RATE": "yaw_rate_radps",
+          "VX": "vx_mps", "VY": "vy_mps", "VX_STD": "vx_std_mps", "VY_STD": "vy_std_mps",
+          "HEADING": "heading_rad", "HEADING_STD": "heading_std_rad", "YAW_RATE_BIAS": "yaw_rate_bias_radps",
+          "ACCEL_X_BIAS": "accel_x_bias_mps2", "ACCEL_Y_BIAS": "accel_y_bias_mps2",
+          "YAW_RATE_BIAS_STD": "yaw_rate_bias_std_radps", "ACCEL_X_BIAS_STD": "accel_x_bias_std_mps2",
+          "ACCEL_Y_BIAS_STD": "accel_y_bias_std_mps2", "GNSS_DELAY": "gnss_delay_s", "WHEEL_SCALE": "wheel_scale",
+          "STEERING_OFFSET": "steering_offset_rad",
+          "CORNERING_STIFFNESS_FRONT": "cornering_stiffness_front_n_per_rad",
+          "CORNERING_STIFFNESS_REAR": "cornering_stiffness_rear_n_per_rad"}
+
+
+def est(**kw) -> Estimate:
+    return Estimate(**{**BASE, **kw})
+
+
+@pytest.fixture
+def enc():
+    return OutputEncoder(config.Config())
+
+
+def collect(enc, steps, e=None, diag=None):
+    """Decode every frame of ``steps`` steps: {message name: [values, ...]} (checks CRC and counter)."""
+    db = enc.db
+    seen, last_counter = {}, {}
+    for k in steps:
+        for msg in enc.frames(k, e or est(), diag):
+            name = db.get_message_by_frame_id(msg.arbitration_id).name
+            vals = decode_output_frame(db, msg, last_counter.get(name))
+            last_counter[name] = vals["COUNTER"]
+            seen.setdefault(name, []).append(vals)
+    return seen
+
+
+def test_schedule_follows_the_dbc_cycle_times_without_bursts(enc):
+    db = cantools.database.load_file(OUT_DBC)
+    per_step = []
+    counts = {}
+    for k in range(120):
+        frames = enc.frames(k, est(), Diagnostics())
+        per_step.append(len(frames))
+        for m in frames:
+            counts[m.arbitration_id] = counts.get(m.arbitration_id, 0) + 1
+            assert m.timestamp == 3.0 and not m.is_extended_id and m.dlc == 8
+    for m in db.messages:
+        assert counts[m.frame_id] == 120 // (m.cycle_time // 6), m.name
+    assert max(per_step) <= 4  # fast frames + at most one slower frame per step
+    for name, fid, period, phase in enc.schedule:
+        assert period == db.get_message_by_name(name).cycle_time // 6 and 0 <= phase < period
+
+
+def test_round_trip_values_validity_status_and_counters(enc):
+    seen = collect(enc, range(40))
+    flat = {}
+    for frames in seen.values():
+        for k, v in frames[0].items():
+            flat.setdefault(k, v)
+    db = cantools.database.load_file(OUT_DBC)
+    for sig, field in FIELDS.items():
+        lsb = db.get_message_by_name(next(n for n, f in seen.items() if sig in f[0])).get_signal_by_name(sig).scale
+        assert flat[sig] == pytest.approx(BASE[field], abs=lsb / 2 + 1e-12), sig
+    for v in ("SIDESLIP_VALID", "YAW_RATE_VALID", "VELOCITY_VALID", "HEADING_VALID", "BIASES_VALID",
+              "CALIBRATION_VALID", "CORNERING_VALID"):
+        assert flat[v] == 1, v
+    assert flat["STATUS_GNSS_FRESH"] == 1 and flat["STATUS_HEADING_ALIGNED"] == 1 and flat["STATUS_RESET"] == 0
+    assert flat["GNSS_FUSED"] == 70001 % 65536 and flat["GNSS_REJECTED"] == 3 and flat["GNSS_LATE"] == 1
+    # counters run 0..15 and wrap, per message
+    assert [f["COUNTER"] for f in seen["EST_SIDESLIP"]] == [k & 15 for k in range(40)]
+    assert [f["COUNTER"] for f in seen["EST_BIASES"]] == [0, 1, 2, 3]
+
+
+def test_saturation_clears_only_its_own_frame_validity(enc, caplog):
+    seen = collect(enc, range(10), est(sideslip_rad=0.5, vy_std_mps=7.0, yaw_rate_bias_radps=-1.0))
+    s = seen["EST_SIDESLIP"][0]
+    assert s["SIDESLIP"] == pytest.approx(0.32767) and s["SIDESLIP_VALID"] == 0 and s["YAW_RATE_VALID"] == 1
+    v = seen["EST_VELOCITY"][0]
+    assert v["VY_STD"] == pytest.approx(1.275) and v["VELOCITY_VALID"] == 0 and v["VX"] == pytest.approx(23.4)
+    assert seen["EST_BIASES"][0]["YAW_RATE_BIAS"] == pytest.approx(-0.32768)
+    assert seen["EST_BIASES"][0]["BIASES_VALID"] == 0 and seen["EST_BIAS_STD"][0]["BIASES_VALID"] == 1
+    assert seen["EST_HEADING"][0]["HEADING_VALID"] == 1
+    assert enc.saturated == {"SIDESLIP": 10, "VY_STD": 10, "YAW_RATE_BIAS": 1}
+    lines = [r.getMessage() for r in caplog.records if "SIDESLIP" in r.getMessage()]
+    assert len(lines) == 1 and "SIDESLIP_VALID cleared" in lines[0]  # rate-limited: one line, not 10
+
+
+def test_nan_and_inf_are_sent_as_zero_with_validity_cleared(enc):
+    seen = collect(enc, range(10), est(vx_mps=math.nan, heading_std_rad=math.inf, wheel_scale=math.nan,
+                                       gnss_fused=0))
+    v = seen["EST_VELOCITY"][0]
+    assert v["VX"] == 0 and v["VELOCITY_VALID"] == 0 and v["VY"] == pytest.approx(-0.29)
+    h = seen["EST_HEADING"][0]
+    assert h["HEADING_STD"] == 0 and h["HEADING_VALID"] == 0
+    c = seen["EST_CALIBRATION"][0]
+    assert c["WHEEL_SCALE"] == pytest.approx(1.0 - 32768e-5)  # 0 is out of range: the limit nearest to it
+    assert c["CALIBRATION_VALID"] == 0
+    assert enc.non_finite["VX"] == 10
+
+
+def test_estimator_flags_and_heading_wrap(enc):
+    seen = collect(enc, range(2), est(sideslip_valid=False, heading_rad=2 * math.pi + 0.1,
+                                      status=STATUS_INPUT_STALE))
+    assert seen["EST_SIDESLIP"][0]["SIDESLIP_VALID"] == 0
+    h = seen["EST_HEADING"][0]
+    assert h["HEADING"] == pytest.approx(0.1, abs=1e-4) and h["HEADING_VALID"] == 1
+    assert h["STATUS_INPUT_STALE"] == 1 and h["STATUS_GNSS_FRESH"] == 0
+    h = collect(enc, range(1), est(heading_rad=-0.1))["EST_HEADING"][0]
+    assert h["HEADING"] == pytest.approx(2 * math.pi - 0.1, abs=1e-4)
+
+
+def test_diagnostics_pages_cover_everything(enc):
+    d = Diagnostics(gnss_fix_type=3, gnss_num_sv=17, gnss_speed_acc_mps=math.nan, gnss_receive_age_ms=45.0,
+                    gnss_latency_ms=201.3, gnss_checksum_errors=300, gnss_parse_errors=2,
+                    gnss_serial_connected=True, can_bus_state=BUS_OFF, can_error_frames=12, can_tx_failures=70000,
+                    tick_late_p50_us=120.0, tick_late_p99_us=99999.0, tick_late_max_us=2.5e6, tick_overruns=4,
+                    cpu_load_pct=12.3)
+    d.inputs["yaw_rate"].age_ms = 7.4
+    d.inputs["yaw_rate"].rate_hz = 99.87
+    d.inputs["yaw_rate"].counter_errors = 257
+    d.inputs["accel_y"].checksum_errors = 5
+    period = next(p for n, _, p, _ in enc.schedule if n == "EST_DIAG")
+    pages = {}
+    for f in collect(enc, range(period * 21 * 2), diag=d)["EST_DIAG"]:
+        pages.setdefault(f["DIAG_PAGE"], f)
+    assert len(pages) == 21
+    assert pages[5]["YAW_RATE_AGE"] == 7 and pages[5]["YAW_RATE_RATE"] == pytest.approx(99.87)
+    assert pages[0]["WS_FL_AGE"] == 65535  # never received
+    assert pages[21]["YAW_RATE_COUNTER_ERRORS"] == 1 and pages[23]["ACCEL_Y_CHECKSUM_ERRORS"] == 5  # modulo 256
+    g = pages[32]
+    assert (g["GNSS_FIX_TYPE"], g["GNSS_NUM_SV"], g["GNSS_SERIAL_CONNECTED"]) == (3, 17, 1)
+    assert g["GNSS_SPEED_ACC"] == pytest.approx(65.535) and g["GNSS_CHECKSUM_ERRORS"] == 300 % 256  # unknown
+    assert pages[33]["GNSS_RX_AGE"] == 45 and pages[33]["GNSS_LATENCY"] == pytest.approx(201.3)
+    assert pages[48]["CAN_BUS_STATE"] == 3 and pages[48]["CAN_TX_FAILURES"] == 70000 % 65536
+    assert pages[49]["TICK_LATE_P99"] == 65535 and pages[49]["CPU_LOAD"] == pytest.approx(12.5)
+    assert pages[50]["TICK_LATE_MAX"] == 2_500_000 and pages[50]["TICK_OVERRUNS"] == 4
+    # cantools shows the choice names a person reads on the bench
+    db = cantools.database.load_file(OUT_DBC)
+    msg = next(m for m in enc.frames(0, est(), d) if m.arbitration_id == 0x320)
+    assert db.decode_message(0x320, msg.data)["WS_FL_AGE"] == "NEVER"
+
+
+def test_no_diagnostics_no_diag_frame(enc):
+    ids = {m.arbitration_id for k in range(20) for m in enc.frames(k, est(), None)}
+    assert 0x320 not in ids and 0x300 in ids
+
+
+def test_decode_output_frame_rejects_bad_frames(enc):
+    db = enc.db
+    good = enc.frames(0, est(), None)[0]
+    assert decode_output_frame(db, good)["SIDESLIP"] == pytest.approx(-0.0123)
+    bad = bytearray(good.data)
+    bad[4] ^= 1
+    with pytest.raises(OutputFrameError, match="CRC"):
+        decode_output_frame(db, can.Message(arbitration_id=0x300, is_extended_id=False, data=bad))
+    with pytest.raises(OutputFrameError, match="COUNTER 0 after 3"):
+        decode_output_frame(db, good, prev_counter=3)
+    with pytest.raises(OutputFrameError, match="not an output message"):
+        decode_output_frame(db, can.Message(arbitration_id=0x123, is_extended_id=False, data=good.data))
+    with pytest.raises(OutputFrameError, match="expected 8"):
+        decode_output_frame(db, can.Message(arbitration_id=0x300, is_extended_id=False, data=good.data[:7]))
+
+
+def test_frames_survive_a_real_python_can_bus(enc):
+    with can.Bus(interface="virtual", channel="test-outputs", preserve_timestamps=True) as tx, \
+            can.Bus(interface="virtual", channel="test-outputs", preserve_timestamps=True) as rx:
+        sent = [m for k in range(12) for m in enc.frames(k, est(t=k * 0.006), Diagnostics())]
+        for m in sent:
+            tx.send(m)
+        got = [rx.recv(timeout=2.0) for _ in sent]
+    assert all(g is not None for g in got)
+    last = {}
+    for s, g in zip(sent, got):
+        assert (g.arbitration_id, bytes(g.data), g.timestamp) == (s.arbitration_id, bytes(s.data), s.timestamp)
+        vals = decode_output_frame(enc.db, g, last.get(g.arbitration_id))
+        last[g.arbitration_id] = vals["COUNTER"]
+
+
+def test_cycle_time_not_a_multiple_of_the_step_is_a_config_error():
+    cfg = config.from_dict({"estimator": {"dt_s": 0.005}})
+    with pytest.raises(ConfigError, match="cycle time 6 ms is not a multiple of the estimator step 5 ms"):
+        OutputEncoder(cfg)
+
+
+def test_output_dbc_signal_without_a_source_is_a_config_error(tmp_path):
+    text = OUT_DBC.read_text(encoding="ascii").replace(
+        ' SG_ YAW_RATE : 48|16@1- (0.0001,0) [-3.2768|3.2767] "rad/s" Vector__XXX\n',
+        ' SG_ YAW_RATE : 48|16@1- (0.0001,0) [-3.2768|3.2767] "rad/s" Vector__XXX\n'
+        ' SG_ SPARE_THING : 14|2@1+ (1,0) [0|3] "" Vector__XXX\n', 1)
+    (tmp_path / "out.dbc").write_text(text, encoding="ascii")
+    with pytest.raises(ConfigError, match="SPARE_THING has no source"):
+        OutputEncoder(config.from_dict({"can": {"output_dbc": str(tmp_path / "out.dbc")}}))
+    with pytest.raises(ConfigError, match="cannot read"):
+        OutputEncoder(config.from_dict({"can": {"output_dbc": str(tmp_path / "missing.dbc")}}))
+
+
+def test_diagnostics_summary_is_one_line_naming_problems():
+    d = Diagnostics(can_bus_state=BUS_OFF, gnss_serial_connected=False)
+    d.inputs["yaw_rate"].age_ms = 12.0
+    d.inputs["yaw_rate"].checksum_errors = 2
+    line = d.summary()
+    assert "\n" not in line and "bus-off" in line and "port closed" in line and "input errors 2" in line
+    assert "1/8 fresh" in line and "wheel_speed_fl" in line and "yaw_rate," not in line

@@ -1,0 +1,122 @@
+"""GNSS serial port on a real pseudo-terminal: reading, receive timestamps, unplug and replug."""
+from __future__ import annotations
+
+import asyncio
+import io
+import logging
+import os
+import time
+import tty
+
+from ecu_daemon.io.logging_setup import setup_logging
+from ecu_daemon.io.serial_port import GnssSerial
+
+
+async def wait_for(cond, timeout=5.0, what="condition"):
+    end = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        await asyncio.sleep(0.005)
+
+
+class FakeReceiver:
+    """A pty standing in for a USB GNSS receiver, reachable through a stable symlink."""
+
+    def __init__(self, link):
+        self.link = link
+        self.master = -1
+        self.plug()
+
+    def plug(self):
+        m, s = os.openpty()
+        tty.setraw(s)
+        if os.path.lexists(self.link):
+            os.unlink(self.link)
+        os.symlink(os.ttyname(s), self.link)
+        os.close(s)
+        self.master = m
+
+    def unplug(self):
+        os.close(self.master)
+        os.unlink(self.link)
+        self.master = -1
+
+    def write(self, data):
+        os.write(self.master, data)
+
+
+def capture_log():
+    buf = io.StringIO()
+    setup_logging("info", stream=buf)
+    return buf
+
+
+def test_unplug_and_replug_reconnects_and_says_so_once(tmp_path):
+    log = capture_log()
+    got = []
+
+    async def main():
+        rx = FakeReceiver(str(tmp_path / "ttyGNSS"))
+        port = GnssSerial(rx.link, 115200, on_data=lambda t, b: got.append((t, b)))
+        port.start(asyncio.get_running_loop())
+        assert port.connected
+        t0 = time.monotonic()
+        rx.write(b"$GPRMC,first*00\r\n")
+        await wait_for(lambda: got, what="first bytes")
+        assert t0 <= got[0][0] <= time.monotonic()  # stamped on the monotonic clock at read
+        rx.unplug()
+        await wait_for(lambda: not port.connected, what="loss detected")
+        await asyncio.sleep(0.5)  # stay unplugged through several reconnect attempts
+        assert not port.connected
+        rx.plug()
+        await wait_for(lambda: port.connected, timeout=10, what="reconnect")
+        rx.write(b"$GPRMC,second*00\r\n")
+        await wait_for(lambda: len(got) >= 2 and b"second" in b"".join(b for _, b in got),
+                       what="bytes after replug")
+        port.close()
+        return port
+
+    port = asyncio.run(main())
+    data = b"".join(b for _, b in got)
+    assert data == b"$GPRMC,first*00\r\n$GPRMC,second*00\r\n"  # nothing lost, nothing doubled
+    ts = [t for t, _ in got]
+    assert ts == sorted(ts)
+    assert port.losses == 1 and port.reconnects == 1
+    lines = [ln for ln in log.getvalue().splitlines() if "GNSS port" in ln]
+    assert len(lines) == 2, lines
+    assert "lost" in lines[0] and "reconnected" in lines[1]
+
+
+def test_port_missing_at_start_is_retried(tmp_path):
+    log = capture_log()
+    got = []
+
+    async def main():
+        link = str(tmp_path / "ttyLATE")
+        port = GnssSerial(link, 9600, on_data=lambda t, b: got.append(b))
+        port.start(asyncio.get_running_loop())
+        assert not port.connected
+        await asyncio.sleep(0.3)
+        rx = FakeReceiver(link)
+        await wait_for(lambda: port.connected, timeout=10, what="late port")
+        rx.write(b"\xb5\x62hello")
+        await wait_for(lambda: got, what="bytes")
+        port.close()
+        rx.unplug()
+        return port
+
+    port = asyncio.run(main())
+    assert got == [b"\xb5\x62hello"]
+    assert port.losses == 0
+    text = log.getvalue()
+    assert text.count("not available") == 1 and text.count("available after") == 1
+
+
+def test_rate_limited_logging_counts_suppressed_lines():
+    log = capture_log()
+    lg = logging.getLogger("ecu_daemon.test")
+    for i in range(50):
+        lg.warning("bad frame 0x%X", i)
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 1 and "bad frame 0x0" in lines[0]

@@ -1,0 +1,90 @@
+"""The 6 ms tick thread: absolute deadlines, catch-up accounting, statistics."""
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from ecu_daemon.io.tick import ScaledClock, TickStats, TickThread
+
+PERIOD = 0.006
+
+
+def run_ticks(n, on_tick=None, **kw):
+    calls = []
+    done = threading.Event()
+
+    def cb(k, now):
+        calls.append((k, now))
+        if len(calls) >= n:
+            done.set()
+        if on_tick is not None:
+            on_tick(k, now)
+
+    t = TickThread(PERIOD, cb, **kw)
+    t.start()
+    assert done.wait(10.0), "tick thread did not reach the expected number of ticks"
+    t.stop()
+    assert not t.is_alive()
+    return t, calls
+
+
+def test_ticks_never_fire_before_their_deadline_and_indices_increase():
+    t, calls = run_ticks(40, offset_s=0.001)
+    ks = [k for k, _ in calls]
+    assert all(b > a for a, b in zip(ks, ks[1:]))
+    for k, now in calls:
+        assert now >= k * PERIOD + 0.001  # the callback sees its own deadline has passed
+        # k is the newest due index: the next deadline has not passed yet when it was computed
+        assert now < (k + 1) * PERIOD + 0.001
+    assert t.stats.ticks == len(calls)
+
+
+def test_a_stalled_callback_is_caught_up_and_counted():
+    stalled = []
+
+    def stall(k, now):
+        if not stalled:
+            stalled.append(k)
+            time.sleep(4 * PERIOD)
+
+    t, calls = run_ticks(10, on_tick=stall)
+    ks = [k for k, _ in calls]
+    assert ks[1] - ks[0] >= 4  # the missed deadlines were skipped, not replayed one by one
+    assert t.stats.skipped >= 3
+    assert t.stats.overruns >= 1
+    assert t.stats.snapshot().late_max_s >= 3 * PERIOD
+
+
+def test_callback_exceptions_are_counted_and_ticking_continues():
+    def boom(k, now):
+        raise RuntimeError("estimator blew up")
+
+    t, calls = run_ticks(5, on_tick=boom)
+    assert t.errors >= 5
+
+
+def test_stats_percentiles_and_histogram():
+    s = TickStats(window=100)
+    for i in range(100):
+        s.record(i * 1e-5, 1e-5, 0, False)  # 0 .. 0.99 ms
+    s.record(0.5, 0.0, 2, True)  # one very late tick
+    snap = s.snapshot()
+    assert snap.ticks == 101
+    assert snap.overruns == 1 and snap.skipped == 2
+    assert snap.late_max_s == pytest.approx(0.5)
+    assert snap.late_max_total_s == pytest.approx(0.5)
+    assert 0.4e-3 < snap.late_p50_s < 0.6e-3
+    # whole-run histogram: 50th percentile within one bin, the 0.5 s tick lands in the overflow bin
+    assert s.total_percentile(50) == pytest.approx(0.5e-3, abs=2e-5)
+    assert s.hist[-1] == 1
+
+
+def test_scaled_clock_runs_faster():
+    c = ScaledClock(10.0)
+    a, r0 = c(), time.monotonic()
+    time.sleep(0.02)
+    assert (c() - a) >= 10 * (time.monotonic() - r0) * 0.9
+    with pytest.raises(ValueError):
+        ScaledClock(0.0)
