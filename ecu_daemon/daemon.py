@@ -421,7 +421,7 @@ class Daemon:
                     batch.append(pop())
             except IndexError:
                 pass
-            batch.sort(key=_sample_t)
+            batch.sort(key=_sample_order)  # as replay merges: by time, CAN before GNSS on a tie
             last = self._last_step_t
             for s in batch:
                 if s.t <= last:
@@ -497,8 +497,8 @@ def stale_validity_mask(stale: list[str]) -> dict:
     return mask
 
 
-def _sample_t(s) -> float:
-    return s.t
+def _sample_order(s) -> tuple:
+    return (s.t, type(s) is not InputSample)
 
 
 def _running_loop():

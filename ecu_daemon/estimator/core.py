@@ -61,7 +61,8 @@ class Estimator:
         self.delay_compensation = es.delay_compensation
         learned = self._check_learned(learned)
         self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
-                                        gn.max_delay_s, gn.estimate_delay)
+                                        gn.max_delay_s, gn.estimate_delay,
+                                        lever_arm=(gn.lever_arm_m[0], gn.lever_arm_m[1]))
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)

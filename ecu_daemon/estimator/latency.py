@@ -21,14 +21,21 @@ import math
 
 import numpy as np
 
-from .history import AUX_THETA, AUX_WHEEL, StepHistory
+from .history import AUX_R, AUX_THETA, AUX_WHEEL, StepHistory
 from .kinematic import VX, VY
+
+
+MIN_SPEED = 3.0  # m/s, both fixes
+MIN_SPREAD = 2e-3  # (m/s)^2: the residual must depend on the candidate delay by at least this
+MIN_UPDATES = 40  # informative fix pairs before the prior is left
+MAX_SLEW_S = 0.004  # per fix
 
 
 class LatencyEstimator:
     def __init__(self, dt: float, prior_s: float, max_s: float, enabled: bool = True,
-                 forgetting: float = 0.995):
+                 forgetting: float = 0.995, lever_arm: tuple[float, float] = (0.0, 0.0)):
         self.dt = dt
+        self.lever = lever_arm
         self.enabled = enabled
         self.delay_s = prior_s
         self.max_steps = max(2, int(max_s / dt))
@@ -48,7 +55,8 @@ class LatencyEstimator:
             return
         k0, s0, c0 = prev
         gap = k_rx - k0
-        if gap <= 0 or gap > 0.6 / self.dt:
+        # below walking pace wheel sensors read zero and GNSS course is noise: no timing there
+        if gap <= 0 or gap > 0.6 / self.dt or min(speed, s0) < MIN_SPEED:
             return
         m = np.arange(self.max_steps + 1)
         a = k_rx - 1 - m  # candidate validity steps of this fix (history ends at k_rx - 1)
@@ -68,7 +76,12 @@ class LatencyEstimator:
             # yaw angle is CCW-positive, course clockwise: course change = -theta change (+ dbeta)
             dth = aux[a, AUX_THETA] - aux[b, AUX_THETA]
             X = hist.X
-            dbeta = (np.arctan2(X[a, VY], X[a, VX]) - np.arctan2(X[b, VY], X[b, VX]))
+            # sideslip of the antenna (lever arm), whose course the receiver reports
+            lx, ly = self.lever
+            ra = aux[a, AUX_R]
+            rb = aux[b, AUX_R]
+            dbeta = (np.arctan2(X[a, VY] + ra * lx, X[a, VX] - ra * ly)
+                     - np.arctan2(X[b, VY] + rb * lx, X[b, VX] - rb * ly))
             res_lat = vmean * (dcourse + dth + dbeta)
         else:
             res_lat = 0.0
@@ -80,7 +93,7 @@ class LatencyEstimator:
         full[ok] = r2
         # Only informative if the residual depends on the candidate delay.
         spread = np.nanmax(full) - np.nanmin(full)
-        if not spread > 1e-4:
+        if not spread > MIN_SPREAD:
             return
         full = np.where(np.isnan(full), np.nanmax(full), full)
         self.cost = self.forgetting * self.cost + full
@@ -89,7 +102,7 @@ class LatencyEstimator:
         self._refine()
 
     def _refine(self) -> None:
-        if self.updates < 20 or self.weight < 0.5:
+        if self.updates < MIN_UPDATES or self.weight < 1.0:
             return
         c = self.cost
         i = int(np.argmin(c))
@@ -99,8 +112,9 @@ class LatencyEstimator:
         den = y0 - 2 * y1 + y2
         off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
         # A clear minimum: the cost well below its median over the candidates.
-        if not y1 < 0.7 * float(np.median(c)):
+        if not y1 < 0.5 * float(np.median(c)):
             return
         est = (i + 1 + max(-0.5, min(0.5, off))) * self.dt  # candidate i is a delay of (i+1) steps
-        # Smooth: the steps of the estimate are what feed the fusion.
-        self.delay_s += 0.2 * (est - self.delay_s)
+        # Slew-limited: a wrong step in the delay costs more than a slow convergence.
+        step = max(-MAX_SLEW_S, min(MAX_SLEW_S, 0.2 * (est - self.delay_s)))
+        self.delay_s += step

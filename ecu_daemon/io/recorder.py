@@ -6,7 +6,7 @@ Files (all stamped on the daemon's monotonic clock, the same one the estimator u
   to the monotonic clock and rounded to 1 us exactly as the estimator saw them;
 * ``gnss.log`` -- every GNSS message (and every run of unframed bytes) as received, in the
   GNSS capture format, stamped with the receive time the parser used;
-* ``estimates.csv`` -- the live estimates, one row per step, for comparison with a replay;
+* ``estimates.csv`` -- the live estimates, one row per step, in the format of ``replay --out-csv``;
 * ``outputs.log`` -- the frames the daemon sent, candump ``-L``, stamped with the tick time.
 
 ``ecu-daemon replay --can DIR/can.log --gnss DIR/gnss.log`` then reproduces ``estimates.csv``
@@ -20,11 +20,10 @@ import logging
 from pathlib import Path
 
 import can
-import numpy as np
 
 from ..canlog import CandumpWriter, CanLogError
-from ..estimator import ESTIMATE_FIELDS
 from ..gnss.logfile import GnssLogWriter
+from ..replay import csv_header, format_row
 
 log = logging.getLogger("ecu_daemon.record")
 
@@ -41,7 +40,7 @@ class Recorder:
         except (OSError, CanLogError) as e:
             from ..cli import UserError
             raise UserError(f"cannot record into {self.dir}: {getattr(e, 'strerror', None) or e}") from None
-        self._csv.write(",".join(ESTIMATE_FIELDS) + "\n")
+        self._csv.write(csv_header())
         self.frames = 0
         self.gnss_messages = 0
         self.estimates = 0
@@ -72,7 +71,7 @@ class Recorder:
 
     def on_estimate(self, est) -> None:
         self.estimates += 1
-        self._guard(self._csv.write, ",".join(_fmt(v) for v in est) + "\n")
+        self._guard(self._csv.write, format_row(est))
 
     def flush(self) -> None:
         for f in (self.can, self.outputs, self.gnss, self._csv):
@@ -86,11 +85,3 @@ class Recorder:
             self._guard(f.close)
         self._closed = True
 
-
-def _fmt(v) -> str:
-    """Exact, numpy-agnostic text: floats round-trip (repr), flags as 0/1."""
-    if isinstance(v, (bool, np.bool_)):
-        return "1" if v else "0"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    return repr(float(v))
