@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import bisect
 import gc
 import logging
 import math
@@ -111,7 +112,8 @@ class Daemon:
         self.stopped = threading.Event()
         self.learned_restored = False
         # internals
-        self._samples: deque = deque()
+        self._samples: deque = deque()  # loop thread -> tick thread
+        self._pending: list = []  # tick thread: received, stamped after the current step
         self._out: deque = deque()
         self._last_step_t = -math.inf
         self._learned_req = False
@@ -364,9 +366,8 @@ class Daemon:
                     for e in payload:
                         rec.on_estimate(e)
             elif rec is not None:
-                t, msgs = payload
-                for m in msgs:
-                    rec.on_output(t, m)
+                for m in payload:
+                    rec.on_output(m.timestamp, m)  # the time of the step the frame belongs to
         if batch:
             self.latest = batch[-1]
             if self.estimate_sink is not None:
@@ -412,9 +413,13 @@ class Daemon:
     # ----------------------------------------------------------------------------- tick thread
     def _on_tick(self, k: int, now: float) -> None:
         est = self.estimator
+        t_step = k * self.dt
         q = self._samples
-        if q:
-            batch = []
+        if q or self._pending:
+            # Push in time order and only what this step may use (t <= t_step): a sample stamped
+            # later waits here, so an earlier one that is still in flight never queues behind it
+            # inside the estimator. Replay does the same by merging the logs by time.
+            batch = self._pending
             pop = q.popleft
             try:
                 while True:
@@ -422,16 +427,17 @@ class Daemon:
             except IndexError:
                 pass
             batch.sort(key=_sample_order)  # as replay merges: by time, CAN before GNSS on a tie
+            n = bisect.bisect_right(batch, t_step + 1e-9, key=_sample_t)
+            self._pending = batch[n:]
             last = self._last_step_t
-            for s in batch:
+            for s in batch[:n]:
                 if s.t <= last:
                     self.late_samples += 1
                 if type(s) is InputSample:
                     est.push_input(s)
                 else:
                     est.push_gnss(s)
-            self.samples_pushed += len(batch)
-        t_step = k * self.dt
+            self.samples_pushed += n
         ests = est.advance_to(t_step)
         self._last_step_t = t_step
         if self._learned_req:
@@ -469,7 +475,7 @@ class Daemon:
         if sent:
             self.frames_sent += len(sent)
             if self.recorder is not None:
-                self._out.append(("out", (t_step, sent)))
+                self._out.append(("out", sent))
 
 
 _IMU = ("yaw_rate", "accel_x", "accel_y")
@@ -499,6 +505,10 @@ def stale_validity_mask(stale: list[str]) -> dict:
 
 def _sample_order(s) -> tuple:
     return (s.t, type(s) is not InputSample)
+
+
+def _sample_t(s) -> float:
+    return s.t
 
 
 def _running_loop():

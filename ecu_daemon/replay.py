@@ -179,7 +179,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
             if t_last is None or t > t_last:
                 t_last = t
                 # every step strictly before this sample's time has all its samples now
-                emit(est.advance_to(t - 2e-9))
+                if t - 2e-9 >= est.next_step_t - 1e-9 or est.k is None:
+                    emit(est.advance_to(t - 2e-9))
             n += 1
             if not n & 1023:
                 bar.update(counters["frames"], t - t_first)

@@ -40,11 +40,15 @@ I_YAW = INPUT_INDEX["yaw_rate"]
 I_AX = INPUT_INDEX["accel_x"]
 I_AY = INPUT_INDEX["accel_y"]
 WHEELS = (I_FL, I_FR, I_RL, I_RR)
+assert sorted(WHEELS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
+I_RR_MAX = 3
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
 SIDESLIP_STD_VALID = math.radians(1.0)
 HEADING_STD_VALID = math.radians(2.0)
+BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
+MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
 
 
@@ -105,6 +109,11 @@ class Estimator:
     def push_gnss(self, g: GnssSample) -> None:
         self.queue.append(g)
 
+    @property
+    def next_step_t(self) -> float:
+        """Time of the next step to run (inf before the first sample)."""
+        return math.inf if self.k is None else self.k * self.dt
+
     def advance_to(self, t: float) -> list[Estimate]:
         out: list[Estimate] = []
         dt = self.dt
@@ -116,7 +125,8 @@ class Estimator:
         k = self.k
         while k * dt <= t + 1e-9:
             tk = k * dt
-            while q and q[0].t <= tk + 1e-9:
+            lim = tk + 1e-9
+            while q and q[0].t <= lim:
                 self._apply(q.popleft(), k)
             out.append(self._step(k, tk))
             k += 1
@@ -160,13 +170,13 @@ class Estimator:
         return out
 
     def _apply(self, s, k: int) -> None:
-        if isinstance(s, InputSample):
-            if self.initialized and s.t < (k - 1) * self.dt - 1e-9:
+        if type(s) is InputSample:
+            t, i, v = s
+            if t < (k - 1) * self.dt - 1e-9 and self.initialized:
                 self.late_inputs += 1
-            i = s.index
-            self.held[i] = s.value
-            self.held_t[i] = s.t
-            if i in WHEELS:
+            self.held[i] = v
+            self.held_t[i] = t
+            if i <= I_RR_MAX:
                 self.wheel_new = True
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
@@ -210,9 +220,10 @@ class Estimator:
         tmo = self.timeouts
         imu_ok = (t - held_t[I_YAW] <= tmo[I_YAW] and t - held_t[I_AX] <= tmo[I_AX]
                   and t - held_t[I_AY] <= tmo[I_AY])
-        wheels_ok = all(t - held_t[w] <= tmo[w] for w in WHEELS)
-        wheel_z = self.wheels.measured_speed(held[I_FL], held[I_FR], held[I_RL], held[I_RR]) \
-            if wheels_ok else math.nan
+        fl, fr, rl, rr = held[0], held[1], held[2], held[3]
+        wheels_ok = (t - held_t[0] <= tmo[0] and t - held_t[1] <= tmo[1] and t - held_t[2] <= tmo[2]
+                     and t - held_t[3] <= tmo[3])
+        wheel_z = self.wheels.measured_speed(fl, fr, rl, rr) if wheels_ok else math.nan
         if not self.initialized:
             if not imu_ok:
                 return self._invalid(t)
@@ -228,14 +239,19 @@ class Estimator:
                 self.model.predict(x, h.P[ip], h.P[i], r_m, ax_m, ay_m)
             else:  # hold: no rotation, no acceleration, covariance still grows
                 self.model.predict(x, h.P[ip], h.P[i], x[BR], x[BAX], x[BAY])
-            A = self.model.F.copy()
+            A = h.A[i]
+            np.copyto(A, self.model.F)
         else:
             x = h.X[i]
-            A = h.A[i].copy()
+            A = h.A[i]
         P = h.P[i]
-        r = (r_m - x[BR]) if imu_ok else 0.0
-        ay = (ay_m - x[BAY] - x[GAY] * ay_m) if imu_ok else 0.0
-        ax = (ax_m - x[BAX]) if imu_ok else 0.0
+        if imu_ok:
+            _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
+            r = r_m - b_r
+            ay = ay_m - b_ay - g_ay * ay_m
+            ax = ax_m - b_ax
+        else:
+            r = ay = ax = 0.0
         dt = self.dt
         r_lp_prev = self.r_lp
         self.r_lp += self._lp_r * (r - self.r_lp)
@@ -247,41 +263,30 @@ class Estimator:
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
-        wheels_max = max(abs(held[w]) for w in WHEELS) if wheels_ok else math.inf
+        wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
         if self.standstill.detect(wheels_max) and imu_ok:
             status |= est_mod.STATUS_STANDSTILL
-            for f in self.standstill.fuse(x, P, r_m):
-                A = f @ A
+            self.standstill.fuse(x, P, r_m, A)
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new:
-                f = self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax)
-                if f is not None:
-                    A = f @ A
-            if imu_ok:
-                f = self.single_track.fuse(x, P, r, ay, self.rdot)
-                if f is not None:
-                    A = f @ A
+                self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A)
+            if imu_ok and k % MODEL_EVERY == 0:
+                self.single_track.fuse(x, P, r, ay, self.rdot, A, MODEL_EVERY)
             if steer_ok and imu_ok and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
-        h.A[i] = A
-        aux = h.aux[i]
-        aux[AUX_R] = r
-        aux[AUX_AY] = ay
-        aux[AUX_AX] = ax
-        aux[AUX_RDOT] = self.rdot
-        aux[AUX_WHEEL] = wheel_z
-        aux[AUX_THETA] = self.theta
-        aux[AUX_DELTA] = delta
+        h.aux[i] = (r, ay, self.rdot, wheel_z, self.theta, delta, ax)
         h.last = k
         if k % 64 == 0:
             P += P.T
             P *= 0.5
-        if not (np.isfinite(x).all() and P[VX, VX] < 1e4 and P[VY, VY] < 1e4 and P[PSI, PSI] >= 0):
+        xl = x.tolist()
+        pd = P.diagonal().tolist()
+        if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
             return self._invalid(t)
-        return self._estimate(t, x, P, r, status, imu_ok, wheels_ok)
+        return self._estimate(t, xl, pd, P[VX, VY], r, status, imu_ok, wheels_ok)
 
     def _invalid(self, t: float) -> Estimate:
         nan = math.nan
@@ -295,13 +300,15 @@ class Estimator:
                         self.single_track.cornering_stiffness_rear, False, False, False, False, status,
                         self.gnss.fused, self.gnss.rejected, self.gnss.late)
 
-    def _estimate(self, t, x, P, r, status, imu_ok, wheels_ok) -> Estimate:
+    def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok) -> Estimate:
+        """x: state as a list, pd: covariance diagonal as a list (Python floats are cheaper)."""
+        sqrt = math.sqrt
         vx = x[VX]
         vy = x[VY]
         sp2 = vx * vx + vy * vy
         if sp2 > 0.25:
             beta = math.atan2(vy, vx)
-            var_b = (vx * vx * P[VY, VY] - 2.0 * vx * vy * P[VX, VY] + vy * vy * P[VX, VX]) / (sp2 * sp2)
+            var_b = (vx * vx * pd[VY] - 2.0 * vx * vy * float(p_vxvy) + vy * vy * pd[VX]) / (sp2 * sp2)
             beta_std = math.sqrt(var_b) if var_b > 0 else 0.0
         else:
             beta = 0.0
@@ -322,20 +329,20 @@ class Estimator:
         if self._reset_flag:
             status |= est_mod.STATUS_RESET
             self._reset_flag = False
-        psi_std = math.sqrt(max(P[PSI, PSI], 0.0))
+        sd = [sqrt(v) if v > 0.0 else 0.0 for v in pd]
+        psi_std = sd[PSI]
         vel_valid = imu_ok and (wheels_ok or gnss_fresh)
         st = self.single_track
+        gn = self.gnss
         return Estimate(
-            t, beta, beta_std, x[PSI], psi_std, vx, vy,
-            math.sqrt(max(P[VX, VX], 0.0)), math.sqrt(max(P[VY, VY], 0.0)),
-            r, x[BR], math.sqrt(max(P[BR, BR], 0.0)), x[BAX], math.sqrt(max(P[BAX, BAX], 0.0)),
-            x[BAY], math.sqrt(max(P[BAY, BAY], 0.0)), self.latency.delay_s, x[KW], self.steer_offset,
-            st.cornering_stiffness_front, st.cornering_stiffness_rear,
+            t, beta, beta_std, x[PSI], psi_std, vx, vy, sd[VX], sd[VY],
+            r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
+            self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
             imu_ok and self.aligned and psi_std < HEADING_STD_VALID,
             vel_valid,
-            imu_ok and P[BR, BR] < math.radians(0.2) ** 2,
-            status, self.gnss.fused, self.gnss.rejected, self.gnss.late)
+            imu_ok and sd[BR] < BIAS_STD_VALID,
+            status, gn.fused, gn.rejected, gn.late)
 
     # ----------------------------------------------------------------------------------------
     def _on_gnss(self, g: GnssSample, k: int) -> None:

@@ -56,15 +56,12 @@ class KinematicModel:
                 ay_m: float) -> None:
         """x <- f(x, u) in place; P_out <- F P F' + Qd. ``self.F`` holds the F used afterwards."""
         dt = self.dt
-        vx = x[VX]
-        vy = x[VY]
-        r = r_m - x[BR]
-        x[VX] = vx + dt * (ax_m - x[BAX] + r * vy)
-        x[VY] = vy + dt * (ay_m - x[BAY] - x[GAY] * ay_m - r * vx)
-        psi = x[PSI] - dt * r
+        vx, vy, psi, b_r, b_ax, b_ay, _, g_ay = x.tolist()
+        r = r_m - b_r
+        psi -= dt * r
         if psi >= TWO_PI or psi < 0.0:
             psi %= TWO_PI
-        x[PSI] = psi
+        x[:3] = (vx + dt * (ax_m - b_ax + r * vy), vy + dt * (ay_m - b_ay - g_ay * ay_m - r * vx), psi)
         F = self.F
         rdt = r * dt
         F[VX, VY] = rdt

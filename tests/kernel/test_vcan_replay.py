@@ -135,6 +135,11 @@ def test_diagnostics_clean(run, capture, out_db):
     assert last.get("GNSS_SERIAL_CONNECTED") == 1, last
     assert last.get("GNSS_FIX_TYPE") == 3, last
     assert last.get("CAN_BUS_STATE") == 0, last
+    # every input fresh at the end of the drive: received, not merely "no errors counted"
+    ages = {k: v for k, v in last.items() if k.endswith("_AGE") and k != "GNSS_RX_AGE"}
+    assert len(ages) == 8 and all(v < 1000 * harness.GUEST_INPUT_TIMEOUT_S for v in ages.values()), ages
+    rates = {k: v for k, v in last.items() if k.endswith("_RATE") and k != "YAW_RATE"}
+    assert rates and all(v > 50 for v in rates.values()), rates
     diag = out_db.get_message_by_name("EST_DIAG")
     shown = ("TICK_LATE_P50", "TICK_LATE_P99", "TICK_LATE_MAX", "TICK_OVERRUNS", "CPU_LOAD")
     FACTS.append("vcan replay diagnostics (in UML): " + ", ".join(
@@ -144,9 +149,11 @@ def test_diagnostics_clean(run, capture, out_db):
 def test_estimates_match_offline_replay(run, sim_drive, capture, out_db, tmp_path):
     """The live estimates on vcan equal ``ecu-daemon replay`` of the same drive, within tolerance."""
     offline = tmp_path / "offline.csv"
-    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(sim_drive / "config.toml"),
-                        str(sim_drive / "drive.log"), "--gnss", str(sim_drive / "drive_gnss.log"),
-                        "--out", str(offline)], cwd=harness.REPO, capture_output=True, text=True, timeout=600)
+    cfg = harness.guest_config(sim_drive / "config.toml", tmp_path / "offline.toml", "none")  # same settings
+    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(cfg),
+                        "--can", str(sim_drive / "drive.log"), "--gnss", str(sim_drive / "drive_gnss.log"),
+                        "--out-csv", str(offline), "--no-progress"],
+                       cwd=harness.REPO, capture_output=True, text=True, timeout=600)
     if r.returncode != 0 or not offline.exists():
         pytest.skip(f"ecu-daemon replay not usable yet: {(r.stderr.strip().splitlines() or ['?'])[-1]}")
     import csv

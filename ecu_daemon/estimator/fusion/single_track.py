@@ -29,7 +29,7 @@ from ..kalman import index_update
 from ..kinematic import VX, VY
 
 G = 9.81
-MIN_SPEED = 4.0  # m/s; below this the slip-angle relation is ill-conditioned
+MIN_SPEED = 0.5  # m/s; at low speed the relation tends to slip-free kinematics, vy = lr r
 CORNER_STEPS = 330.0  # 6 ms steps in ~2 s, the correlation time of parameter/nonlinearity errors
 
 
@@ -119,12 +119,14 @@ class SingleTrackFusion:
         var = 16.0 * (self.base_sigma_beta * vx) ** 2 + CORNER_STEPS * (var_par + (nl * vx) ** 2)
         return vy, var
 
-    def fuse(self, x: np.ndarray, P: np.ndarray, r: float, ay: float, rdot: float):
+    def fuse(self, x: np.ndarray, P: np.ndarray, r: float, ay: float, rdot: float, A=None,
+             every: int = 1) -> bool:
+        """Fuse the pseudo-measurement; ``every``: it is fused every n-th step (noise scaled)."""
         vx = x[VX]
         if vx < MIN_SPEED:
-            return None
+            return False
         vy_m, var = self.pseudo_measurement(vx, r, ay, rdot)
-        return index_update(x, P, vy_m - x[VY], VY, var)
+        return index_update(x, P, vy_m - x[VY], VY, var / every, A=A)
 
     def adapt_from(self, vx: float, vy: float, var_vy: float, r: float, ay: float, rdot: float,
                    delta: float) -> None:

@@ -26,14 +26,7 @@ class StandstillFusion:
             self.count = 0
         return self.count >= self.hold_steps
 
-    def fuse(self, x, P, r_m: float):
-        """Returns the list of I - K H factors applied (may be empty)."""
-        out = []
+    def fuse(self, x, P, r_m: float, A) -> None:
         for i in (VX, VY):
-            f = index_update(x, P, -x[i], i, 1e-4)
-            if f is not None:
-                out.append(f)
-        f = index_update(x, P, r_m - x[BR], BR, self.gyro_R, gate_sigma=6.0)
-        if f is not None:
-            out.append(f)
-        return out
+            index_update(x, P, -x[i], i, 1e-4, A=A)
+        index_update(x, P, r_m - x[BR], BR, self.gyro_R, gate_sigma=6.0, A=A)

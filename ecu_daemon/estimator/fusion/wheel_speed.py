@@ -35,7 +35,7 @@ class WheelSpeedFusion:
             return 0.5 * (fl + fr)
         return 0.5 * (rl + rr)
 
-    def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float):
+    def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float, A=None) -> bool:
         kw = x[KW]
         h = self.h
         if self.use_front or self.use_all:
@@ -52,7 +52,7 @@ class WheelSpeedFusion:
         pred = v / kw
         h[KW] = -pred / kw
         R = self.noise2 + (0.02 * ax) ** 2 + (0.002 * pred) ** 2
-        IKH = scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA)
-        if IKH is None:
+        ok = scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA, A)
+        if not ok:
             self.rejected += 1
-        return IKH
+        return ok
