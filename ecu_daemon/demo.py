@@ -294,7 +294,7 @@ class DemoSession:
         stop_at = None
         while not task.done():
             if (self.feeder.played.is_set() or self.feeder.finished.is_set()) and stop_at is None:
-                stop_at = time.monotonic() + 0.03  # the last frames reach the estimator
+                stop_at = time.monotonic() + 0.03 / self.speed  # the last frames reach the estimator
             if stop_at is not None and time.monotonic() >= stop_at:
                 d.request_stop()
             self._show()

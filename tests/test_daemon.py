@@ -21,7 +21,7 @@ from ecu_daemon.diagnostics import BUS_ACTIVE, BUS_OFF
 from ecu_daemon.gnss import encode as gnss_encode
 from ecu_daemon.gnss.logfile import read_gnss_log
 from ecu_daemon.io import can_bus
-from ecu_daemon.io.logging_setup import setup_logging
+from ecu_daemon.io.logging_setup import reset_logging, setup_logging
 from ecu_daemon.io.state_store import load_state
 from ecu_daemon.outputs import decode_output_frame
 from ecu_daemon.signals import load_dbc
@@ -166,7 +166,7 @@ def log_buffer():
     buf = io.StringIO()
     setup_logging("info", stream=buf)
     yield buf
-    setup_logging("info")
+    reset_logging()
 
 
 # ------------------------------------------------------------------------------------ tests

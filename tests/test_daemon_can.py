@@ -206,3 +206,19 @@ def test_kernel_filters_are_used_where_the_interface_has_them():
 
     assert can_bus._has_own_filtering(SocketcanBus)  # CAN_RAW_FILTER in the kernel
     assert not can_bus._has_own_filtering(VirtualBus)  # Python filtering: done by CanIO itself
+
+
+def test_frames_created_on_this_host_are_inputs_too():
+    """socketcan flags frames from any local socket (canplayer onto vcan0) with is_rx=False."""
+    ch = channel()
+    got = []
+    bus = can.Bus(interface="virtual", channel=ch)
+    io = CanIO(bus, [(0x0B0, False)], on_frame=lambda t, m: got.append(m))
+    try:
+        io._on_message(can.Message(arbitration_id=0x0B0, data=bytes(8), is_extended_id=False, is_rx=False,
+                                   timestamp=time.time()))
+        io._on_message(can.Message(arbitration_id=0x300, data=bytes(8), is_extended_id=False, is_rx=False,
+                                   timestamp=time.time()))  # our own output echoed: not an input id
+        assert [m.arbitration_id for m in got] == [0x0B0] and io.rx_ignored == 1
+    finally:
+        io.shutdown()

@@ -28,15 +28,14 @@ from ecu_daemon.outputs import decode_output_frame
 from ecu_daemon.signals import load_dbc
 
 DURATION_S = 10.0
-GRACE_S = 0.02
-#: max |live - replay| when samples were late (exact equality otherwise). Measured on a busy 2-CPU
-#: VM with 500-700 late samples (of ~8000) in 10 s: sideslip <= 0.05 deg (valid rows), heading
-#: <= 0.012 deg, vx <= 0.08 m/s (a transient as the car pulls away from standstill), vy <= 0.007
-#: m/s, yaw-rate bias <= 0.05 deg/s (standstill bias updates), GNSS latency identical.
-TOLERANCE = {"sideslip_rad": math.radians(0.1), "heading_rad": math.radians(0.05), "vx_mps": 0.15,
+GRACE_S = float(os.environ.get('ECU_TEST_GRACE_S', '0.02'))
+#: max |live - replay| when samples were late (identical rows otherwise). Measured with the
+#: default 1 ms grace on a busy 2-CPU VM, ~100 of ~8000 samples late in 10 s: sideslip 0.013 deg,
+#: heading 0.002 deg, vx 0.008 m/s, vy 0.004 m/s, yaw-rate bias 0.026 deg/s, GNSS latency identical.
+TOLERANCE = {"sideslip_rad": math.radians(0.1), "heading_rad": math.radians(0.05), "vx_mps": 0.05,
              "vy_mps": 0.02, "yaw_rate_bias_radps": math.radians(0.1), "gnss_delay_s": 0.01}
 #: ... and the 99th percentile of |live - replay|
-TOLERANCE_P99 = {"vx_mps": 0.03, "vy_mps": 0.01}
+TOLERANCE_P99 = {"vx_mps": 0.01, "vy_mps": 0.005}
 #: columns compared only where both runs flag the quantity valid
 VALID_FLAG = {"sideslip_rad": "sideslip_valid", "heading_rad": "heading_valid"}
 
@@ -113,10 +112,9 @@ def test_replay_of_the_recording_reproduces_the_live_estimates(live_run):
     assert len(live) > 0.9 * DURATION_S / 0.006 * 0.9
     # the same step grid: every replayed step (they end at the last recorded sample) was live too
     assert len(common) >= 0.98 * len(rep)
-    if d.late_samples == 0:
+    if d.late_samples == 0:  # identical rows, every column
         for k in common:
-            for col in TOLERANCE:
-                assert live[k][col] == rep[k][col] or float(live[k][col]) == float(rep[k][col]), (k, col)
+            assert live[k] == rep[k], k
     worst, p99 = {}, {}
     for col in TOLERANCE:
         diff = angle_diff if col == "heading_rad" else (lambda a, b: abs(a - b))
@@ -158,5 +156,5 @@ def test_output_frames_are_sent_at_their_cycle_times(live_run):
         v = decode_output_frame(db, m)  # raises on a bad CRC or length
         prev = last_counter.get(m.arbitration_id)
         if prev is not None:
-            assert v["COUNTER"] != prev
+            assert v["COUNTER"] == (prev + 1) % 16  # one step per frame sent, even after an overrun
         last_counter[m.arbitration_id] = v["COUNTER"]

@@ -8,7 +8,14 @@ import pytest
 
 from ecu_daemon.cli import main as cli_main
 from ecu_daemon.demo import DemoSession
+from ecu_daemon.io.logging_setup import reset_logging
 from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+
+@pytest.fixture(autouse=True)
+def _restore_logging():
+    yield
+    reset_logging()
 
 
 def test_live_view_and_summary():

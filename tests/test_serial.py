@@ -8,7 +8,9 @@ import os
 import time
 import tty
 
-from ecu_daemon.io.logging_setup import setup_logging
+import pytest
+
+from ecu_daemon.io.logging_setup import reset_logging, setup_logging
 from ecu_daemon.io.serial_port import GnssSerial
 
 
@@ -46,14 +48,15 @@ class FakeReceiver:
         os.write(self.master, data)
 
 
-def capture_log():
+@pytest.fixture
+def log():
     buf = io.StringIO()
     setup_logging("info", stream=buf)
-    return buf
+    yield buf
+    reset_logging()
 
 
-def test_unplug_and_replug_reconnects_and_says_so_once(tmp_path):
-    log = capture_log()
+def test_unplug_and_replug_reconnects_and_says_so_once(tmp_path, log):
     got = []
 
     async def main():
@@ -88,8 +91,7 @@ def test_unplug_and_replug_reconnects_and_says_so_once(tmp_path):
     assert "lost" in lines[0] and "reconnected" in lines[1]
 
 
-def test_port_missing_at_start_is_retried(tmp_path):
-    log = capture_log()
+def test_port_missing_at_start_is_retried(tmp_path, log):
     got = []
 
     async def main():
@@ -113,8 +115,7 @@ def test_port_missing_at_start_is_retried(tmp_path):
     assert text.count("not available") == 1 and text.count("available after") == 1
 
 
-def test_rate_limited_logging_counts_suppressed_lines():
-    log = capture_log()
+def test_rate_limited_logging_counts_suppressed_lines(log):
     lg = logging.getLogger("ecu_daemon.test")
     for i in range(50):
         lg.warning("bad frame 0x%X", i)

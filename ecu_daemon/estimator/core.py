@@ -266,7 +266,7 @@ class Estimator:
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
         if self.standstill.detect(wheels_max) and imu_ok:
             status |= est_mod.STATUS_STANDSTILL
-            self.standstill.fuse(x, P, r_m, A)
+            self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new:
@@ -357,7 +357,7 @@ class Estimator:
             return
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
         course = fus.course(g)
-        self.latency.observe(k, speed, course, h)
+        self.latency.observe(k, speed, h)
         delay = self.latency.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
         if late:
@@ -367,7 +367,7 @@ class Estimator:
             if speed > ALIGN_SPEED:
                 self._align(s, g)
         else:
-            ok = fus.fuse(h, s, g)
+            ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
             if ok:
                 i = h.slot(s)
                 a = h.aux[i]

@@ -108,8 +108,11 @@ class ClockMapper:
 class BusHealth:
     """Error-frame bookkeeping and the bus-off transmit gate."""
 
-    RETRY_MIN_S = 0.5
-    RETRY_MAX_S = 30.0
+    # Without any sign of recovery (RESTARTED / error-active frame, a frame from another node),
+    # transmission is tried again after this long, doubling: a safety net for drivers that do not
+    # report the restart. With networkd's RestartSec=100ms the restart frame comes long before.
+    RETRY_MIN_S = 2.0
+    RETRY_MAX_S = 60.0
     TX_FAIL_LIMIT = 3  # consecutive send failures before transmission pauses
     TX_PAUSE_MIN_S = 0.01
     TX_PAUSE_MAX_S = 1.0
@@ -166,7 +169,7 @@ class BusHealth:
                 self.state = new
 
     def on_data_frame(self) -> None:
-        """A frame from another node arrived: a bus-off controller cannot receive, so it is back."""
+        """An input frame arrived: a bus-off controller cannot receive, so it is back on the bus."""
         if self.state == BUS_OFF:
             self._recover("frames received again")
 
@@ -286,12 +289,13 @@ class CanIO:
                 if self.on_error_frame is not None:
                     self.on_error_frame(self.mapper.map(msg.timestamp, now), msg)
                 return
-            if not msg.is_rx:
-                return  # our own transmission echoed back (receive_own_messages)
-            self.health.on_data_frame()
+            # NB: no ``is_rx`` test -- socketcan marks every frame created on this host (canplayer
+            # replaying a log onto vcan0, a co-located ECU) as not received; the id set keeps our
+            # own echoed outputs out.
             if not self.kernel_filters and (msg.arbitration_id, msg.is_extended_id) not in self.wanted:
                 self.rx_ignored += 1
                 return
+            self.health.on_data_frame()
             self.rx_frames += 1
             t = self.mapper.map(msg.timestamp, now)
             self.on_frame(t, msg)

@@ -74,3 +74,13 @@ def setup_logging(level: str = "info", stream=None, interval_s: float = 10.0) ->
     root.setLevel(level.upper())
     root.propagate = False
     return root
+
+
+def reset_logging() -> None:
+    """Undo :func:`setup_logging` (tests, embedding): records propagate to the root logger again."""
+    root = logging.getLogger("ecu_daemon")
+    for h in list(root.handlers):
+        if getattr(h, "_ecu_daemon", False):
+            root.removeHandler(h)
+    root.setLevel(logging.NOTSET)
+    root.propagate = True

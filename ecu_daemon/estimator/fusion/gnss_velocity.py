@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ...samples import GnssSample
-from ..history import AUX_R, StepHistory
+from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
 from ..kinematic import NX, PSI, VX, VY, antenna_velocity_ne, gnss_jacobian
 
 ALIGN_SPEED = 4.0  # m/s: course is good to ~ sigma_v / v rad
@@ -96,15 +96,24 @@ class GnssVelocityFusion:
         self.fused += 1
         return True
 
-    def fuse(self, hist: StepHistory, s: int, g: GnssSample, gate: bool = True) -> bool:
-        """Full 2-D velocity update at stored step s. Returns False if gated out."""
+    def fuse(self, hist: StepHistory, s: int, g: GnssSample, gate: bool = True,
+             delay_std_s: float = 0.0) -> bool:
+        """Full 2-D velocity update at stored step s. Returns False if gated out.
+
+        ``delay_std_s``: uncertainty of the time of validity. A timing error dt looks like a
+        velocity error of |a| dt (a = horizontal acceleration), so it is added to the noise:
+        until the latency is identified, hard cornering de-weights GNSS instead of tearing the
+        heading away (and the gate does not lock GNSS out).
+        """
         i = hist.slot(s)
         x = hist.X[i]
         P = hist.P[i]
         r = hist.aux[i, AUX_R]
         vn, ve = antenna_velocity_ne(x, r, self.lever_x, self.lever_y)
         H = gnss_jacobian(x, r, self.lever_x, self.lever_y)
-        sig2 = self.sigma(g) ** 2
+        a = hist.aux[i]
+        acc2 = a[AUX_AX] ** 2 + a[AUX_AY] ** 2
+        sig2 = self.sigma(g) ** 2 + acc2 * delay_std_s * delay_std_s
         y = np.array([g.vel_n_mps - vn, g.vel_e_mps - ve])
         PHt = P @ H.T
         S = H @ PHt

@@ -1,13 +1,14 @@
 """Standstill: zero-velocity updates and the yaw-rate bias at rest.
 
 At rest the true velocity and yaw rate are zero, so the gyro reading *is* its bias (Park 002 §2.2
-uses r = 0 while straight; at rest it holds exactly). Detected from the wheel speeds (all below a
+uses r = 0 while straight; at rest it holds exactly), and the accelerometers read their bias plus
+the gravity of grade and bank, which is exactly what the filter's accelerometer-bias states mean. Detected from the wheel speeds (all below a
 crawl) held for a short time, so a brief zero crossing does not count.
 """
 from __future__ import annotations
 
 from ..kalman import index_update
-from ..kinematic import BR, VX, VY
+from ..kinematic import BAX, BAY, BR, VX, VY
 
 STANDSTILL_SPEED = 0.05  # m/s, every wheel below this
 STANDSTILL_HOLD_S = 0.3
@@ -18,6 +19,8 @@ class StandstillFusion:
         self.hold_steps = int(STANDSTILL_HOLD_S / dt)
         self.count = 0
         self.gyro_R = max(gyro_noise, 1e-3) ** 2 * 4.0
+        # held CAN samples repeat over several 6 ms steps: noise of 0.05 m/s^2, inflated for that
+        self.accel_R = 0.05 ** 2 * 4.0
 
     def detect(self, wheels_max: float) -> bool:
         if wheels_max < STANDSTILL_SPEED:
@@ -26,7 +29,9 @@ class StandstillFusion:
             self.count = 0
         return self.count >= self.hold_steps
 
-    def fuse(self, x, P, r_m: float, A) -> None:
+    def fuse(self, x, P, r_m: float, ax_m: float, ay_m: float, A) -> None:
         for i in (VX, VY):
             index_update(x, P, -x[i], i, 1e-4, A=A)
         index_update(x, P, r_m - x[BR], BR, self.gyro_R, gate_sigma=6.0, A=A)
+        index_update(x, P, ax_m - x[BAX], BAX, self.accel_R, gate_sigma=6.0, A=A)
+        index_update(x, P, ay_m - x[BAY], BAY, self.accel_R, gate_sigma=6.0, A=A)
