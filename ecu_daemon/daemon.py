@@ -71,7 +71,7 @@ HOUSEKEEPING_S = 0.05
 DIAG_S = 0.05
 FLUSH_S = 1.0
 STATUS_S = 5.0
-PERSIST_S = 60.0
+PERSIST_S = 60.0  # learned state written this often (and at exit)
 SWITCH_INTERVAL_S = 0.0002  # GIL hand-over: <= the tick's 0.2 ms spin, so waking up costs no lateness
 
 
@@ -94,7 +94,8 @@ class Daemon:
 
     def __init__(self, cfg: Config, *, bus_config: dict | None = None, record_dir: str | Path | None = None,
                  clock=time.monotonic, speed: float = 1.0, notifier: SystemdNotifier | None = None,
-                 estimate_sink=None, input_grace_s: float = INPUT_GRACE_S) -> None:
+                 estimate_sink=None, input_grace_s: float = INPUT_GRACE_S,
+                 persist_interval_s: float = PERSIST_S) -> None:
         self.cfg = cfg
         self.bus_config = dict(bus_config) if bus_config else {"interface": cfg.can.interface,
                                                                 "channel": cfg.can.channel}
@@ -104,6 +105,7 @@ class Daemon:
         self.notifier = notifier or SystemdNotifier()
         self.estimate_sink = estimate_sink
         self.grace_s = input_grace_s
+        self.persist_interval_s = persist_interval_s
         self.dt = cfg.estimator.dt_s
         # live state, read by tests / demo / status
         self.tick_stats = TickStats()
@@ -293,7 +295,7 @@ class Daemon:
         self._drain_out()
         if self.recorder is not None:
             self.recorder.close()
-        self._persist(final=True)
+        self._persist()
         if self.canio is not None:
             self.canio.shutdown()
         self.notifier.close()
@@ -329,7 +331,7 @@ class Daemon:
         now = self.clock()
         next_diag = next_flush = now
         next_status = now + STATUS_S
-        next_persist = now + PERSIST_S
+        next_persist = now + self.persist_interval_s * self.speed
         persist_task = None
         while not stop.is_set():
             try:
@@ -355,7 +357,7 @@ class Daemon:
                 if persist_task is None or persist_task.done():
                     persist_task = asyncio.get_running_loop().run_in_executor(None, self._save, snap)
             if now >= next_persist:
-                next_persist = now + PERSIST_S
+                next_persist = now + self.persist_interval_s * self.speed
                 self._learned_req = True
         if persist_task is not None:
             await persist_task
@@ -411,7 +413,7 @@ class Daemon:
         except (OSError, TypeError, ValueError) as e:
             log.error("cannot save learned state to %s: %s", path, getattr(e, "strerror", None) or e)
 
-    def _persist(self, final: bool = False) -> None:
+    def _persist(self) -> None:
         if self.estimator is None or (self.tick is not None and self.tick.is_alive()):
             return
         self._save(self.estimator.learned_state())

@@ -22,7 +22,7 @@ from ecu_daemon.gnss import encode as gnss_encode
 from ecu_daemon.gnss.logfile import read_gnss_log
 from ecu_daemon.io import can_bus
 from ecu_daemon.io.logging_setup import reset_logging, setup_logging
-from ecu_daemon.io.state_store import load_state
+from ecu_daemon.io.state_store import StateFileError, load_state
 from ecu_daemon.outputs import decode_output_frame
 from ecu_daemon.signals import load_dbc
 from ecu_daemon.sim.can_encoder import FrameEncoder
@@ -330,13 +330,21 @@ def test_corrupt_state_file_is_reported_once_and_ignored_then_rewritten(tmp_path
     cfg = make_cfg(tmp_path)
     state = tmp_path / "state.json"
     state.write_text("{ this is not json")
-    with LiveDaemon(cfg) as live:
+    with LiveDaemon(cfg, persist_interval_s=0.5) as live:
         assert not live.daemon.learned_restored
         car = InputSender(cfg, live.channel)
         car.start()
         try:
             wait_until(lambda: live.daemon.latest is not None and live.daemon.latest.velocity_valid,
                        what="estimator running")
+
+            def persisted():  # periodically, while running: a crash would not lose it
+                try:
+                    return load_state(state)
+                except StateFileError:
+                    return None
+
+            wait_until(persisted, what="state persisted while running")
         finally:
             car.stop()
     lines = [ln for ln in log_buffer.getvalue().splitlines() if str(state) in ln]
