@@ -8,8 +8,11 @@ bound once at start-up: cycle times become step periods, every signal gets its s
 over the steps so that no step sends a burst (CAN interfaces queue only ~10 frames by default).
 
 Per frame: values outside a signal's range are saturated and non-finite ones sent as 0; either
-clears the frame's validity bit. Then ``Message.encode(strict=False)`` (the range check already
-happened here), a 4-bit COUNTER per message and the E2E profile-2 CRC in byte 0.
+clears the frame's validity bit. Only a value the estimate claims to be valid is a problem worth a
+(rate-limited) log line: NaN in a field whose estimator flag is already false is the normal way of
+saying "unknown" (e.g. at every start, before the filter initialises). Then
+``Message.encode(strict=False)`` (the range check already happened here), a 4-bit COUNTER per
+message and the E2E profile-2 CRC in byte 0.
 """
 from __future__ import annotations
 
@@ -63,7 +66,8 @@ _ESTIMATE_SOURCES = {
     "GNSS_REJECTED": ("gnss_rejected", None, _WRAP),
     "GNSS_LATE": ("gnss_late", None, _WRAP),
 }
-#: validity signal -> the Estimate flag it starts from (None: valid unless a value was clamped)
+#: validity signal -> the Estimate flag it starts from (None: valid unless a value was clamped; such a
+#: frame's values count as claimed valid while any of the four flags is set, i.e. the filter runs)
 _VALID_FLAGS = {
     "SIDESLIP_VALID": "sideslip_valid",
     "HEADING_VALID": "heading_valid",
@@ -161,7 +165,8 @@ class OutputEncoder:
     """Builds the output frames due at each estimator step.
 
     ``schedule``: ``(message name, frame id, period in steps, phase)`` per message; a message is
-    due at step k when ``k % period == phase``. ``saturated`` / ``non_finite``: counts per signal.
+    due at step k when ``k % period == phase``. ``saturated`` / ``non_finite``: counts per signal
+    of values the estimate claimed to be valid (the ones that are logged).
     """
 
     def __init__(self, cfg: Config, *, log_interval_s: float = 10.0):
@@ -252,6 +257,7 @@ class OutputEncoder:
         """The frames due at estimator step ``step_index`` (``est.t`` is their timestamp)."""
         out = []
         t = est.t
+        any_valid = None  # validity claimed for frames without an estimator flag; computed once, if needed
         for p in self._plans:
             if step_index % p.period != p.phase:
                 continue
@@ -259,11 +265,14 @@ class OutputEncoder:
                 if diag is None:
                     continue
                 page, values, fields = p.pages[(step_index // p.period) % len(p.pages)]
-                self._fill(p.name, values, fields, diag, None)
+                self._fill(p.name, values, fields, diag, None, None)
             else:
                 values = p.values
+                if any_valid is None:
+                    any_valid = est.sideslip_valid or est.heading_valid or est.velocity_valid or est.biases_valid
                 ok = {v: True for v, _ in p.valid}
-                self._fill(p.name, values, p.fields, est, ok)
+                claimed = {v: (any_valid if flag is None else est[flag]) for v, flag in p.valid}
+                self._fill(p.name, values, p.fields, est, ok, claimed)
                 for vsig, flag in p.valid:
                     values[vsig] = 1 if ok[vsig] and (flag is None or est[flag]) else 0
                 if p.status:
@@ -278,8 +287,14 @@ class OutputEncoder:
                                    data=payload, check=False))
         return out
 
-    def _fill(self, msg_name: str, values: dict, fields: list[_Field], src, ok: dict | None) -> None:
-        """Bring every field of ``src`` into range; ``ok`` (Estimate frames only) collects validity."""
+    def _fill(self, msg_name: str, values: dict, fields: list[_Field], src, ok: dict | None,
+              claimed: dict | None) -> None:
+        """Bring every field of ``src`` into range; ``ok`` (Estimate frames only) collects validity.
+
+        ``claimed``: per validity signal, whether the estimate says its values are valid. A value
+        saturated or not finite there is reported; where it is not, the value is encoded the same
+        way but silently (the validity bit is already 0).
+        """
         isfinite = math.isfinite
         for f in fields:
             s = f.source
@@ -295,7 +310,8 @@ class OutputEncoder:
                 values[f.signal] = f.zero
                 if ok is not None:
                     ok[f.valid] = False
-                    self._count("non_finite", msg_name, f, v)
+                    if claimed[f.valid]:
+                        self._count("non_finite", msg_name, f, v)
                 continue
             if mode == _ANGLE:
                 v = v % TWO_PI
@@ -305,7 +321,8 @@ class OutputEncoder:
                 clamped = f.lo if v < f.lo else f.hi
                 if ok is not None and mode == _SAT:
                     ok[f.valid] = False
-                    self._count("saturated", msg_name, f, v)
+                    if claimed[f.valid]:
+                        self._count("saturated", msg_name, f, v)
                 v = clamped
             values[f.signal] = v
 

@@ -6,6 +6,9 @@ Everything that can be worked out once (which frame ids matter, which message an
 integrity checks) is bound at construction, so :meth:`SignalDecoder.decode` does a dict lookup
 for an uninteresting frame and one cantools decode for an interesting one.
 
+A frame failing its checksum resets the counter checks of its message, so one corrupt frame costs
+one frame, not also the next good one.
+
 A bad frame never stops the daemon: the affected samples are dropped, counted per input in
 :attr:`SignalDecoder.health`, and reported as ONE log line per input and kind, repeated at most
 every 10 s with a count.
@@ -259,9 +262,14 @@ class SignalDecoder:
         counter_ok = None
         if plan.counters:
             counter_ok = {}
+            intact = e2e_ok and toyota_ok
             for cname, (chk, sc, off) in plan.counters.items():
-                if not (e2e_ok and toyota_ok):
-                    counter_ok[cname] = None  # a corrupted frame's counter is not evidence either way
+                if not intact:
+                    # a corrupted frame's counter is not evidence either way, and the next good frame's
+                    # counter cannot be judged against the last good one (the corrupt frame may or may
+                    # not have been a real transmission): re-synchronise on it, as after start
+                    chk.reset()
+                    counter_ok[cname] = None
                     continue
                 value = values.get(cname)
                 if value is None:  # multiplexed away in this frame

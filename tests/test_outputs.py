@@ -125,6 +125,41 @@ def test_nan_and_inf_are_sent_as_zero_with_validity_cleared(enc):
     assert enc.non_finite["VX"] == 10
 
 
+def _invalid_estimate(**kw) -> Estimate:
+    """What the estimator emits before its filter initialises: NaN states, every flag false."""
+    nan = math.nan
+    fields = ("sideslip_rad", "sideslip_std_rad", "heading_rad", "heading_std_rad", "vx_mps", "vy_mps",
+              "vx_std_mps", "vy_std_mps", "yaw_rate_radps", "yaw_rate_bias_radps", "yaw_rate_bias_std_radps",
+              "accel_x_bias_mps2", "accel_x_bias_std_mps2", "accel_y_bias_mps2", "accel_y_bias_std_mps2",
+              "wheel_scale")
+    return est(**{**dict.fromkeys(fields, nan), "sideslip_valid": False, "heading_valid": False,
+                  "velocity_valid": False, "biases_valid": False, "status": STATUS_INPUT_STALE, **kw})
+
+
+def test_non_finite_or_saturated_values_already_flagged_invalid_are_not_logged(enc, caplog):
+    e = _invalid_estimate()
+    seen = collect(enc, range(200), e)
+    s, v, c = seen["EST_SIDESLIP"][0], seen["EST_VELOCITY"][0], seen["EST_CALIBRATION"][0]
+    # encoded as before: 0 (or the in-range value nearest 0) with the validity bit cleared
+    assert (s["SIDESLIP"], s["SIDESLIP_VALID"], s["YAW_RATE"], s["YAW_RATE_VALID"]) == (0, 0, 0, 0)
+    assert (v["VX"], v["VELOCITY_VALID"]) == (0, 0) and seen["EST_HEADING"][0]["HEADING_VALID"] == 0
+    assert c["WHEEL_SCALE"] == pytest.approx(1.0 - 32768e-5) and c["CALIBRATION_VALID"] == 0
+    # ... but it is the normal "unknown", not a problem: no line, no count
+    assert [r.getMessage() for r in caplog.records if r.name == "ecu_daemon.outputs"] == []
+    assert enc.non_finite == {} and enc.saturated == {}
+    # the start-up sideslip std of pi (no speed yet) saturates SIDESLIP_STD while SIDESLIP_VALID is false
+    collect(enc, range(10), est(sideslip_std_rad=math.pi, sideslip_valid=False))
+    assert enc.saturated == {} and not caplog.records
+    # the same values in a field that claims to be valid are still reported
+    collect(enc, range(10), est(vx_mps=math.nan, sideslip_std_rad=math.pi))
+    lines = [r.getMessage() for r in caplog.records if r.name == "ecu_daemon.outputs"]
+    assert len(lines) == 2 and enc.non_finite == {"VX": 10} and enc.saturated == {"SIDESLIP_STD": 10}
+    assert any("VX = nan not finite" in x and "VELOCITY_VALID cleared" in x for x in lines)
+    # a frame without an estimator flag (YAW_RATE_VALID) counts as claimed valid while the filter runs
+    collect(enc, range(10), est(yaw_rate_radps=math.inf))
+    assert enc.non_finite["YAW_RATE"] == 10
+
+
 def test_estimator_flags_and_heading_wrap(enc):
     seen = collect(enc, range(2), est(sideslip_valid=False, heading_rad=2 * math.pi + 0.1,
                                       status=STATUS_INPUT_STALE))

@@ -154,6 +154,27 @@ def test_bad_crc_drops_the_frame_and_counts_checksum_errors(dec):
     assert dec.decode(2.02, fid, bytes(other)) == [] and h.errors["checksum"] == 2
 
 
+def test_one_bad_crc_frame_between_good_ones_costs_exactly_that_frame(dec):
+    db = dec.db
+    names = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
+    assert len(dec.decode(1.00, *frame(db, "WHEEL_SPEEDS", 4, WHEEL_SPEED_FL=10.0))) == 4
+    assert len(dec.decode(1.01, *frame(db, "WHEEL_SPEEDS", 5, WHEEL_SPEED_FL=10.0))) == 4
+    fid, data = frame(db, "WHEEL_SPEEDS", 6, WHEEL_SPEED_FL=10.0)
+    bad = bytearray(data)
+    bad[2] ^= 0x04  # one flipped data bit, CRC unchanged
+    assert dec.decode(1.02, fid, bytes(bad)) == []
+    # the next good frame (counter 7, one after the corrupt frame) and the ones after it are used
+    for i, cnt in enumerate((7, 8, 9)):
+        assert len(dec.decode(1.03 + 0.01 * i, *frame(db, "WHEEL_SPEEDS", cnt, WHEEL_SPEED_FL=10.0))) == 4
+    for name in names:
+        h = dec.health[name]
+        assert (h.frames, h.samples) == (6, 5), name
+        assert h.errors["checksum"] == 1 and h.errors["counter"] == 0, name
+    # the counter check still works after the re-synchronisation
+    assert dec.decode(1.10, *frame(db, "WHEEL_SPEEDS", 12)) == []
+    assert dec.health["wheel_speed_fl"].errors["counter"] == 1
+
+
 def test_counter_jump_drops_one_frame_then_resyncs(dec):
     db = dec.db
     assert len(dec.decode(1.00, *frame(db, "WHEEL_SPEEDS", 14))) == 4
@@ -179,7 +200,9 @@ def test_counter_and_checksum_are_only_checked_when_the_mapping_asks(clock):
     # yaw_rate does not check the CRC, accel_x/accel_y do
     assert by_name(dec.decode(1.01, fid, bytes(bad))) == pytest.approx({"yaw_rate": 0.5})
     assert dec.health["accel_x"].errors["checksum"] == 1 and dec.health["yaw_rate"].errors["checksum"] == 0
-    # a counter jump only hits the inputs that check the counter
+    # a counter jump only hits the inputs that check the counter (the check re-synchronises on the
+    # first good frame after a checksum failure, so the jump comes after one)
+    assert len(dec.decode(1.015, *frame(dec.db, "IMU", 5, YAW_RATE=0.5))) == 3
     assert by_name(dec.decode(1.02, *frame(dec.db, "IMU", 9, YAW_RATE=0.5))) == pytest.approx({"yaw_rate": 0.5})
     assert dec.health["accel_y"].errors["counter"] == 1 and dec.health["yaw_rate"].errors["counter"] == 0
 
