@@ -236,9 +236,10 @@ def _validate(cfg: Config) -> None:
              "timeout_s")
     if cfg.gnss.protocol not in ("auto", "ubx", "nmea"):
         raise ConfigError(f"[gnss] protocol must be auto, ubx or nmea, got {cfg.gnss.protocol!r}")
-    if not (0.0 <= cfg.gnss.delay_s <= cfg.gnss.max_delay_s):
-        raise ConfigError(f"[gnss] delay_s must be between 0 and max_delay_s ({cfg.gnss.max_delay_s}),"
-                          f" got {cfg.gnss.delay_s}")
+    if not (0.0 <= cfg.gnss.delay_s <= 5.0):
+        raise ConfigError(f"[gnss] delay_s must be between 0 and 5 s, got {cfg.gnss.delay_s}")
+    # the ring buffer must reach back past the latency prior (and what it may be identified as)
+    cfg.gnss.max_delay_s = max(cfg.gnss.max_delay_s, round(cfg.gnss.delay_s + 0.3, 3))
     arm = cfg.gnss.lever_arm_m
     if len(arm) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in arm):
         raise ConfigError(f"[gnss] lever_arm_m must be [x, y] in metres, got {arm!r}")
