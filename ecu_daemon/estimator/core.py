@@ -289,13 +289,21 @@ class Estimator:
         return self._estimate(t, xl, pd, P[VX, VY], r, status, imu_ok, wheels_ok)
 
     def _invalid(self, t: float) -> Estimate:
-        nan = math.nan
+        """No filter yet (or just reset): finite, neutral values, every validity bit false.
+
+        Finite on purpose: a downstream tool that averages a column must not be poisoned by a NaN
+        from the first step before the IMU's first frame; the validity bits say "do not use".
+        """
         status = est_mod.STATUS_INPUT_STALE
         if self._reset_flag:
             status |= est_mod.STATUS_RESET
             self._reset_flag = False
-        return Estimate(t, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan,
-                        self.latency.delay_s, nan, self.steer_offset,
+        L = self._learned0
+        big = 1e3
+        return Estimate(t, 0.0, math.pi, 0.0, math.pi, 0.0, 0.0, big, big, 0.0,
+                        L.get("yaw_rate_bias_radps", 0.0), 1.0, L.get("accel_x_bias_mps2", 0.0), big,
+                        L.get("accel_y_bias_mps2", 0.0), big,
+                        self.latency.delay_s, L.get("wheel_scale", 1.0), self.steer_offset,
                         self.single_track.cornering_stiffness_front,
                         self.single_track.cornering_stiffness_rear, False, False, False, False, status,
                         self.gnss.fused, self.gnss.rejected, self.gnss.late)
