@@ -28,8 +28,7 @@ from .fusion.gnss_velocity import ALIGN_SPEED, MAX_CONSECUTIVE_REJECTS, GnssVelo
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
-from .history import (AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_THETA, AUX_WHEEL,
-                      StepHistory)
+from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
 from .latency import LatencyEstimator
 
@@ -65,8 +64,7 @@ class Estimator:
         self.delay_compensation = es.delay_compensation
         learned = self._check_learned(learned)
         self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
-                                        gn.max_delay_s, gn.estimate_delay,
-                                        lever_arm=(gn.lever_arm_m[0], gn.lever_arm_m[1]))
+                                        gn.max_delay_s, gn.estimate_delay)
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
@@ -90,7 +88,6 @@ class Estimator:
         self.initialized = False
         self.aligned = False
         self.wheel_new = False
-        self.theta = 0.0
         self.r_lp = 0.0
         self.rdot = 0.0
         self.last_gnss_fused_t = -math.inf
@@ -256,7 +253,6 @@ class Estimator:
         r_lp_prev = self.r_lp
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
-        self.theta += r * dt
         steer_sw = held[I_STEER]
         steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
         delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
@@ -276,7 +272,7 @@ class Estimator:
             if steer_ok and imu_ok and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
-        h.aux[i] = (r, ay, self.rdot, wheel_z, self.theta, delta, ax)
+        h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k
         if k % 64 == 0:
             P += P.T
@@ -364,7 +360,6 @@ class Estimator:
             self.last_gnss_rejected = True
             return
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        course = fus.course(g)
         self.latency.observe(k, speed, h)
         delay = self.latency.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))

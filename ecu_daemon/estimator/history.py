@@ -26,10 +26,9 @@ AUX_R = 0  # bias-corrected yaw rate, rad/s
 AUX_AY = 1  # bias-corrected lateral acceleration, m/s^2
 AUX_RDOT = 2  # low-passed yaw acceleration, rad/s^2
 AUX_WHEEL = 3  # wheel-derived speed (raw, configured radius), m/s; NaN if unknown
-AUX_THETA = 4  # integrated bias-corrected yaw angle (CCW), rad, no GNSS in it
-AUX_DELTA = 5  # road-wheel steering angle, offset-corrected, rad
-AUX_AX = 6
-NAUX = 7
+AUX_DELTA = 4  # road-wheel steering angle, offset-corrected, rad
+AUX_AX = 5  # bias-corrected longitudinal acceleration, m/s^2
+NAUX = 6
 
 
 class StepHistory:

@@ -8,10 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kinematic import NX
-
-_I = np.eye(NX)
-
 
 def scalar_update(x: np.ndarray, P: np.ndarray, innovation: float, h_row: np.ndarray, R: float,
                   gate_sigma: float = 0.0, A: np.ndarray | None = None) -> bool:
@@ -45,18 +41,3 @@ def index_update(x: np.ndarray, P: np.ndarray, innovation: float, i: int, R: flo
     if A is not None:
         A -= np.outer(K, A[i])
     return True
-
-
-def vector_update(x: np.ndarray, P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray):
-    """Fuse a small vector measurement in place. Returns (I - K H, K, S)."""
-    PHt = P @ H.T
-    S = H @ PHt + R
-    K = PHt @ np.linalg.inv(S)
-    x += K @ innovation
-    P -= K @ PHt.T
-    return _I - K @ H, K, S
-
-
-def symmetrize(P: np.ndarray) -> None:
-    P += P.T
-    P *= 0.5

@@ -37,7 +37,7 @@ MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its 
 
 class LatencyEstimator:
     def __init__(self, dt: float, prior_s: float, max_s: float, enabled: bool = True,
-                 forgetting: float = 0.995, lever_arm: tuple[float, float] = (0.0, 0.0)):
+                 forgetting: float = 0.995):
         self.dt = dt
         self.enabled = enabled
         self.delay_s = prior_s

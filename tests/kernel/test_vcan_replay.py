@@ -11,7 +11,6 @@ the tick-lateness numbers are reported, and judged by the benchmark on the host.
 """
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 import sys

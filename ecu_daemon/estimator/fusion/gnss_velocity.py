@@ -19,7 +19,7 @@ import numpy as np
 
 from ...samples import GnssSample
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
-from ..kinematic import NX, PSI, VX, VY, antenna_velocity_ne, gnss_jacobian
+from ..kinematic import NX, VX, VY, antenna_velocity_ne, gnss_jacobian
 
 ALIGN_SPEED = 4.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
