@@ -6,6 +6,7 @@ edge (``signals.py``, ``gnss/``), never inside the estimator.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -72,3 +73,10 @@ class GnssSample:
     lat_deg: float = float("nan")
     lon_deg: float = float("nan")
     h_acc_m: float = float("nan")
+    course_known: bool = True
+    ground_speed_mps: float = float("nan")  # only when course_known is False
+
+    @property
+    def speed_mps(self) -> float:
+        """Ground speed, m/s (NaN when the sample has none)."""
+        return math.hypot(self.vel_n_mps, self.vel_e_mps) if self.course_known else self.ground_speed_mps
