@@ -216,8 +216,7 @@ class Daemon:
             self.recorder = Recorder(self.record_dir, can_channel=str(self.bus_config.get("channel") or "can0"),
                                      gnss_port=port.parent.name + port.name if port.name.isdigit() else port.name)
         if cfg.gnss.port:
-            self.parser = GnssStreamParser(cfg.gnss.protocol, cfg.gnss.nmea_speed_acc_mps,
-                                           name=f"GNSS {cfg.gnss.port}",
+            self.parser = GnssStreamParser(cfg.gnss.protocol, name=f"GNSS {cfg.gnss.port}",
                                            raw_sink=self.recorder.on_gnss if self.recorder else None)
         try:
             bus = can.Bus(**self.bus_config)

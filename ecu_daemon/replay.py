@@ -68,8 +68,7 @@ def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict):
     for t, port, payload in read_gnss_log(path):
         p = parsers.get(port)
         if p is None:
-            p = parsers[port] = GnssStreamParser(cfg.gnss.protocol, cfg.gnss.nmea_speed_acc_mps,
-                                                 name=f"gnss {port}")
+            p = parsers[port] = GnssStreamParser(cfg.gnss.protocol, name=f"gnss {port}")
         for s in p.feed(t, payload):
             yield s.t, 1, s
     for p in parsers.values():

@@ -203,10 +203,12 @@ def test_ublox_epochs_emit_at_rmc_with_gga_gst_of_the_previous_epoch():
     assert parser.stats["samples"] == 3 and parser.stats["nmea_sentences"] == 18
 
 
-def test_course_less_standstill_folds_the_unknown_direction_into_the_accuracy():
-    (s,), _ = feed_lines(ublox_nmea_epoch(T0, 0.02, None), nmea_speed_acc_mps=0.15)
-    assert (s.vel_n_mps, s.vel_e_mps) == (0.0, 0.0) and s.fix_ok
-    assert s.speed_acc_mps == pytest.approx(math.hypot(0.15, 0.02), abs=1e-4)
+def test_course_less_epoch_publishes_its_speed_with_an_unknown_course_not_a_zero_vector():
+    (s,), _ = feed_lines(ublox_nmea_epoch(T0, 2.5, None))
+    assert s.fix_ok and not s.course_known
+    assert s.speed_mps == pytest.approx(2.5, abs=1e-3) and s.ground_speed_mps == s.speed_mps
+    assert math.isnan(s.vel_n_mps) and math.isnan(s.vel_e_mps)  # no false direction (nor zero)
+    assert s.fix_time_utc_s == T0
     (s,), _ = feed_lines(ublox_nmea_epoch(T0, 0.0, 90.0))
     assert abs(s.vel_n_mps) < 1e-12 and s.vel_e_mps == 0.0 and math.isnan(s.speed_acc_mps)
 
@@ -224,10 +226,34 @@ def test_vtg_only_stream():
     sentences = []
     for k in range(3):
         sentences += [enc.nmea_gga(utc=T0 + k, lat_deg=1, lon_deg=2), enc.nmea_vtg(speed_mps=3.0, course_deg=270.0)]
-    samples, _ = feed_lines(sentences)
+    samples, _ = feed_lines(sentences)  # one sentence per second: the pause after each VTG ends its epoch
     assert len(samples) == 3 and all(s.fix_ok and s.vel_e_mps == pytest.approx(-3.0, abs=3e-4) for s in samples)
-    assert all(math.isnan(s.fix_time_utc_s) for s in samples)  # VTG carries no date/time
+    assert all(math.isnan(s.fix_time_utc_s) for s in samples)  # neither VTG nor GGA carries the date
     assert [s.num_sv for s in samples] == [12, 12, 12]
+
+
+@pytest.mark.parametrize("order", ["vtg_first", "vtg_last"])
+def test_vtg_only_stream_takes_the_time_of_its_epoch_from_gga_and_zda(order):
+    """VTG has no time field: the epoch's GGA/ZDA date it, whether VTG leads or ends the epoch."""
+    sentences, times = [], []
+    for k in range(3):
+        utc = T0 + 86400 * 3 + k  # the ZDA date must be used, not a constant
+        timed = [enc.nmea_gga(utc=utc, lat_deg=1, lon_deg=2), enc.nmea_zda(utc=utc)]
+        vtg = enc.nmea_vtg(speed_mps=3.0 + k, course_deg=270.0)
+        epoch = [vtg] + timed if order == "vtg_first" else timed + [vtg]
+        # a burst per epoch: sentences 10 ms apart, epochs 1 s apart (receive time)
+        sentences += epoch
+        times += [k + 0.01 * i for i in range(len(epoch))]
+    parser = GnssStreamParser()
+    samples = [s for t, line in zip(times, sentences) for s in parser.feed(t, (line + "\r\n").encode())]
+    samples += parser.finish()
+    assert [round(s.speed_mps, 3) for s in samples] == [3.0, 4.0, 5.0]
+    utc = [s.fix_time_utc_s for s in samples]
+    if order == "vtg_first":  # emitted at the GGA: the very first epoch's ZDA has not come yet
+        assert math.isnan(utc.pop(0)) and utc == [T0 + 86400 * 3 + k for k in (1, 2)]
+    else:
+        assert utc == [T0 + 86400 * 3 + k for k in range(3)]
+    assert all(s.fix_ok and s.num_sv == 12 for s in samples)
 
 
 @pytest.mark.parametrize("kw, fix_type, fix_ok", [
@@ -244,15 +270,21 @@ def test_rmc_validity_ignores_nav_status_and_uses_status_and_mode(kw, fix_type, 
     assert (s.fix_type, s.fix_ok) == (fix_type, fix_ok)
 
 
-def test_multi_talker_streams_use_one_talker():
+def test_multi_talker_streams_give_one_sample_per_epoch():
     gp = [enc.nmea_rmc(utc=T0 + k, lat_deg=1, lon_deg=2, speed_mps=1, course_deg=0, talker="GP") for k in range(2)]
     ga = [enc.nmea_rmc(utc=T0 + k, lat_deg=1, lon_deg=2, speed_mps=9, course_deg=0, talker="GA") for k in range(2)]
     samples, parser = feed_lines([gp[0], ga[0], gp[1], ga[1]])
     assert [round(s.vel_n_mps, 3) for s in samples] == [1.0, 1.0] and parser.stats["ignored"] == 2
-    gn = enc.nmea_rmc(utc=T0 + 2, lat_deg=1, lon_deg=2, speed_mps=4, course_deg=0, talker="GN")
-    samples, _ = feed_lines([gp[0], gn, enc.nmea_rmc(utc=T0 + 3, lat_deg=1, lon_deg=2, speed_mps=1,
-                                                     course_deg=0, talker="GP")])
-    assert [round(s.vel_n_mps, 3) for s in samples] == [1.0, 4.0]  # GN (all constellations) wins
+
+
+def test_talker_switching_receiver_keeps_every_epoch():
+    """Trimble switches GN -> GP -> GN between epochs: epochs are assembled by time, not talker."""
+    talkers = ["GN", "GP", "GP", "GN", "GL", "GN"]
+    lines = [enc.nmea_rmc(utc=T0 + k, lat_deg=1, lon_deg=2, speed_mps=k, course_deg=0, talker=tk)
+             for k, tk in enumerate(talkers)]
+    samples, parser = feed_lines(lines)
+    assert [round(s.vel_n_mps, 3) for s in samples] == list(range(6))
+    assert [s.fix_time_utc_s for s in samples] == [T0 + k for k in range(6)] and parser.stats["ignored"] == 0
 
 
 def _with_checksum(body: str) -> str:
@@ -348,3 +380,17 @@ def test_checksum_valid_nonsense_never_raises_and_never_gives_a_valid_nan(kind, 
     assert samples[-1].fix_time_utc_s == T0  # the good sentence after it still parses
     for s in samples:
         assert not s.fix_ok or (math.isfinite(s.vel_n_mps) and math.isfinite(s.vel_e_mps))
+
+
+@pytest.mark.parametrize("bad_date", ["310219", "1A0320", "000000"])
+def test_one_bad_rmc_field_drops_that_field_not_the_velocity(bad_date):
+    """A corrupt date (or position) is reported once; the epoch's velocity is still published."""
+    good = enc.nmea_rmc(utc=T0, lat_deg=1, lon_deg=2, speed_mps=5, course_deg=90)
+    f = enc.nmea_rmc(utc=T0 + 1, lat_deg=1, lon_deg=2, speed_mps=6, course_deg=90)[1:-3].split(",")
+    f[9] = bad_date
+    f[3] = "99x9.0"  # and a latitude that is no number
+    samples, parser = feed_lines([good, _with_checksum("$" + ",".join(f))])
+    assert [round(s.vel_e_mps, 3) for s in samples] == [5.0, 6.0] and all(s.fix_ok for s in samples)
+    assert samples[1].fix_time_utc_s == T0 + 1  # the date of the previous epoch, the sentence's time
+    assert math.isnan(samples[1].lat_deg) and math.isnan(samples[1].lon_deg)
+    assert parser.stats["malformed"] == 2 and "date dropped" in parser.last_error  # position, then date

@@ -109,7 +109,7 @@ def build_drive(scenario_name: str, steps: int):
     for t, fid, data in sim.can_frames:
         for s in decoder.decode(t, fid, data, fid in sim.extended_ids):
             events.append((t, 0, s))
-    parser = GnssStreamParser(cfg.gnss.protocol, cfg.gnss.nmea_speed_acc_mps)
+    parser = GnssStreamParser(cfg.gnss.protocol)
     for t, payload in sim.gnss_messages:
         for s in parser.feed(t, payload):
             events.append((s.t, 1, s))
@@ -335,7 +335,7 @@ def bench_replay(sim, cfg_replay, tmp: Path) -> dict:
     for t, port, payload in read_gnss_log(gnss_path):
         p = parsers.get(port)
         if p is None:
-            p = parsers[port] = GnssStreamParser(cfg.gnss.protocol, cfg.gnss.nmea_speed_acc_mps)
+            p = parsers[port] = GnssStreamParser(cfg.gnss.protocol)
         gnss_ev.extend((smp.t, 1, smp) for smp in p.feed(t, payload))
     for p in parsers.values():
         gnss_ev.extend((smp.t, 1, smp) for smp in p.finish())

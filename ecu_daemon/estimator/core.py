@@ -359,15 +359,15 @@ class Estimator:
             fus.rejected += 1
             self.last_gnss_rejected = True
             return
-        speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
+        speed = g.speed_mps
         self.latency.observe(k, speed, h)
         delay = self.latency.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
         if late:
             fus.late += 1
-        if not self.aligned or fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS:
+        if not self.aligned or fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS or not g.course_known:
             ok = fus.fuse_speed(h, s, g)
-            if speed > ALIGN_SPEED:
+            if speed > ALIGN_SPEED and g.course_known:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)

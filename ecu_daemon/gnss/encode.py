@@ -210,6 +210,13 @@ def nmea_gst(*, utc: datetime | float, rms_m: float | None = 10.0, std_major_m: 
     return _render(talker, "GST", fields)
 
 
+def nmea_zda(*, utc: datetime | float, talker: str = "GN") -> str:
+    """``$GNZDA``: time and date (day, month, 4-digit year), local zone fields 00."""
+    dt = _as_datetime(utc)
+    dt_c = dt + timedelta(microseconds=5000)  # date of the rounded time
+    return _render(talker, "ZDA", [_hms(dt), f"{dt_c.day:02d}", f"{dt_c.month:02d}", f"{dt_c.year:04d}", "00", "00"])
+
+
 def posix_from_fields(year: int, month: int, day: int, hour: int, minute: int, second: int,
                       nano: int = 0) -> float:
     """POSIX seconds of a NAV-PVT date/time (inverse of :func:`utc_fields`, for tests)."""

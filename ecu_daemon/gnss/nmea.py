@@ -1,4 +1,4 @@
-"""NMEA sentences -> GnssSample: one sample per epoch from RMC (and/or VTG), enriched by GGA and GST.
+"""NMEA sentences -> GnssSample: one sample per epoch from RMC and/or VTG, enriched by GGA, GNS and GST.
 
 Framing and the ``*hh`` checksum are checked in ``stream.py``; this module gets whole sentences.
 pynmea2 splits the fields, but three measured pynmea2 traps are avoided here
@@ -7,20 +7,29 @@ pynmea2 splits the fields, but three measured pynmea2 traps are avoided here
 * ``RMC.is_valid`` is False for every u-blox NMEA 4.1 RMC (nav-status field ``V``); validity is
   decided here from the status field and the FAA mode, ignoring nav status.
 * A field that fails to convert is returned as the raw string (``'0.0x7'``), and an empty
-  latitude becomes 0.0; every number is therefore checked here and a bad one rejects the
-  sentence (counted as malformed) instead of flowing on as text or as a fake position.
+  latitude becomes 0.0; every number is therefore checked here. A bad speed rejects the sentence
+  (counted as malformed); a bad date, position or course drops only that field (reported through
+  ``field_errors``) so one corrupt field does not throw away a valid velocity.
 * VTG knots are ``Decimal``; everything is converted to float.
 
-Emission is driven by the velocity sentence so that no sample waits for later sentences of
-the epoch (GGA/GST come after RMC on u-blox; at 9600 baud that would add ~0.1 s): an RMC
-with a speed is emitted at once; an RMC without one waits for the VTG that follows it (only if
-this stream sends VTG); a stream without RMC is served from VTG. GGA and GST
-contribute fix quality, satellites and horizontal accuracy from the same or the previous
-epoch (at most 1.5 s older).
+Epochs are assembled by **time of day, whatever the talker**: receivers switch talker ids
+between epochs (Trimble: GN -> GP -> GN) and some repeat an epoch per constellation (GPRMC +
+GARMC); the first velocity sentence of an epoch is used, later copies are counted as duplicates.
+Emission is driven by the velocity sentence so that no sample waits for later sentences of the
+epoch (GGA/GST come after RMC on u-blox; at 9600 baud that would add ~0.1 s): an RMC with a
+speed is emitted at once; an RMC without one waits for the VTG that follows it (only if this
+stream sends VTG). A stream without RMC is served from VTG, which carries no time: the VTG
+waits for the next timed sentence (GGA, GNS, GLL, ZDA, GST) and takes its epoch, unless that
+sentence comes more than ``_VTG_EPOCH_GAP_S`` of receive time later (then the VTG ended the
+previous epoch). The date comes from RMC or ZDA. GGA/GNS and GST contribute fix quality,
+satellites and horizontal accuracy from the same or the previous epoch (at most 1.5 s older).
+
+An RMC/VTG with a speed but no course (receivers blank it when slow) gives a sample with
+``course_known=False``: its speed is usable, its direction is not.
 """
 from __future__ import annotations
 
-import calendar
+import datetime
 import math
 import re
 from dataclasses import dataclass
@@ -30,11 +39,17 @@ import pynmea2
 from ..samples import FIX_3D, FIX_DR, FIX_NONE, GnssSample
 
 __all__ = ["MPS_PER_KNOT", "NmeaError", "NmeaEpochAssembler", "nmea_checksum_ok", "VELOCITY_KINDS",
-           "USED_KINDS"]
+           "TIMED_KINDS", "USED_KINDS"]
 
 MPS_PER_KNOT = 1852.0 / 3600.0
 VELOCITY_KINDS = frozenset({"RMC", "VTG"})
-USED_KINDS = frozenset({"RMC", "VTG", "GGA", "GST"})
+#: Sentences that carry the epoch's time of day (and, for ZDA, the date).
+TIMED_KINDS = frozenset({"GGA", "GNS", "GLL", "ZDA", "GST"})
+USED_KINDS = VELOCITY_KINDS | TIMED_KINDS
+#: A VTG followed by a timed sentence more than this later (receive time) ended the previous epoch.
+_VTG_EPOCH_GAP_S = 0.5
+_DAY_MS = 86_400_000
+_EPOCH_ORDINAL = datetime.date(1970, 1, 1).toordinal()
 #: GGA/GST older than this (relative to the RMC) are not used for the sample.
 _AUX_MAX_AGE_MS = 1500
 #: FAA mode indicators that mean a usable GNSS solution (A autonomous, D differential, P precise,
@@ -79,15 +94,20 @@ def _num(msg, name: str) -> float | None:
     return f
 
 
-def _tod_ms(msg) -> int | None:
-    """Time of day of field 0 (hhmmss[.sss]) in ms; rounded, not pynmea2's truncating parse."""
-    raw = msg.data[0] if msg.data else ""
+def _tod_ms(msg, i: int = 0) -> int | None:
+    """Time of day of field ``i`` (hhmmss[.sss]) in ms; rounded, not pynmea2's truncating parse."""
+    raw = _field(msg, i)
     if raw == "":
         return None
     m = _TIME.match(raw)
     if not m or int(m[1]) > 23 or int(m[2]) > 59 or int(m[3]) > 60:
         raise NmeaError(f"{msg.sentence_type} time is not hhmmss.ss: {raw!r}")
     return (int(m[1]) * 3600 + int(m[2]) * 60 + int(m[3])) * 1000 + round(float(m[4] or 0) * 1000)
+
+
+def _days(year: int, month: int, day: int) -> int:
+    """Days since 1970-01-01; ValueError for an impossible date."""
+    return datetime.date(year, month, day).toordinal() - _EPOCH_ORDINAL
 
 
 def _coord(value: str, hemi: str, limit: float, what: str) -> float:
@@ -105,12 +125,21 @@ def _field(msg, i: int) -> str:
     return msg.data[i] if i < len(msg.data) else ""
 
 
+
+def _optional(errors: list[str], fn, *args, default=None):
+    """``fn(*args)``, or ``default`` with the reason appended to ``errors`` (one bad field only)."""
+    try:
+        return fn(*args)
+    except NmeaError as exc:
+        errors.append(str(exc))
+        return default
+
+
 @dataclass(slots=True)
 class _Rmc:
     t: float
-    talker: str
     tod_ms: int | None
-    utc_s: float
+    day: int | None  # days since 1970 (RMC date), None when absent or bad
     valid: bool
     mode: str
     lat: float
@@ -127,31 +156,34 @@ class _Vtg:
     mode: str
 
 
-def _decode_rmc(t: float, talker: str, msg) -> _Rmc:
-    tod = _tod_ms(msg)
-    utc = math.nan
+def _rmc_day(msg) -> int | None:
     date = _field(msg, 8)
-    if tod is not None and date:
-        if not re.match(r"^\d{6}$", date):
-            raise NmeaError(f"RMC date is not ddmmyy: {date!r}")
+    if not date:
+        return None
+    if re.match(r"^\d{6}$", date):
         yy = int(date[4:6])
         try:
-            utc = calendar.timegm((2000 + yy if yy < 80 else 1900 + yy, int(date[2:4]), int(date[0:2]),
-                                   0, 0, 0)) + tod / 1000.0
+            return _days(2000 + yy if yy < 80 else 1900 + yy, int(date[2:4]), int(date[0:2]))
         except ValueError:
-            raise NmeaError(f"RMC date is not ddmmyy: {date!r}") from None
-    speed = _num(msg, "spd_over_grnd")
+            pass
+    raise NmeaError(f"RMC date is not ddmmyy: {date!r} (date dropped, rest of the sentence kept)")
+
+
+def _decode_rmc(t: float, msg, errors: list[str]) -> _Rmc:
+    speed = _num(msg, "spd_over_grnd")  # the one field without which the sentence is useless
     valid = _field(msg, 1) == "A"
+    lat = lon = math.nan
     try:
         lat = _coord(_field(msg, 2), _field(msg, 3), 90, "RMC latitude")
         lon = _coord(_field(msg, 4), _field(msg, 5), 180, "RMC longitude")
-    except NmeaError:
-        if valid:
-            raise
-        lat = lon = math.nan  # receivers print placeholders like 36000.0000 without a fix
-    return _Rmc(t=t, talker=talker, tod_ms=tod, utc_s=utc, valid=valid, mode=_field(msg, 11),
-                lat=lat, lon=lon, speed=None if speed is None else speed * MPS_PER_KNOT,
-                course=_num(msg, "true_course"))
+    except NmeaError as exc:
+        if valid:  # receivers print placeholders like 36000.0000 without a fix: not worth a word
+            errors.append(f"{exc} (position dropped)")
+        lat = lon = math.nan
+    course = _optional(errors, _num, msg, "true_course")
+    return _Rmc(t=t, tod_ms=_optional(errors, _tod_ms, msg), day=_optional(errors, _rmc_day, msg),
+                valid=valid, mode=_field(msg, 11), lat=lat, lon=lon,
+                speed=None if speed is None else speed * MPS_PER_KNOT, course=course)
 
 
 def _decode_vtg(t: float, msg) -> _Vtg:
@@ -164,32 +196,44 @@ def _decode_vtg(t: float, msg) -> _Vtg:
     return _Vtg(t=t, speed=speed, course=_num(msg, "true_track"), mode=_field(msg, 8))
 
 
+def _int_field(msg, i: int, what: str) -> int | None:
+    v = _field(msg, i)
+    if v == "":
+        return None
+    if not v.isdigit():
+        raise NmeaError(f"{msg.sentence_type} {what} is not an integer: {v!r}")
+    return int(v)
+
+
 # ------------------------------------------------------------------------------ assembler
 
 class NmeaEpochAssembler:
     """Turns the checksum-valid NMEA sentences of one stream into one GnssSample per epoch.
 
-    ``add(t, sentence_text)`` returns the samples completed by that sentence (0 or 1, 2 when a
-    held epoch is flushed by the next one); ``flush()`` returns a held epoch at end of stream.
-    ``nominal_speed_acc_mps`` is used only to derive the accuracy of course-less epochs (see
-    ``_sample``); other NMEA samples carry NaN and the estimator applies its configured value.
+    ``add(t, sentence_text)`` returns the samples completed by that sentence (0, 1 or 2);
+    ``flush()`` returns a held epoch at end of stream. ``duplicates`` counts velocity sentences
+    of an epoch already emitted (another talker's copy); ``field_errors`` collects the reasons
+    a field was dropped from an otherwise used sentence (the caller drains and reports them).
+    NMEA samples carry NaN speed accuracy: the estimator applies its configured value.
     Raises NmeaError for unusable content (pynmea2.ParseError is converted too).
     """
 
-    def __init__(self, nominal_speed_acc_mps: float | None = 0.15) -> None:
-        self.nominal_speed_acc = math.nan if nominal_speed_acc_mps is None else float(nominal_speed_acc_mps)
-        self.talker: str | None = None  # the talker whose RMC/VTG we use (first RMC talker, GN preferred)
-        self.other_talker_sentences = 0
-        self._rmc_talker_locked = False
+    def __init__(self) -> None:
+        self.duplicates = 0
+        self.field_errors: list[str] = []
         self._sends_vtg = False
         self._sends_rmc = False
-        self._held: _Rmc | None = None
-        self._gga: tuple[int, int, int] | None = None  # tod_ms, quality, num_sv
+        self._held: _Rmc | None = None  # RMC without speed, waiting for its VTG
+        self._vtg: _Vtg | None = None  # VTG of an RMC-less stream, waiting for its epoch's time
+        self._vtg_tod_before: int | None = None  # time of the last timed sentence before that VTG
+        self._done_tod: int | None = None  # epoch whose sample was emitted
+        self._gga: tuple[int, int, int] | None = None  # tod_ms, quality, num_sv (GGA or GNS)
         self._gst: tuple[int, float] | None = None  # tod_ms, horizontal 1-sigma m
+        self._date: tuple[int, int] | None = None  # (days since 1970, tod_ms) of the last RMC/ZDA date
         self._last_tod: int | None = None
 
     def add(self, t: float, text: str) -> list[GnssSample]:
-        talker, kind = text[1:3], text[3:6]
+        kind = text[3:6]
         if kind not in USED_KINDS or text[1] == "P":
             return []
         try:
@@ -197,124 +241,163 @@ class NmeaEpochAssembler:
         except (pynmea2.ParseError, ValueError, TypeError, AttributeError, IndexError) as exc:
             raise NmeaError(f"pynmea2 cannot parse {text[:6]}: {exc}") from None
         out: list[GnssSample] = []
-        if kind == "GGA":
-            tod = _tod_ms(msg)
-            qual, nsv = _field(msg, 5), _field(msg, 6)
-            if (qual and not qual.isdigit()) or (nsv and not nsv.isdigit()):
-                raise NmeaError(f"GGA quality/satellites are not integers: {qual!r}, {nsv!r}")
-            self._flush_if_new_epoch(tod, out)
-            if tod is not None and qual:
-                # several talkers may send GGA (GPGGA + GLGGA): first of the epoch, or ours, wins
-                if self._gga is None or self._gga[0] != tod or talker == self.talker:
-                    self._gga = (tod, int(qual), int(nsv or 0))
-        elif kind == "GST":
-            tod = _tod_ms(msg)
-            self._flush_if_new_epoch(tod, out)
-            sl, so = _num(msg, "std_dev_latitude"), _num(msg, "std_dev_longitude")
-            if tod is not None and sl is not None and so is not None:
-                self._gst = (tod, math.hypot(sl, so))
-        elif kind == "RMC":
-            if not self._accept_talker(talker, is_rmc=True):
-                return out
-            rmc = _decode_rmc(t, talker, msg)
-            self._sends_rmc = True
-            if self._held is not None:
-                out.append(self._sample(self._held, None))
-                self._held = None
-            self._flush_if_new_epoch(rmc.tod_ms, out)
-            if rmc.speed is None and self._sends_vtg and rmc.valid:
-                self._held = rmc  # the VTG that follows may carry the speed this RMC lacks
-            else:
-                out.append(self._sample(rmc, None))
-        else:  # VTG
-            if not self._accept_talker(talker, is_rmc=False):
-                return out
-            vtg = _decode_vtg(t, msg)
-            self._sends_vtg = True
-            if self._held is not None:
-                out.append(self._sample(self._held, vtg))
-                self._held = None
-            elif not self._sends_rmc:
-                out.append(self._sample(None, vtg))
+        if kind == "RMC":
+            self._rmc(_decode_rmc(t, msg, self.field_errors), out)
+        elif kind == "VTG":
+            self._vtg_sentence(_decode_vtg(t, msg), out)
+        else:
+            self._timed(t, kind, msg, out)
         return out
 
     def flush(self) -> list[GnssSample]:
         """The held epoch, if any (end of stream)."""
         out: list[GnssSample] = []
         if self._held is not None:
-            out.append(self._sample(self._held, None))
+            self._emit(self._held, None, self._held.tod_ms, out)
             self._held = None
+        if self._vtg is not None:
+            self._emit(None, self._vtg, self._vtg_tod_before, out)
+            self._vtg = None
         return out
 
     # -------------------------------------------------------------------------------- internals
 
-    def _accept_talker(self, talker: str, is_rmc: bool) -> bool:
-        """Use one talker's velocity only (multi-talker streams repeat or differ per constellation).
+    def _rmc(self, rmc: _Rmc, out: list) -> None:
+        self._sends_rmc = True
+        if self._vtg is not None:  # the stream turned out to send RMC: the VTG before it is alone
+            self._emit(None, self._vtg, self._vtg_tod_before, out)
+            self._vtg = None
+        if rmc.day is not None and rmc.tod_ms is not None:
+            self._date = (rmc.day, rmc.tod_ms)
+        if self._held is not None:
+            if rmc.tod_ms is not None and rmc.tod_ms == self._held.tod_ms:
+                self.duplicates += 1  # another talker's RMC of the held epoch
+                return
+            self._emit(self._held, None, self._held.tod_ms, out)
+            self._held = None
+        self._new_time(rmc.tod_ms)
+        if rmc.tod_ms is not None and rmc.tod_ms == self._done_tod:
+            self.duplicates += 1
+            return
+        if rmc.speed is None and self._sends_vtg and rmc.valid:
+            self._held = rmc  # the VTG that follows may carry the speed this RMC lacks
+        else:
+            self._emit(rmc, None, rmc.tod_ms, out)
 
-        The first RMC talker wins (a VTG talker only until an RMC shows up); a GN (combined
-        constellations) RMC takes over from a single-constellation one.
-        """
-        if is_rmc and (not self._rmc_talker_locked or (talker == "GN" and self.talker != "GN")):
-            self.talker, self._rmc_talker_locked = talker, True
-        elif self.talker is None:
-            self.talker = talker
-        if talker != self.talker:
-            self.other_talker_sentences += 1
-            return False
-        return True
+    def _vtg_sentence(self, vtg: _Vtg, out: list) -> None:
+        self._sends_vtg = True
+        if self._held is not None:
+            self._emit(self._held, vtg, self._held.tod_ms, out)
+            self._held = None
+        elif not self._sends_rmc:
+            if self._vtg is not None:  # two VTGs without a time between them
+                self._emit(None, self._vtg, self._vtg_tod_before, out)
+            self._vtg, self._vtg_tod_before = vtg, self._last_tod
 
-    def _flush_if_new_epoch(self, tod: int | None, out: list) -> None:
+    def _timed(self, t: float, kind: str, msg, out: list) -> None:
+        """GGA, GNS, GLL, ZDA, GST: the epoch's time (and fix quality, accuracy, date)."""
+        tod = _tod_ms(msg, 4 if kind == "GLL" else 0)
+        vtg, before = self._vtg, self._vtg_tod_before
+        if vtg is not None and tod is not None and before is not None and tod != before \
+                and t - vtg.t > _VTG_EPOCH_GAP_S:
+            self._vtg = None  # the pause before this sentence was the epoch boundary
+            self._emit(None, vtg, before, out)
+        if kind == "GGA":
+            self._aux_fix(tod, _int_field(msg, 5, "quality"), _int_field(msg, 6, "satellites"))
+        elif kind == "GNS":
+            mode = _field(msg, 5)
+            qual = (1 if any(m in _GNSS_MODES for m in mode) else 6 if "E" in mode else 0) if mode else None
+            self._aux_fix(tod, qual, _int_field(msg, 6, "satellites"))
+        elif kind == "ZDA":
+            day = _optional(self.field_errors, self._zda_day, msg)
+            if tod is not None and day is not None:
+                self._date = (day, tod)
+        elif kind == "GST":
+            sl, so = _num(msg, "std_dev_latitude"), _num(msg, "std_dev_longitude")
+            if tod is not None and sl is not None and so is not None:
+                self._gst = (tod, math.hypot(sl, so))
         if tod is None:
             return
         if self._held is not None and self._held.tod_ms != tod:
-            out.append(self._sample(self._held, None))
+            self._emit(self._held, None, self._held.tod_ms, out)
             self._held = None
-        self._last_tod = tod
+        self._new_time(tod)
+        if self._vtg is not None:  # the VTG belongs to the epoch this sentence dates
+            vtg, self._vtg = self._vtg, None
+            self._emit(None, vtg, tod, out)
+
+    @staticmethod
+    def _zda_day(msg) -> int | None:
+        d, m, y = _field(msg, 1), _field(msg, 2), _field(msg, 3)
+        if not (d or m or y):
+            return None
+        try:
+            return _days(int(y), int(m), int(d))
+        except ValueError:
+            raise NmeaError(f"ZDA date is not dd,mm,yyyy: {d!r},{m!r},{y!r} (date dropped)") from None
+
+    def _aux_fix(self, tod: int | None, qual: int | None, nsv: int | None) -> None:
+        # several talkers may send GGA (GPGGA + GLGGA): the first of the epoch wins
+        if tod is not None and qual is not None and (self._gga is None or self._gga[0] != tod):
+            self._gga = (tod, qual, nsv or 0)
+
+    def _new_time(self, tod: int | None) -> None:
+        if tod is not None:
+            self._last_tod = tod
+
+    def _utc(self, tod: int | None) -> float:
+        """UTC seconds of an epoch from its time of day and the last date seen (midnight-safe)."""
+        if tod is None or self._date is None:
+            return math.nan
+        day, date_tod = self._date
+        diff = tod - date_tod
+        day += 1 if diff < -_DAY_MS // 2 else -1 if diff > _DAY_MS // 2 else 0
+        return day * 86400.0 + tod / 1000.0
 
     def _aux(self, tod: int | None):
-        """GGA and GST of this epoch or the previous one (<= 1.5 s older), else None."""
+        """GGA/GNS and GST of this epoch or the previous one (<= 1.5 s older), else None."""
         def fresh(rec):
-            if rec is None:
+            if rec is None or tod is None:
                 return None
-            if tod is None:
-                return rec if rec[0] == self._last_tod else None
-            age = (tod - rec[0]) % 86_400_000
+            age = (tod - rec[0]) % _DAY_MS
             return rec if age <= _AUX_MAX_AGE_MS else None
         return fresh(self._gga), fresh(self._gst)
 
-    def _sample(self, rmc: _Rmc | None, vtg: _Vtg | None) -> GnssSample:
+    def _emit(self, rmc: _Rmc | None, vtg: _Vtg | None, tod: int | None, out: list) -> None:
+        if tod is not None and tod == self._done_tod:
+            self.duplicates += 1
+            return
+        if tod is not None:
+            self._done_tod = tod
+        out.append(self._sample(rmc, vtg, tod))
+
+    def _sample(self, rmc: _Rmc | None, vtg: _Vtg | None, tod: int | None) -> GnssSample:
         speed = rmc.speed if rmc is not None and rmc.speed is not None else vtg.speed if vtg else None
         course = rmc.course if rmc is not None and rmc.course is not None else vtg.course if vtg else None
         modes = [m for m in ((rmc.mode if rmc else ""), (vtg.mode if vtg else "")) if m]
         valid = rmc.valid if rmc is not None else bool(modes) or speed is not None
-        tod = rmc.tod_ms if rmc is not None else self._last_tod
         gga, gst = self._aux(tod)
-        if not valid or "N" in modes or any(m not in _GNSS_MODES and m != "E" for m in modes):
+        if not valid or "N" in modes or any(m not in _GNSS_MODES and m != "E" for m in modes) \
+                or (rmc is None and not modes and gga is not None and gga[1] == 0):
             fix_type, fix_ok = FIX_NONE, False
         elif "E" in modes or (gga is not None and gga[1] == 6):
             fix_type, fix_ok = FIX_DR, True
         else:
             fix_type, fix_ok = FIX_3D, True
-        speed_acc = math.nan
+        vn = ve = ground = math.nan
         if speed is None:
-            vn = ve = math.nan
-            fix_ok = False  # invariant: fix_ok implies finite velocity
+            fix_ok = False  # invariant: fix_ok implies a finite speed
         elif course is None:
-            # receivers blank the course when nearly stationary; the vector is then known only to
-            # lie within `speed` of zero, which is folded into the accuracy
-            vn = ve = 0.0
-            speed_acc = math.hypot(self.nominal_speed_acc, speed)
-            if not math.isfinite(speed_acc):
-                speed_acc = math.nan
+            ground = speed  # receivers blank the course when slow: the speed alone is still true
         else:
             c = math.radians(course)
             vn, ve = speed * math.cos(c), speed * math.sin(c)
         t = max(r.t for r in (rmc, vtg) if r is not None)
         return GnssSample(
-            t=t, vel_n_mps=vn, vel_e_mps=ve, speed_acc_mps=speed_acc, fix_type=fix_type, fix_ok=fix_ok,
-            num_sv=gga[2] if gga else 0, protocol="nmea",
-            fix_time_utc_s=rmc.utc_s if rmc is not None else math.nan,
+            t=t, vel_n_mps=vn, vel_e_mps=ve, speed_acc_mps=math.nan, fix_type=fix_type, fix_ok=fix_ok,
+            num_sv=gga[2] if gga else 0, protocol="nmea", fix_time_utc_s=self._utc(tod),
             lat_deg=rmc.lat if rmc is not None else math.nan,
             lon_deg=rmc.lon if rmc is not None else math.nan,
             h_acc_m=gst[1] if gst else math.nan,
+            course_known=course is not None or speed is None, ground_speed_mps=ground,
         )

@@ -88,13 +88,11 @@ class GnssStreamParser:
     emitting both does not double every epoch), ``"ubx"`` or ``"nmea"`` (frames of the other
     protocol are framed and counted as ``ignored``). RTCM3 frames are always skipped.
 
-    ``nmea_speed_acc_mps``: nominal NMEA speed accuracy, used only to derive the accuracy of
-    course-less NMEA epochs; other NMEA samples carry ``speed_acc_mps = NaN``.
     ``raw_sink(t, data)``: optional; receives every accepted frame (NMEA with its line ending when
     present) and every run of rejected bytes, in stream order -- what ``GnssLogWriter`` records.
     """
 
-    def __init__(self, protocol: str = "auto", nmea_speed_acc_mps: float | None = 0.15, *,
+    def __init__(self, protocol: str = "auto", *,
                  name: str = "gnss", raw_sink: Callable[[float, bytes], None] | None = None,
                  log_interval_s: float = 10.0, prefer_ubx_s: float = 2.0) -> None:
         if protocol not in ("auto", "ubx", "nmea"):
@@ -106,7 +104,7 @@ class GnssStreamParser:
         self._sink = raw_sink
         self._prefer_ubx_s = prefer_ubx_s
         self._ubx = UbxDecoder()
-        self._nmea = NmeaEpochAssembler(nmea_speed_acc_mps)
+        self._nmea = NmeaEpochAssembler()
         self._buf = bytearray()
         self._base = 0  # absolute stream offset of _buf[0]
         self._marks: deque[tuple[int, float]] = deque()  # (absolute end offset, t) per feed
@@ -304,13 +302,18 @@ class GnssStreamParser:
         if text[1] == "P" or text[3:6] not in USED_KINDS:
             self.stats["unsupported"] += 1
             return True
-        others = self._nmea.other_talker_sentences
+        nmea = self._nmea
+        duplicates = nmea.duplicates
         try:
-            samples = self._nmea.add(t, text)
+            samples = nmea.add(t, text)
         except NmeaError as exc:
             self._error(t, "malformed", "malformed", str(exc))
             return True
-        if self._nmea.other_talker_sentences != others:
+        finally:
+            for text in nmea.field_errors:  # a field dropped, the rest of the sentence used
+                self._error(t, "malformed", "malformed", text)
+            nmea.field_errors.clear()
+        if nmea.duplicates != duplicates:
             self.stats["ignored"] += 1
         self._emit_nmea(samples, out)
         return True

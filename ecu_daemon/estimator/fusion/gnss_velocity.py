@@ -52,10 +52,10 @@ class GnssVelocityFusion:
         if not (g.fix_ok and g.fix_type >= self.min_fix_type and g.fix_type != 5):
             self.last_reason = f"no usable fix (type {g.fix_type})"
             return False
-        if not (math.isfinite(g.vel_n_mps) and math.isfinite(g.vel_e_mps)):
+        if not math.isfinite(g.speed_mps):  # speed only when the course is unknown (course_known)
             self.last_reason = "non-finite velocity"
             return False
-        if abs(g.vel_n_mps) > 150 or abs(g.vel_e_mps) > 150:
+        if g.speed_mps > 150:
             self.last_reason = "implausible velocity"
             return False
         acc = g.speed_acc_mps
@@ -65,7 +65,7 @@ class GnssVelocityFusion:
         return True
 
     def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample) -> bool:
-        """Speed-only update (heading unknown)."""
+        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only."""
         i = hist.slot(s)
         x = hist.X[i]
         P = hist.P[i]
@@ -73,7 +73,7 @@ class GnssVelocityFusion:
         vax = x[VX] - r * self.lever_y
         vay = x[VY] + r * self.lever_x
         sp = math.hypot(vax, vay)
-        zs = math.hypot(g.vel_n_mps, g.vel_e_mps)
+        zs = g.speed_mps
         if sp < 0.5:
             h = np.zeros(NX)
             h[VX] = 1.0
