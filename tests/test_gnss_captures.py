@@ -203,3 +203,35 @@ def test_every_shared_capture_parses_without_exceptions():
         assert all(not s.fix_ok or math.isfinite(s.vel_n_mps + s.vel_e_mps) for s in samples), path.name
         n += 1
     assert n >= 80
+
+
+# ------------------------------------------------------------------------------------ receivers without NAV-PVT
+
+def test_nav_sol_receiver_velocity_matches_gpsd_at_every_epoch():
+    """u-blox 8 timing (NAV-SOL only): ECEF velocity -> north/east at the ECEF position, GPS time -> UTC."""
+    samples, parser = parse_all(capture_bytes(GPSD / "ublox-8-time.log"))
+    tpv = tpv_by_time(GPSD / "ublox-8-time.tpv.jsonl")
+    by_time = {round(s.fix_time_utc_s, 2): s for s in samples}
+    assert len(tpv) == 89 and all(s.protocol == "ubx" for s in samples)
+    for when, d in tpv.items():
+        s = by_time[round(when, 2)]  # NAV-SOL's fTOW puts the epoch 0.1 ms before the second
+        assert s.fix_ok and s.fix_type == d["mode"]
+        assert s.speed_mps == pytest.approx(d["speed"], abs=0.011)  # cm/s resolution per axis
+        assert s.lat_deg == pytest.approx(45.2185, abs=1e-3) and s.lon_deg == pytest.approx(5.8072, abs=1e-3)
+
+
+def test_hnr_pvt_gives_velocity_when_no_nav_pvt_comes():
+    """u-blox M8L: HNR-PVT at 10 Hz; with the NAV-PVT frames removed it is the velocity source."""
+    data = capture_bytes(GPSD / "ublox-neo-m8l.log")
+    frames = [raw for raw, m in UBXReader(io.BytesIO(data), protfilter=UBX_PROTOCOL, quitonerror=0)
+              if m is not None and m.identity != "NAV-PVT"]
+    samples, _ = parse_all(b"".join(frames))
+    gpsd: dict[float, list[float]] = {}  # gpsd reports an HNR and a NAV TPV at some epochs
+    for line in (GPSD / "ublox-neo-m8l.tpv.jsonl").read_text().splitlines():
+        d = json.loads(line)
+        if "time" in d and "speed" in d:
+            when = datetime.fromisoformat(d["time"].replace("Z", "+00:00")).timestamp()
+            gpsd.setdefault(round(when, 3), []).append(d["speed"])
+    assert len(samples) == 189 and all(s.fix_ok and s.protocol == "ubx" for s in samples)
+    for s in samples:  # every HNR epoch is one gpsd reported, at its speed (6 cm/s: HNR/NAV mix)
+        assert min(abs(v - s.speed_mps) for v in gpsd[round(s.fix_time_utc_s, 3)]) <= 0.06

@@ -25,7 +25,7 @@ from typing import Callable
 
 from ..samples import GnssSample
 from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
-from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, NAV_PVT, UbxDecoder, UbxError, ubx_checksum
+from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError, ubx_checksum
 
 __all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q"]
 
@@ -83,7 +83,7 @@ class _ErrorReporter:
 class GnssStreamParser:
     """Incremental parser for one receiver byte stream.
 
-    ``protocol``: ``"auto"`` (UBX and NMEA both used; while NAV-PVT keeps arriving -- within
+    ``protocol``: ``"auto"`` (UBX and NMEA both used; while UBX velocities keep arriving -- within
     ``prefer_ubx_s`` -- NMEA samples are dropped and counted as ``suppressed`` so one receiver
     emitting both does not double every epoch), ``"ubx"`` or ``"nmea"`` (frames of the other
     protocol are framed and counted as ``ignored``). RTCM3 frames are always skipped.
@@ -281,9 +281,8 @@ class GnssStreamParser:
         except UbxError as exc:
             self._error(t, "malformed", "malformed", str(exc))
             return
-        if cls_id == NAV_PVT:
-            self._last_pvt_t = t
         if sample is not None:
+            self._last_pvt_t = t  # a UBX velocity: the same receiver's NMEA copy is not used
             self.stats["samples"] += 1
             out.append(sample)
 

@@ -1,7 +1,14 @@
-"""UBX frames -> GnssSample: NAV-PVT (and NAV-VELNED for receivers without NAV-PVT).
+"""UBX frames -> GnssSample: NAV-PVT, or for receivers without it NAV-SOL, HNR-PVT, NAV-VELNED.
 
 Framing and checksum checks happen in ``stream.py``; this module gets whole, checksum-verified
 frames and turns the velocity messages into SI samples. pyubx2 decodes the payload.
+
+NAV-PVT is the velocity source whenever a receiver sends it. Older receivers (u-blox 4-7, the
+timing series) send NAV-SOL: an ECEF velocity, turned into north/east at the ECEF position
+(pynmeagps' ``ecef2llh``), stamped with GPS week/time of week minus the leap seconds (NAV-TIMEGPS
+when it says they are valid, else the IERS table below). HNR-PVT (u-blox 8 ADR/UDR high-rate
+output) carries ground speed and course of motion. NAV-VELNED is paired with NAV-STATUS/NAV-SOL
+of the same epoch; one sample per epoch (iTOW) whichever of them come.
 
 Unit traps handled here, once:
 * NAV-PVT velN/velE/velD/gSpeed/sAcc are **mm/s**, hAcc mm; pyubx2 returns them unscaled.
@@ -13,6 +20,7 @@ from __future__ import annotations
 import calendar
 import math
 
+from pynmeagps import ecef2llh
 from pyubx2 import GET, VALNONE, UBXReader
 from pyubx2.ubxhelpers import calc_checksum
 from pyubx2.ubxtypes_core import UBX_CLASSES
@@ -20,7 +28,7 @@ from pyubx2.ubxtypes_core import UBX_CLASSES
 from ..samples import GnssSample
 
 __all__ = ["UBX_SYNC", "UBX_MAX_PAYLOAD", "UBX_CLASS_BYTES", "ubx_checksum", "UbxError",
-           "UbxDecoder", "NAV_PVT", "NAV_VELNED"]
+           "UbxDecoder", "NAV_PVT", "NAV_VELNED", "NAV_SOL", "HNR_PVT"]
 
 UBX_SYNC = b"\xb5\x62"
 #: Longest payload we wait for. Real messages stay far below this (RXM-RAWX with 64 signals is
@@ -31,9 +39,15 @@ UBX_CLASS_BYTES = frozenset(c[0] for c in UBX_CLASSES)
 
 NAV_PVT = (0x01, 0x07)
 NAV_VELNED = (0x01, 0x12)
+NAV_SOL = (0x01, 0x06)
+HNR_PVT = (0x28, 0x00)
 _NAV_STATUS = (0x01, 0x03)
-_NAV_SOL = (0x01, 0x06)
+_NAV_TIMEGPS = (0x01, 0x20)
 _NAV_PVT_LEN = 92
+_GPS_EPOCH_POSIX = 315964800  # 1980-01-06T00:00:00Z
+#: GPS - UTC in seconds from each leap second on (UTC posix time); used until NAV-TIMEGPS says.
+_LEAP_SECONDS = ((1483228800, 18), (1435708800, 17), (1341100800, 16), (1230768000, 15),
+                 (1136073600, 14), (915148800, 13), (867715200, 12), (820454400, 11))
 
 
 class UbxError(ValueError):
@@ -43,6 +57,20 @@ class UbxError(ValueError):
 def ubx_checksum(body: bytes | bytearray | memoryview) -> bytes:
     """8-bit Fletcher checksum over class, id, length and payload (pyubx2's implementation)."""
     return calc_checksum(bytes(body))
+
+
+def _leap_from_table(gps_posix: float) -> int:
+    for since, leap in _LEAP_SECONDS:
+        if gps_posix - leap >= since:
+            return leap
+    return 10  # before 1996: no receiver log of this project is that old
+
+
+def _ecef_to_ne(vx: float, vy: float, vz: float, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+    """North and east components of an ECEF vector at a geodetic position."""
+    la, lo = math.radians(lat_deg), math.radians(lon_deg)
+    sla, cla, slo, clo = math.sin(la), math.cos(la), math.sin(lo), math.cos(lo)
+    return -sla * clo * vx - sla * slo * vy + cla * vz, -slo * vx + clo * vy
 
 
 def _utc_seconds(msg) -> float:
@@ -66,10 +94,12 @@ class UbxDecoder:
     def __init__(self) -> None:
         self.seen_nav_pvt = False
         self._status: tuple[int, int, bool, int] | None = None  # iTOW, fixType, fixOk, numSV
+        self._leap_s: int | None = None  # GPS - UTC from NAV-TIMEGPS, when it says it is valid
+        self._legacy_itow: int | None = None  # epoch of the last NAV-SOL / NAV-VELNED sample
 
     @staticmethod
     def supported(cls_id: tuple[int, int]) -> bool:
-        return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, _NAV_SOL)
+        return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, NAV_SOL, _NAV_TIMEGPS, HNR_PVT)
 
     def decode(self, t: float, frame: bytes) -> GnssSample | None:
         cls_id = (frame[2], frame[3])
@@ -78,16 +108,20 @@ class UbxDecoder:
                 raise UbxError(f"NAV-PVT payload is {len(frame) - 8} bytes, expected {_NAV_PVT_LEN}")
             self.seen_nav_pvt = True
             return self._nav_pvt(t, self._parse(frame))
-        if cls_id in (_NAV_STATUS, _NAV_SOL):
-            if self.seen_nav_pvt:
-                return None  # only needed to pair with NAV-VELNED
-            msg = self._parse(frame)
+        if self.seen_nav_pvt:
+            return None  # the others are only used by receivers without NAV-PVT
+        msg = self._parse(frame)
+        if cls_id == _NAV_TIMEGPS:
+            if msg.leapSValid:
+                self._leap_s = int(msg.leapS)
+            return None
+        if cls_id == HNR_PVT:
+            return self._hnr_pvt(t, msg)
+        if cls_id in (_NAV_STATUS, NAV_SOL):
             ok = bool(msg.gpsFixOk if cls_id == _NAV_STATUS else msg.gpsfixOK)  # pyubx2 spells them so
             self._status = (msg.iTOW, int(msg.gpsFix), ok, int(getattr(msg, "numSV", 0)))
-            return None
-        if cls_id == NAV_VELNED:
-            return None if self.seen_nav_pvt else self._nav_velned(t, self._parse(frame))
-        return None
+            return self._nav_sol(t, msg) if cls_id == NAV_SOL else None
+        return self._nav_velned(t, msg)  # NAV_VELNED
 
     @staticmethod
     def _parse(frame: bytes):
@@ -115,11 +149,41 @@ class UbxDecoder:
             h_acc_m=m.hAcc / 1000,
         )
 
+    def _gps_to_utc(self, week: int, itow_ms: int, ftow_ns: int) -> float:
+        gps = _GPS_EPOCH_POSIX + week * 604800 + itow_ms / 1000 + ftow_ns * 1e-9
+        return gps - (self._leap_s if self._leap_s is not None else _leap_from_table(gps))
+
+    def _nav_sol(self, t: float, m) -> GnssSample | None:
+        """u-blox 4-7 navigation solution: ECEF position (cm) and velocity (cm/s)."""
+        if self._legacy_itow == m.iTOW:
+            return None
+        self._legacy_itow = m.iTOW
+        known = bool(m.ecefX or m.ecefY or m.ecefZ)
+        lat, lon, _ = ecef2llh(m.ecefX / 100, m.ecefY / 100, m.ecefZ / 100) if known else (math.nan,) * 3
+        vn, ve = _ecef_to_ne(m.ecefVX / 100, m.ecefVY / 100, m.ecefVZ / 100, lat, lon) if known else (math.nan,) * 2
+        return GnssSample(
+            t=t, vel_n_mps=vn, vel_e_mps=ve, speed_acc_mps=m.sAcc / 100, fix_type=int(m.gpsFix),
+            fix_ok=bool(m.gpsfixOK) and known, num_sv=int(m.numSV), protocol="ubx",
+            fix_time_utc_s=self._gps_to_utc(m.week, m.iTOW, m.fTOW) if m.wknSet and m.towSet else math.nan,
+            lat_deg=lat, lon_deg=lon,
+        )
+
+    @staticmethod
+    def _hnr_pvt(t: float, m) -> GnssSample:
+        """High-rate (sensor-fused) output: ground speed (mm/s) along the course of motion (deg)."""
+        speed, c = m.gSpeed / 1000, math.radians(m.headMot)
+        return GnssSample(
+            t=t, vel_n_mps=speed * math.cos(c), vel_e_mps=speed * math.sin(c), speed_acc_mps=m.sAcc / 1000,
+            fix_type=int(m.gpsFix), fix_ok=bool(m.GPSfixOK), protocol="ubx", fix_time_utc_s=_utc_seconds(m),
+            head_acc_rad=math.radians(m.headAcc), lat_deg=float(m.lat), lon_deg=float(m.lon), h_acc_m=m.hAcc / 1000,
+        )
+
     def _nav_velned(self, t: float, m) -> GnssSample | None:
         """Legacy velocity (cm/s); needs NAV-STATUS or NAV-SOL of the same epoch for the fix state."""
         st = self._status
-        if st is None or st[0] != m.iTOW:
+        if st is None or st[0] != m.iTOW or self._legacy_itow == m.iTOW:
             return None
+        self._legacy_itow = m.iTOW
         _, fix_type, fix_ok, num_sv = st
         return GnssSample(
             t=t, vel_n_mps=m.velN / 100, vel_e_mps=m.velE / 100, speed_acc_mps=m.sAcc / 100,
