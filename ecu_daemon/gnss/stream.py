@@ -132,6 +132,7 @@ class GnssStreamParser:
         """
         out: list[GnssSample] = []
         self._scan(out, final=True)
+        self._emit_ubx(self._ubx.flush(), out)
         self._emit_nmea(self._nmea.flush(), out)
         self._flush_junk()
         self._skip_lf = 0
@@ -275,14 +276,16 @@ class GnssStreamParser:
             return
         if not UbxDecoder.supported(cls_id):
             self.stats["unsupported"] += 1
-            return
         try:
-            sample = self._ubx.decode(t, frame)
+            samples = self._ubx.decode(t, frame)
         except UbxError as exc:
             self._error(t, "malformed", "malformed", str(exc))
             return
-        if sample is not None:
-            self._last_pvt_t = t  # a UBX velocity: the same receiver's NMEA copy is not used
+        self._emit_ubx(samples, out)
+
+    def _emit_ubx(self, samples: list[GnssSample], out: list) -> None:
+        for sample in samples:
+            self._last_pvt_t = sample.t  # a UBX velocity: the same receiver's NMEA copy is not used
             self.stats["samples"] += 1
             out.append(sample)
 

@@ -86,9 +86,9 @@ def _utc_seconds(msg) -> float:
 class UbxDecoder:
     """Decodes whole UBX frames of one stream; keeps the little state NAV-VELNED pairing needs.
 
-    ``decode(t, frame)`` returns a GnssSample, or None for a frame that carries no velocity
-    solution (``supported(frame)`` tells which ones count as unsupported). Raises UbxError for a
-    frame of a supported type whose content is unusable.
+    ``decode(t, frame)`` returns the samples a frame completes (usually none or one;
+    ``supported(cls_id)`` tells which frames count as unsupported), ``flush()`` a held one at end of
+    stream. Raises UbxError for a frame of a supported type whose content is unusable.
     """
 
     def __init__(self) -> None:
@@ -96,32 +96,58 @@ class UbxDecoder:
         self._status: tuple[int, int, bool, int] | None = None  # iTOW, fixType, fixOk, numSV
         self._leap_s: int | None = None  # GPS - UTC from NAV-TIMEGPS, when it says it is valid
         self._legacy_itow: int | None = None  # epoch of the last NAV-SOL / NAV-VELNED sample
+        self._held: GnssSample | None = None  # NAV-SOL sample waiting to see whether NAV-PVT follows
 
     @staticmethod
     def supported(cls_id: tuple[int, int]) -> bool:
         return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, NAV_SOL, _NAV_TIMEGPS, HNR_PVT)
 
-    def decode(self, t: float, frame: bytes) -> GnssSample | None:
+    def decode(self, t: float, frame: bytes) -> list[GnssSample]:
+        """The samples completed by this frame (any UBX frame: it may release a held NAV-SOL).
+
+        A NAV-SOL sample is held until the next frame: a receiver that also sends NAV-PVT sends
+        it right after NAV-SOL (u-blox orders an epoch's messages by id), and NAV-PVT replaces it.
+        """
+        held, self._held = self._held, None
+        try:
+            return self._decode(t, frame, held)
+        except UbxError:
+            self._held = held  # released by the next good frame
+            raise
+
+    def _decode(self, t: float, frame: bytes, held: GnssSample | None) -> list[GnssSample]:
         cls_id = (frame[2], frame[3])
+        out: list[GnssSample] = []
         if cls_id == NAV_PVT:
             if len(frame) != 8 + _NAV_PVT_LEN:
                 raise UbxError(f"NAV-PVT payload is {len(frame) - 8} bytes, expected {_NAV_PVT_LEN}")
             self.seen_nav_pvt = True
-            return self._nav_pvt(t, self._parse(frame))
-        if self.seen_nav_pvt:
-            return None  # the others are only used by receivers without NAV-PVT
+            msg = self._parse(frame)
+            return out + [self._nav_pvt(t, msg)]  # a held NAV-SOL of the same receiver is dropped
+        if held is not None:
+            out.append(held)
+        if self.seen_nav_pvt or not self.supported(cls_id):
+            return out  # the others are only used by receivers without NAV-PVT
         msg = self._parse(frame)
         if cls_id == _NAV_TIMEGPS:
             if msg.leapSValid:
                 self._leap_s = int(msg.leapS)
-            return None
-        if cls_id == HNR_PVT:
-            return self._hnr_pvt(t, msg)
-        if cls_id in (_NAV_STATUS, NAV_SOL):
+        elif cls_id == HNR_PVT:
+            out.append(self._hnr_pvt(t, msg))
+        elif cls_id in (_NAV_STATUS, NAV_SOL):
             ok = bool(msg.gpsFixOk if cls_id == _NAV_STATUS else msg.gpsfixOK)  # pyubx2 spells them so
             self._status = (msg.iTOW, int(msg.gpsFix), ok, int(getattr(msg, "numSV", 0)))
-            return self._nav_sol(t, msg) if cls_id == NAV_SOL else None
-        return self._nav_velned(t, msg)  # NAV_VELNED
+            if cls_id == NAV_SOL:
+                self._held = self._nav_sol(t, msg)
+        else:  # NAV_VELNED
+            velned = self._nav_velned(t, msg)
+            out += [velned] if velned is not None else []
+        return out
+
+    def flush(self) -> list[GnssSample]:
+        """The held NAV-SOL sample, if any (end of stream)."""
+        held, self._held = self._held, None
+        return [held] if held is not None else []
 
     @staticmethod
     def _parse(frame: bytes):
