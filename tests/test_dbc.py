@@ -138,7 +138,7 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
                    gnss_delay_s=0.2, wheel_scale=0.99, steering_offset_rad=0.01,
                    cornering_stiffness_front_n_per_rad=1e5, cornering_stiffness_rear_n_per_rad=1.2e5,
                    sideslip_valid=True, heading_valid=True, velocity_valid=True, biases_valid=True,
-                   status=0, gnss_fused=7, gnss_rejected=1, gnss_late=0)
+                   status=estimate_module.STATUS_HEADING_ALIGNED, gnss_fused=7, gnss_rejected=1, gnss_late=0)
     log = tmp_path / "out.log"
     with CandumpWriter(log) as w:
         period = max(p for _, _, p, _ in enc.schedule)
@@ -153,6 +153,23 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
         for s in m.signals:
             assert f"    {s.name}: " in r.stdout, s.name
     assert "SIDESLIP: 0.01 rad" in r.stdout and "Unknown frame" not in r.stdout and "Error" not in r.stdout
+    # value tables: the validity and status bits are printed by name
+    for name in ("SIDESLIP_VALID: VALID", "HEADING_VALID: VALID", "BIASES_VALID: VALID", "STATUS_HEADING_ALIGNED: ALIGNED",
+                 "STATUS_STANDSTILL: MOVING", "STATUS_GNSS_REJECTED: GNSS_ACCEPTED", "GNSS_FIX_TYPE: NO_FIX"):
+        assert f"    {name}" in r.stdout, name
+
+
+def test_every_validity_and_status_bit_has_a_value_table(outputs_db):
+    """So that `cantools decode` (and any DBC tool) shows names, not bare 0/1."""
+    bits = [(m.name, s) for m in outputs_db.messages for s in m.signals
+            if s.name.endswith("_VALID") or s.name.startswith("STATUS_")]
+    assert len(bits) == 16
+    for msg, s in bits:
+        assert s.choices is not None and set(s.choices) == {0, 1}, f"{msg}.{s.name}"
+    decoded = outputs_db.decode_message("EST_HEADING", outputs_db.encode_message(
+        "EST_HEADING", {"CHECKSUM": 0, "COUNTER": 0, "HEADING_VALID": 0, "HEADING": 1.0, "HEADING_STD": 0.1,
+                        **{s.name: 1 for _, s in bits if s.name.startswith("STATUS_")}}))
+    assert decoded["HEADING_VALID"] == "INVALID" and decoded["STATUS_RESET"] == "RESET"
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
