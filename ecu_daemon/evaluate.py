@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .plots import wrap
+
 TRUTH_REQUIRED = ("t", "sideslip_rad", "heading_rad", "vx_mps", "vy_mps", "yaw_rate_bias_radps",
                   "accel_x_bias_mps2", "accel_y_bias_mps2", "gnss_delay_s")
 ESTIMATE_REQUIRED = ("t", "sideslip_rad", "sideslip_std_rad", "heading_rad", "heading_std_rad", "vx_mps",
@@ -114,10 +116,6 @@ def read_csv(path: str | Path, required: tuple[str, ...], what: str) -> dict[str
     return cols
 
 
-def _wrap(a: np.ndarray) -> np.ndarray:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 def _stats(err: np.ndarray) -> dict:
     err = err[np.isfinite(err)]
     if len(err) == 0:
@@ -145,7 +143,7 @@ def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
     for name, (tc, ec, vc, _, _) in SIGNALS.items():
         if name == "heading":
             ref = np.interp(t, tt, np.unwrap(truth[tc]))
-            err = _wrap(est[ec][sel] - ref)
+            err = wrap(est[ec][sel] - ref)
         else:
             ref = np.interp(t, tt, truth[tc])
             err = est[ec][sel] - ref
@@ -210,83 +208,12 @@ def format_table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def _thin(cols: dict, max_points: int = 4000) -> dict:
-    """Every n-th row so a plot has at most ~max_points (drawing time; statistics use all rows)."""
-    step = max(1, math.ceil(len(cols["t"]) / max_points))
-    return {k: v[::step] for k, v in cols.items()}
-
-
 def plot(truth_csv: str | Path, estimate_csv: str | Path, out_dir: str | Path) -> list[Path]:
     """PNG plots of estimate vs truth over time; returns the files written."""
-    import matplotlib
+    from .plots import write_plots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    truth = _thin(read_csv(truth_csv, TRUTH_REQUIRED, "truth CSV"))
-    est = _thin(read_csv(estimate_csv, ESTIMATE_REQUIRED, "estimate CSV"))
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tt, te = truth["t"], est["t"]
-    t0 = tt[0]
-    d = 180 / math.pi
-    files = []
-
-    def save(fig, name):
-        fig.tight_layout()
-        p = out / name
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        files.append(p)
-
-    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
-    b, s = est["sideslip_rad"] * d, est["sideslip_std_rad"] * d
-    ax[0].fill_between(te - t0, b - 2 * s, b + 2 * s, color="tab:blue", alpha=0.2, label="estimate +-2 sigma")
-    ax[0].plot(te - t0, b, color="tab:blue", lw=1, label="estimate")
-    ax[0].plot(tt - t0, truth["sideslip_rad"] * d, color="k", lw=1, label="truth")
-    ax[0].set_ylabel("sideslip (deg)")
-    ax[0].legend(loc="upper right")
-    ax[1].plot(te - t0, est["sideslip_valid"], drawstyle="steps-post", label="sideslip_valid")
-    ax[1].plot(te - t0, est["heading_valid"] * 0.9, drawstyle="steps-post", label="heading_valid (x0.9)")
-    ax[1].set_ylabel("valid")
-    ax[1].set_xlabel(f"t - {t0:.1f} s")
-    ax[1].legend(loc="lower right")
-    save(fig, "sideslip.png")
-
-    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
-    ax[0].plot(tt - t0, truth["heading_rad"] * d, "k", lw=1, label="truth")
-    ax[0].plot(te - t0, est["heading_rad"] * d, "tab:blue", lw=1, label="estimate")
-    ax[0].set_ylabel("heading (deg, cw from north)")
-    ax[0].legend(loc="upper right")
-    err = _wrap(est["heading_rad"] - np.interp(te, tt, np.unwrap(truth["heading_rad"]))) * d
-    hs = est["heading_std_rad"] * d
-    ax[1].fill_between(te - t0, -2 * hs, 2 * hs, color="tab:blue", alpha=0.2, label="+-2 sigma")
-    ax[1].plot(te - t0, err, "tab:red", lw=1, label="error")
-    ax[1].set_ylabel("heading error (deg)")
-    ax[1].set_xlabel(f"t - {t0:.1f} s")
-    ax[1].legend(loc="upper right")
-    save(fig, "heading.png")
-
-    fig, ax = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
-    for a, col, lab in ((ax[0], "vx_mps", "vx (m/s)"), (ax[1], "vy_mps", "vy (m/s)")):
-        a.plot(tt - t0, truth[col], "k", lw=1, label="truth")
-        a.plot(te - t0, est[col], "tab:blue", lw=1, label="estimate")
-        a.set_ylabel(lab)
-        a.legend(loc="upper right")
-    ax[1].set_xlabel(f"t - {t0:.1f} s")
-    save(fig, "velocities.png")
-
-    fig, ax = plt.subplots(4, 1, figsize=(11, 10), sharex=True)
-    for a, name in zip(ax, ("yaw_rate_bias", "accel_x_bias", "accel_y_bias", "gnss_delay")):
-        tcs, ec, unit, k = BIASES[name]
-        tc = next(c for c in tcs if c in truth)
-        a.plot(tt - t0, truth[tc] * k, "k", lw=1, label="truth")
-        a.plot(te - t0, est[ec] * k, "tab:blue", lw=1, label="estimate")
-        a.set_ylabel(f"{name} ({unit})")
-        a.legend(loc="upper right")
-    ax[-1].set_xlabel(f"t - {t0:.1f} s")
-    save(fig, "biases.png")
-    return files
+    return write_plots(read_csv(estimate_csv, ESTIMATE_REQUIRED, "estimate CSV"), out_dir,
+                       truth=read_csv(truth_csv, TRUTH_REQUIRED, "truth CSV"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

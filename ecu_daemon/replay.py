@@ -19,12 +19,15 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 from . import config as config_mod
 from .canlog import CandumpWriter, CanLogError, read_can_log
 from .cli import UserError
 from .estimator import ESTIMATE_FIELDS, Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .gnss.stream import GnssStreamParser
+from .samples import INPUT_NAMES
 from .signals import SignalDecoder
 
 _BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
@@ -37,6 +40,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gnss", help="GNSS capture log: '(seconds.micros) PORT PAYLOAD' per line")
     p.add_argument("--out-can", help="write the output CAN frames as a candump -L log")
     p.add_argument("--out-csv", help="write one row per 6 ms estimator step")
+    p.add_argument("--plots", metavar="DIR", help="write PNG plots of the drive into DIR (estimates, validity, "
+                   "inputs; also DIR/out.csv when --out-csv is not given); needs matplotlib")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
 
 
@@ -123,8 +128,13 @@ class _Progress:
 
 
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
-               out_csv: str | None = None, out_can: str | None = None, progress: bool = False) -> dict:
-    """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files."""
+               out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
+               inputs: dict | None = None) -> dict:
+    """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files.
+
+    ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
+    GNSS speed as ``"gnss_speed"`` (for plots).
+    """
     for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
@@ -173,6 +183,10 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
                 counters["gnss_samples"] += 1
             else:
                 est.push_input(s)
+            if inputs is not None:
+                ts, vs = inputs.setdefault("gnss_speed" if kind else INPUT_NAMES[s.index], ([], []))
+                ts.append(t)
+                vs.append(s.speed_mps if kind else s.value)
             if t_first is None:
                 t_first = t
             if t_last is None or t > t_last:
@@ -205,11 +219,35 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     return counters
 
 
+def _write_plots(plots_dir: str, csv_path: str, inputs: dict) -> list[Path]:
+    from .evaluate import ESTIMATE_REQUIRED, read_csv
+    from .plots import write_plots
+
+    try:
+        return write_plots(read_csv(csv_path, ESTIMATE_REQUIRED, "estimate CSV"), plots_dir,
+                           inputs={k: (np.asarray(t), np.asarray(v)) for k, (t, v) in inputs.items()})
+    except ImportError as e:
+        raise UserError(f"--plots needs matplotlib (pip install 'ecu-daemon[plot]'): {e}") from None
+    except OSError as e:
+        raise UserError(f"cannot write plots to {plots_dir}: {e.strerror or e}") from None
+
+
 def main(args: argparse.Namespace) -> int:
     cfg = config_mod.load(args.config)
-    summary = run_replay(cfg, args.can, args.gnss, args.out_csv, args.out_can,
-                         progress=not args.no_progress)
+    out_csv = args.out_csv
+    if args.plots and not out_csv:
+        try:
+            Path(args.plots).mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise UserError(f"cannot write plots to {args.plots}: {e.strerror or e}") from None
+        out_csv = str(Path(args.plots) / "out.csv")
+    inputs: dict | None = {} if args.plots else None
+    summary = run_replay(cfg, args.can, args.gnss, out_csv, args.out_can,
+                         progress=not args.no_progress, inputs=inputs)
+    files = _write_plots(args.plots, out_csv, inputs) if args.plots else []
     print(f"replayed {summary['duration_s']:.1f} s of drive ({summary['frames']} frames, "
           f"{summary['gnss_samples']} GNSS samples) into {summary['steps']} steps in "
           f"{summary['wall_s']:.2f} s (x{summary['realtime_factor']:.0f} real time)", file=sys.stderr)
+    for f in files:
+        print(f"wrote {f}", file=sys.stderr)
     return 0
