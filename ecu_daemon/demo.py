@@ -28,7 +28,7 @@ import can
 import numpy as np
 
 from . import config as config_mod
-from .daemon import Daemon
+from .daemon import Daemon, bus_overrides
 from .diagnostics import BUS_STATE_NAMES
 from .estimator import estimate as est_mod
 from .io.logging_setup import setup_logging
@@ -49,7 +49,8 @@ class Feeder(threading.Thread):
     """
 
     def __init__(self, sim, channel: str, gnss_fd: int, *, clock=time.monotonic, speed: float = 1.0,
-                 lead_s: float = 0.05, keep_outputs: bool = False, frame_filter=None) -> None:
+                 lead_s: float = 0.05, keep_outputs: bool = False, frame_filter=None,
+                 bus_config: dict | None = None) -> None:
         super().__init__(name="demo-feeder", daemon=True)
         self.sim = sim
         self.channel = channel
@@ -67,7 +68,10 @@ class Feeder(threading.Thread):
         self.played = threading.Event()  # every frame and GNSS byte is out
         self.finished = threading.Event()  # ... and the thread is done
         self._stop_evt = threading.Event()
-        self._bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=speed != 1.0)
+        if bus_config is None or bus_config.get("interface") == "virtual":
+            self._bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=speed != 1.0)
+        else:  # a bus other processes see (e.g. udp_multicast): they stamp receive times themselves
+            self._bus = can.Bus(**bus_config)
 
     def sim_time(self, t_daemon: float) -> float:
         return t_daemon - self.c0 + self.sim.t0
@@ -245,22 +249,23 @@ def _fmt(v: float, spec: str) -> str:
 
 class DemoSession:
     def __init__(self, cfg, sim, *, speed: float = 1.0, tui: bool = True, record_dir=None,
-                 out=None) -> None:
+                 out=None, bus_config: dict | None = None) -> None:
         self.sim = sim
         self.speed = speed
         self.out = out if out is not None else sys.stdout
         self.tui = tui
         self.master, port = open_gnss_pty()
-        self.channel = f"ecu-daemon-demo-{os.getpid()}"
-        cfg.can.interface = "virtual"
+        bus_config = dict(bus_config or {"interface": "virtual", "channel": f"ecu-daemon-demo-{os.getpid()}"})
+        self.channel = str(bus_config["channel"])
+        cfg.can.interface = bus_config["interface"]
         cfg.can.channel = self.channel
         cfg.gnss.port = port
         cfg.daemon.state_file = ""  # the demo must not touch a real installation's learned state
         self.cfg = cfg
         self.clock = time.monotonic if speed == 1.0 else ScaledClock(speed)
-        self.feeder = Feeder(sim, self.channel, self.master, clock=self.clock, speed=speed)
+        self.feeder = Feeder(sim, self.channel, self.master, clock=self.clock, speed=speed, bus_config=bus_config)
         self.truth = TruthTracker(sim, self.feeder.sim_time)
-        self.daemon = Daemon(cfg, bus_config={"interface": "virtual", "channel": self.channel},
+        self.daemon = Daemon(cfg, bus_config=bus_config,
                              clock=self.clock, speed=speed, estimate_sink=self.truth.add, record_dir=record_dir)
         self.log_tail = LogTail() if tui else None
         self._last_line = -math.inf
@@ -308,7 +313,7 @@ class DemoSession:
         f = self.feeder
         now_s = f.sim_time(self.clock()) - sim.t0 if math.isfinite(f.c0) else 0.0
         dur = sim.t_end - sim.t0
-        lines = [f"ecu-daemon demo: simulated drive '{sim.scenario.name}' on virtual:{self.channel},"
+        lines = [f"ecu-daemon demo: simulated drive '{sim.scenario.name}' on {self.cfg.can.interface}:{self.channel},"
                  f" GNSS on {self.cfg.gnss.port}",
                  f"t = {min(max(now_s, 0.0), dur):5.1f} / {dur:.1f} s   speed x{self.speed:g}   "
                  f"frames {f.frames_sent}  GNSS bytes {f.gnss_bytes}", ""]
@@ -419,6 +424,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-tui", action="store_true", help="periodic lines instead of the live view")
     parser.add_argument("--config", "-C", help="base configuration (DBC, mapping); the vehicle comes from the scenario")
     parser.add_argument("--record", metavar="DIR", help="record what the daemon received, as `run --record` does")
+    from can.cli import add_bus_arguments
+
+    add_bus_arguments(parser, group_title="CAN bus (default: an in-process virtual bus; to watch the demo with"
+                      " `ecu-daemon monitor` from another terminal or over ssh: -i udp_multicast -c 239.74.163.2)")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -427,6 +436,12 @@ def main(args: argparse.Namespace) -> int:
 
     if not (args.speed > 0 and math.isfinite(args.speed)) or args.speed > 20:
         raise UserError("--speed must be a number between 0 and 20")
+    bus_config = None
+    if getattr(args, "interface", None) not in (None, "virtual"):
+        if args.speed != 1.0:
+            raise UserError(f"--speed must be 1 on a shared bus ({args.interface} stamps frames with real time)")
+        bus_config = {k: v for k, v in bus_overrides(args).items() if v is not None}
+        bus_config.setdefault("channel", "239.74.163.2" if args.interface == "udp_multicast" else "vcan0")
     scenario = SCENARIOS["demo"]
     if args.duration is not None:
         if not args.duration > 1.0:
@@ -437,4 +452,4 @@ def main(args: argparse.Namespace) -> int:
     tui = not args.no_tui and sys.stdout.isatty()
     print(f"simulating the '{scenario.name}' drive ({scenario.duration():.0f} s) ...", file=sys.stderr, flush=True)
     sim = simulate(scenario, cfg)
-    return DemoSession(cfg, sim, speed=args.speed, tui=tui, record_dir=args.record).run()
+    return DemoSession(cfg, sim, speed=args.speed, tui=tui, record_dir=args.record, bus_config=bus_config).run()
