@@ -1,4 +1,4 @@
-"""Command line: run | replay | demo | show-config | evaluate | simulate.
+"""Command line: run | replay | demo | show-config | evaluate | simulate | monitor.
 
 Each subcommand's module contributes its own options (``add_arguments``) and entry point
 (``main(args) -> int``) and is imported lazily, so ``show-config`` does not pay for numpy or
@@ -21,6 +21,7 @@ SUBCOMMANDS = {
     "show-config": ("ecu_daemon.cli", "print the effective configuration as TOML"),
     "evaluate": ("ecu_daemon.evaluate", "score a replay CSV against simulator truth, with plots"),
     "simulate": ("ecu_daemon.sim.cli", "simulate a drive: CAN log, GNSS capture, truth CSV"),
+    "monitor": ("ecu_daemon.monitor", "live terminal view of a running daemon, decoded from its CAN outputs"),
 }
 
 
