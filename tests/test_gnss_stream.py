@@ -394,3 +394,20 @@ def test_one_bad_rmc_field_drops_that_field_not_the_velocity(bad_date):
     assert samples[1].fix_time_utc_s == T0 + 1  # the date of the previous epoch, the sentence's time
     assert math.isnan(samples[1].lat_deg) and math.isnan(samples[1].lon_deg)
     assert parser.stats["malformed"] == 2 and "date dropped" in parser.last_error  # position, then date
+
+
+def test_nav_sol_is_released_by_time_when_no_frame_follows_it():
+    """A receiver whose epoch ends with NAV-SOL: the sample does not wait for the next epoch."""
+    from pyubx2 import GET, UBXMessage
+
+    lon = math.atan2(45537294, 447748408)  # a real u-blox 8 position (ublox-8-time), cm
+    sol = UBXMessage("NAV", "NAV-SOL", GET, iTOW=1000, week=2300, gpsFix=3, gpsfixOK=1, wknSet=1, towSet=1,
+                     ecefX=447748408, ecefY=45537294, ecefZ=450468730, ecefVX=round(-math.sin(lon) * 300),
+                     ecefVY=round(math.cos(lon) * 300), ecefVZ=0, sAcc=20, numSV=9).serialize()  # 3 m/s east
+    parser = GnssStreamParser()
+    assert parser.feed(10.0, sol) == []  # held: a NAV-PVT of this epoch may follow
+    assert parser.feed(10.1, b"\x00") == []
+    (s,) = parser.feed(10.3, b"\x00")  # 0.3 s later, nothing came: released
+    assert s.t == 10.0 and s.fix_ok and s.num_sv == 9 and s.speed_acc_mps == pytest.approx(0.2)
+    assert s.vel_e_mps == pytest.approx(3.0, abs=0.01) and s.vel_n_mps == pytest.approx(0.0, abs=0.01)
+    assert s.fix_time_utc_s == 315964800 + 2300 * 604800 + 1.0 - 18

@@ -1,4 +1,4 @@
-"""GNSS input: receiver byte stream (UBX NAV-PVT, NMEA RMC/VTG/GGA/GST) -> GnssSample.
+"""GNSS input: receiver byte stream (UBX NAV-PVT/NAV-SOL/HNR-PVT/NAV-VELNED, NMEA RMC/VTG/GGA/GNS/ZDA/GST) -> GnssSample.
 
 * ``stream.GnssStreamParser`` -- framing, checksums, auto-detection, counters (the entry point).
 * ``ubx`` / ``nmea`` -- message content -> SI samples (unit conversions happen there, once).

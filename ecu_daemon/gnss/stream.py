@@ -36,6 +36,8 @@ STAT_KEYS = ("ubx_frames", "nmea_sentences", "rtcm_frames", "samples", "checksum
 
 #: NMEA 0183 allows 82 characters; proprietary sentences (PUBX,03, PSTM...) run longer.
 NMEA_MAX_LEN = 1024
+#: Longest a NAV-SOL sample waits (receive time) for the next frame before it is released anyway.
+NAV_SOL_HOLD_S = 0.25
 _START = re.compile(rb"[\xb5$!\xd3]")
 _NMEA_BODY = re.compile(rb"[\x20\x22\x23\x25-\x7e]*")  # printable ASCII except the starts '$' and '!'
 _SENTENCE_HEAD = re.compile(rb"[$!][A-Z0-9]{4}")  # what makes a cut-off fragment a "truncated" sentence
@@ -122,6 +124,8 @@ class GnssStreamParser:
         self._buf += data
         self._marks.append((self._base + len(self._buf), float(t)))
         out: list[GnssSample] = []
+        # a NAV-SOL waits for a NAV-PVT of its epoch; at 9600 baud that follows within ~0.1 s
+        self._emit_ubx(self._ubx.flush(before=t - NAV_SOL_HOLD_S), out)
         self._scan(out, final=False)
         return out
 

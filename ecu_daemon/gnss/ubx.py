@@ -144,10 +144,12 @@ class UbxDecoder:
             out += [velned] if velned is not None else []
         return out
 
-    def flush(self) -> list[GnssSample]:
-        """The held NAV-SOL sample, if any (end of stream)."""
+    def flush(self, before: float = math.inf) -> list[GnssSample]:
+        """The held NAV-SOL sample, if received before ``before`` (default: any; end of stream)."""
+        if self._held is None or not self._held.t < before:
+            return []
         held, self._held = self._held, None
-        return [held] if held is not None else []
+        return [held]
 
     @staticmethod
     def _parse(frame: bytes):
