@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import collections
 import math
-import sys
 import time
 
 import can
@@ -43,7 +42,6 @@ ROWS = (
 )
 #: EST_DIAG input prefixes, in the order the daemon's inputs are listed
 INPUTS = ("WS_FL", "WS_FR", "WS_RL", "WS_RR", "STEER", "YAW_RATE", "ACCEL_X", "ACCEL_Y")
-NEVER = 65535
 
 
 def sparkline(values, width: int) -> str:
@@ -110,13 +108,15 @@ class MonitorState:
     def get(self, name: str, sig: str) -> float:
         return self.values.get(name, {}).get(sig, math.nan)
 
-    def choice(self, name: str, sig: str) -> str:
-        """The value table's name of a signal's last value (the DBC's VAL_), else the number."""
+    def choice(self, name: str, sig: str, spec: str = "g") -> str:
+        """A signal's last value by its value-table name (the DBC's VAL_: VALID, NEVER, FIX_3D...)
+        when it has one, else the number formatted with ``spec``."""
         v = self.get(name, sig) if name != "EST_DIAG" else self.diag.get(sig, math.nan)
         if not math.isfinite(v):
             return "-"
-        choices = self.db.get_message_by_name(name).get_signal_by_name(sig).choices or {}
-        return str(choices.get(int(v), f"{v:g}"))
+        s = self.db.get_message_by_name(name).get_signal_by_name(sig)
+        raw = s.conversion.numeric_scaled_to_raw(v)
+        return str((s.choices or {}).get(raw, format(v, spec)))
 
 
 def _num(v: float, spec: str = ".3f") -> str:
@@ -152,8 +152,9 @@ def render(state: MonitorState, source: str, now: float, spark_width: int = 40):
 
     d = state.diag
     gnss = Text(f"GNSS: fix {state.choice('EST_DIAG', 'GNSS_FIX_TYPE')}  sv {_num(d.get('GNSS_NUM_SV', math.nan), '.0f')}"
-                f"  speed acc {_num(d.get('GNSS_SPEED_ACC', math.nan))} m/s"
-                f"  rx age {_never(d.get('GNSS_RX_AGE'))} ms  latency {_never(d.get('GNSS_LATENCY'), '.1f')} ms"
+                f"  speed acc {state.choice('EST_DIAG', 'GNSS_SPEED_ACC', '.3f')} m/s"
+                f"  rx age {state.choice('EST_DIAG', 'GNSS_RX_AGE', '.0f')} ms"
+                f"  latency {state.choice('EST_DIAG', 'GNSS_LATENCY', '.1f')} ms"
                 f"  port {state.choice('EST_DIAG', 'GNSS_SERIAL_CONNECTED')}"
                 f"  fused {_num(state.get('EST_GNSS_COUNTS', 'GNSS_FUSED'), '.0f')}"
                 f" rejected {_num(state.get('EST_GNSS_COUNTS', 'GNSS_REJECTED'), '.0f')}"
@@ -164,7 +165,7 @@ def render(state: MonitorState, source: str, now: float, spark_width: int = 40):
     for col in ("input", "age ms", "rate Hz", "stale", "dlc", "decode", "range", "counter", "checksum"):
         inputs.add_column(col, justify="left" if col == "input" else "right", no_wrap=True)
     for p in INPUTS:
-        row = [p, _never(d.get(f"{p}_AGE")), _num(d.get(f"{p}_RATE", math.nan), ".1f")]
+        row = [p, state.choice("EST_DIAG", f"{p}_AGE", ".0f"), _num(d.get(f"{p}_RATE", math.nan), ".1f")]
         row += [_num(d.get(f"{p}_{s}", math.nan), ".0f") for s in
                 ("STALE_COUNT", "DLC_ERRORS", "DECODE_ERRORS", "RANGE_ERRORS", "COUNTER_ERRORS", "CHECKSUM_ERRORS")]
         inputs.add_row(*row)
@@ -181,13 +182,6 @@ def render(state: MonitorState, source: str, now: float, spark_width: int = 40):
     if state.last_error:
         parts.append(Text(f"last bad frame: {state.last_error}", style="red"))
     return Group(*parts)
-
-
-def _never(v, spec: str = ".0f") -> str:
-    """An age/latency field whose all-ones value means never/unknown."""
-    if v is None or not math.isfinite(v):
-        return "-"
-    return "never" if v >= NEVER * (0.1 if spec == ".1f" else 1) - 1e-6 else _num(v, spec)
 
 
 # --------------------------------------------------------------------------------- command line

@@ -59,6 +59,7 @@ def test_state_decodes_every_output_and_checks_crc_and_counters():
     assert st.get("EST_VELOCITY", "VY") == pytest.approx(0.4, abs=1e-3)
     assert st.choice("EST_HEADING", "HEADING_VALID") == "INVALID"  # the DBC's value table
     assert st.choice("EST_DIAG", "GNSS_FIX_TYPE") == "FIX_3D" and st.diag["GNSS_NUM_SV"] == 11
+    assert st.choice("EST_DIAG", "WS_FL_AGE") == "NEVER" and st.choice("EST_DIAG", "GNSS_LATENCY") == "UNKNOWN"
     assert len(st.history["vx [m/s]"]) >= 5  # ~4 Hz over 1.5 s of frame time
 
 
