@@ -409,7 +409,8 @@ class PythonCanWriter:
         self.path = Path(path)
         self.frames = 0
         try:
-            self._w = _ASCWriter(str(self.path)) if self.path.suffix.lower() == ".asc" else can.Logger(str(self.path))
+            asc = self.path.suffix.lower() == ".asc"
+            self._w = _ASCWriter(str(self.path)) if asc else can.Logger(str(self.path))
         except OSError as e:
             raise CanLogError(f"cannot write CAN log {self.path}: {e.strerror or e}") from None
         except (ValueError, ImportError) as e:  # an extension python-can has no writer (or library) for
