@@ -23,11 +23,12 @@ from pathlib import Path
 import can
 
 from .config import Config, ConfigError
+from .dbc_loading import load_dbc
 from .diagnostics import Diagnostics
 from .estimator import estimate as estimate_module
 from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import data_id_for, e2e_p2_crc, next_counter
-from .signals import RateLimitedLog, load_dbc
+from .signals import RateLimitedLog
 
 log = logging.getLogger(__name__)
 

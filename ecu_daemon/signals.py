@@ -21,12 +21,9 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-
-import cantools
-import cantools.database
 
 from .config import Config, ConfigError, InputMapping
+from .dbc_loading import load_dbc
 from .diagnostics import ERROR_KINDS, InputDiagnostics
 from .integrity import CounterCheck, data_id_for, e2e_p2_check, e2e_p2_crc, toyota_check, toyota_checksum
 from .samples import INPUT_INDEX, InputSample
@@ -70,29 +67,6 @@ class RateLimitedLog:
 def _did_you_mean(word: str, options) -> str:
     close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=0.5)
     return f" (did you mean '{close[0]}'?)" if close else ""
-
-
-def load_dbc(path: Path, what: str = "[can] dbc", allow_non_strict: bool = True):
-    """Load a DBC with ``strict=True``; real production DBCs (opendbc) need ``strict=False``.
-
-    Falls back to non-strict loading with ONE info line when allowed. Any failure to read or
-    parse becomes a :class:`ConfigError` naming the file.
-    """
-    path = Path(path)
-    try:
-        return cantools.database.load_file(str(path), strict=True)
-    except OSError as e:
-        raise ConfigError(f"{what}: cannot read {path}: {e.strerror or e}") from None
-    except Exception as strict_error:  # cantools raises several types for a file it rejects
-        if not allow_non_strict:
-            raise ConfigError(f"{what}: {path} is not a valid DBC: {strict_error}") from None
-        try:
-            db = cantools.database.load_file(str(path), strict=False)
-        except Exception as e:
-            raise ConfigError(f"{what}: {path} is not a valid DBC: {e}") from None
-        log.info("%s: %s fails cantools' strict checks (%s); loaded it with strict=False",
-                 what, path, strict_error)
-        return db
 
 
 @dataclass(slots=True)
