@@ -254,10 +254,6 @@ class OutputEncoder:
                 load[k] += 1
 
     # ----------------------------------------------------------------------------- per step
-    def needs_diagnostics(self, step_index: int) -> bool:
-        """Whether a diagnostics frame is due at this step (so a snapshot is worth building)."""
-        return any(p.pages and step_index % p.period == p.phase for p in self._plans)
-
     def frames(self, step_index: int, est: Estimate, diag: Diagnostics | None = None) -> list[can.Message]:
         """The frames due at estimator step ``step_index`` (``est.t`` is their timestamp)."""
         out = []

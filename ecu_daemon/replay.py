@@ -22,7 +22,7 @@ from pathlib import Path
 from . import config as config_mod
 from .canlog import CanLogError, open_can_writer, read_can_log
 from .cli import UserError
-from .daemon import stale_validity_mask, with_stale_mask
+from .daemon import DIAG_S, stale_validity_mask, with_stale_mask
 from .estimator import ESTIMATE_FIELDS, Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .gnss.stream import GnssStreamParser
@@ -184,6 +184,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
 
         diag = None
         stale_mask: dict = {}
+        diag_every = max(1, round(DIAG_S / dt))
 
         def emit(results):
             nonlocal diag, stale_mask
@@ -192,8 +193,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
                     write_csv(fmt % tuple(e))
                 if encoder is not None:
                     k = round(e.t / dt)
-                    if encoder.needs_diagnostics(k):
-                        # what the daemon's housekeeping does, on the step grid instead of wall time
+                    if diag is None or k % diag_every == 0:
+                        # what the daemon's housekeeping does every DIAG_S, on the step grid
                         stale_mask = stale_validity_mask(decoder.check_stale(e.t))
                         diag = build_diagnostics(
                             e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
