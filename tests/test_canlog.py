@@ -261,3 +261,11 @@ def test_open_can_writer_writes_what_the_extension_names(tmp_path, suffix, reade
         assert [(m.arbitration_id, bytes(m.data)) for m in back] == [(m.arbitration_id, bytes(m.data)) for m in msgs]
     assert [(f[1], f[4]) for f in read_can_log(p)] == [(m.arbitration_id, bytes(m.data)) for m in msgs]
     assert abs(next(iter(read_can_log(p)))[0] - 1700000000.006) < 1e-6
+
+
+def test_asc_with_timestamps_relative_to_the_previous_event_is_refused(tmp_path):
+    p = tmp_path / "delta.asc"
+    p.write_text("date Mon Jan 01 00:00:00.000 2024\nbase hex  timestamps relative\ninternal events logged\n"
+                 "   0.010000 1  100             Rx   d 1 01\n   0.010000 1  101             Rx   d 1 02\n")
+    with pytest.raises(CanLogError, match="delta.asc: 'timestamps relative'.*export the log with absolute"):
+        list(read_can_log(p))
