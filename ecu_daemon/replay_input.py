@@ -17,6 +17,7 @@ Two mistakes a log makes easy and that end in a replay that runs but means nothi
 from __future__ import annotations
 
 import logging
+import math
 
 from .canlog import CanLogError, log_channels, read_can_log
 from .cli import UserError
@@ -63,6 +64,8 @@ def choose_channel(can_path: str, option: str | None, configured: str) -> str | 
 
 def check_time_base(can_path: str, gnss_path: str | None, channel: str | None, time_offset: float | None) -> None:
     """Refuse a CAN log that cannot be lined up with the GNSS capture (see module doc)."""
+    if time_offset is not None and not math.isfinite(time_offset):
+        raise UserError(f"--can-time-offset must be a finite number of seconds, got {time_offset}")
     if gnss_path is None or time_offset is not None:
         return
     try:

@@ -183,3 +183,8 @@ def test_replay_sends_est_diag_pages_with_live_only_fields_not_available(drive, 
     assert pages[0][1]["WS_FL_AGE"] < 100 and pages[0][1]["WS_FL_RATE"] > 10
     assert pages[32][1]["GNSS_FIX_TYPE"] >= 2 and pages[32][1]["GNSS_SERIAL_CONNECTED"] == 1
     assert pages[33][1]["GNSS_RX_AGE"] < 1000
+
+
+def test_time_offset_must_be_finite(drive, tmp_path, capsys):
+    assert replay(drive, drive / "drive.log", tmp_path, "--can-time-offset", "nan") == 2
+    assert "--can-time-offset must be a finite number" in last_error_line(capsys)
