@@ -314,12 +314,16 @@ def read_can_log(path: str | Path, *, channel: str | None = None, time_offset: f
 _CANDUMP_CHANNEL = re.compile(rb"^[ \t]*\(\d+\.\d+\)[ \t]+(\S+)", re.M)
 
 
-def log_channels(path: str | Path) -> dict[str, int]:
-    """Frames per channel of a CAN log (a quick scan; the lines themselves are checked on reading)."""
+def log_channels(path: str | Path, max_frames: int | None = None) -> dict[str, int]:
+    """Frames per channel of a CAN log (a quick scan; the lines themselves are checked on reading).
+
+    Text candump is scanned whole (a regex over the bytes); other formats are read through
+    python-can, so ``max_frames`` can bound that to the log's beginning.
+    """
     p = Path(path)
     if _is_python_can(p) or p.suffix.lower() == ".gz":
         with CanLogReader(p) as r:
-            for _ in r:
+            for _ in itertools.islice(r, max_frames):
                 pass
             return r.channels
     counts: collections.Counter = collections.Counter()

@@ -27,7 +27,7 @@ from .estimator import ESTIMATE_FIELDS, Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .gnss.stream import GnssStreamParser
 from .io.health import build_diagnostics
-from .replay_input import check_time_base, choose_channel
+from .replay_input import check_time_base, choose_channel, report_other_channels
 from .signals import SignalDecoder
 
 _BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
@@ -86,7 +86,9 @@ def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict):
 
 
 def _can_samples(path: str, decoder: SignalDecoder, counters: dict, channel: str | None, time_offset: float):
-    for t, fid, ext, err, data in read_can_log(path, channel=channel, time_offset=time_offset):
+    reader = read_can_log(path, channel=channel, time_offset=time_offset)
+    counters["channels"] = reader.channels  # frames per log channel, replayed or not
+    for t, fid, ext, err, data in reader:
         counters["frames"] += 1
         if err:
             counters["error_frames"] += 1
@@ -237,6 +239,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
             csv_out.close()
         if can_out:
             can_out.close()
+    report_other_channels(can_path, channel, counters.pop("channels", {}))
     wall = time.perf_counter() - wall0
     dur = (t_last - t_first) if t_first is not None else 0.0
     counters.update(duration_s=dur, wall_s=wall, realtime_factor=dur / wall if wall > 0 else math.inf,

@@ -27,6 +27,8 @@ log = logging.getLogger(__name__)
 
 #: CAN log and GNSS capture starting further apart than this are taken to be on different clocks
 MAX_START_GAP_S = 300.0
+#: frames of an ASC/BLF/... log scanned for its channels
+SCAN_FRAMES = 100_000
 
 
 def parse_channel_option(text: str) -> str:
@@ -42,24 +44,37 @@ def _listing(channels: dict[str, int]) -> str:
 
 
 def choose_channel(can_path: str, option: str | None, configured: str) -> str | None:
-    """The log channel a replay keeps (``None``: all frames, the log has one channel)."""
+    """The log channel a replay keeps (``None``: the log has no frames).
+
+    A candump text log is scanned whole; other formats (read through python-can, ~10x slower)
+    only over their first :data:`SCAN_FRAMES` frames: buses interleave, and a channel that only
+    appears later is still kept out (the reader keeps the chosen channel) and reported.
+    """
     try:
-        channels = log_channels(can_path)
+        channels = log_channels(can_path, SCAN_FRAMES)
     except CanLogError as e:
         raise UserError(str(e)) from None
     if option is not None:
         name = parse_channel_option(option)
-        if name not in channels:
+        if name not in channels and sum(channels.values()) < SCAN_FRAMES:  # (a longer scan may have missed it)
             raise UserError(f"{can_path} has no frames on channel {name!r}; it has: {_listing(channels)}")
         return name
     if len(channels) <= 1:
-        return None
+        return next(iter(channels), None)
     if configured in channels:
         log.info("%s holds %d CAN channels; replaying [can] channel %s (choose another with --can-channel)",
                  can_path, len(channels), configured)
         return configured
     raise UserError(f"{can_path} holds frames of {len(channels)} CAN channels: {_listing(channels)};"
                     " choose one with --can-channel NAME (or canplayer's IF=NAME), or set [can] channel")
+
+
+def report_other_channels(can_path: str, channel: str | None, seen: dict[str, int]) -> None:
+    """One warning for frames of channels that only appeared after the scan and were not replayed."""
+    others = {k: v for k, v in seen.items() if k != channel}
+    if channel is not None and others:
+        log.warning("%s: replayed channel %s only; %s not replayed (choose with --can-channel)", can_path,
+                    channel, _listing(others))
 
 
 def check_time_base(can_path: str, gnss_path: str | None, channel: str | None, time_offset: float | None) -> None:

@@ -188,3 +188,19 @@ def test_replay_sends_est_diag_pages_with_live_only_fields_not_available(drive, 
 def test_time_offset_must_be_finite(drive, tmp_path, capsys):
     assert replay(drive, drive / "drive.log", tmp_path, "--can-time-offset", "nan") == 2
     assert "--can-time-offset must be a finite number" in last_error_line(capsys)
+
+
+def test_channel_appearing_after_the_scan_is_kept_out_and_reported(drive, original, two_buses, tmp_path,
+                                                                    monkeypatch, caplog):
+    """ASC/BLF logs are scanned for channels over their beginning only; a later channel is not mixed in."""
+    from ecu_daemon import replay_input
+
+    asc = tmp_path / "two.asc"
+    convert(two_buses, can.ASCWriter, file=str(asc))
+    monkeypatch.setattr(replay_input, "SCAN_FRAMES", 1)  # the scan sees channel 0 only
+    with caplog.at_level("WARNING"):
+        assert replay(drive, asc, tmp_path) == 0
+    n = len((drive / "drive.log").read_text().splitlines())
+    assert [r.getMessage() for r in caplog.records if "not replayed" in r.getMessage()] == [
+        f"{asc}: replayed channel 0 only; 1 ({n} frames) not replayed (choose with --can-channel)"]
+    assert not [r for r in caplog.records if "CRC" in r.getMessage()]  # can1's inverted frames stayed out
