@@ -19,10 +19,12 @@ CRC-16 over 32 bytes) to 15x (cantools' E2E CRC, 8 bytes) longer (``tools/bench_
 """
 from __future__ import annotations
 
+import functools
+
 import crccheck.crc
 
 from .config import CHECKSUM_SCHEMES
-from .integrity import e2e_p2_crc, toyota_checksum
+from .integrity import e2e_p2_check, e2e_p2_crc, toyota_check, toyota_checksum
 
 
 def honda_checksum(frame_id: int, payload: bytes | bytearray, extended: bool) -> int:
@@ -107,8 +109,14 @@ class FrameChecksum:
         self.extended = extended
         self.data_ids = tuple(data_ids)
         self.min_length = self.MIN_LENGTH[scheme]
-        # the fast path: a check bound to this message, one call per frame
-        self.check = getattr(self, "_check_" + scheme)
+        # the fast path: a check bound to this message, one call per frame (the common two without a
+        # Python-level method in between)
+        if scheme == "e2e_p2" and len(self.data_ids) == 1:
+            self.check = functools.partial(e2e_p2_check, data_id=self.data_ids[0])
+        elif scheme == "toyota":
+            self.check = functools.partial(toyota_check, frame_id)
+        else:
+            self.check = getattr(self, "_check_" + scheme)
 
     def data_id(self, payload) -> int:
         ids = self.data_ids
@@ -151,9 +159,6 @@ class FrameChecksum:
             return False
         ids = self.data_ids
         return payload[0] == e2e_p2_crc(payload, ids[0] if len(ids) == 1 else ids[payload[1] & 0x0F])
-
-    def _check_toyota(self, payload) -> bool:
-        return len(payload) >= 1 and payload[-1] == toyota_checksum(self.frame_id, payload)
 
     def _check_honda(self, payload) -> bool:
         return len(payload) >= 1 and payload[-1] & 0x0F == honda_checksum(self.frame_id, payload, self.extended)

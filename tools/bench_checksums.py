@@ -26,6 +26,7 @@ CASES = [
     ("CRC-16/XMODEM, 32 B: our table", lambda: crc16_xmodem(D32)),
     ("CRC-16/XMODEM, 32 B: crccheck", lambda: crccheck.crc.Crc16Xmodem.calc(D32)),
     ("E2E P2 CRC8H2F, 8 B: cantools", lambda: compute_profile2_crc(D8, 5)),
+    ("check e2e_p2 (one data id), 8 B", FrameChecksum("e2e_p2", 0xB0, False, (0xB0,)).check),
     ("check e2e_p2 (16 data ids), 8 B", FrameChecksum("e2e_p2", 0xFD, False, tuple(range(16))).check),
     ("check toyota, 8 B", FrameChecksum("toyota", 0xAA).check),
     ("check honda, 8 B", FrameChecksum("honda", 0x1A6).check),
