@@ -27,6 +27,7 @@ import collections
 import gzip
 import io
 import itertools
+import logging
 import math
 import re
 from pathlib import Path
@@ -34,8 +35,12 @@ from typing import Iterator
 
 import can
 
+log = logging.getLogger(__name__)
+
 CAN_ERR_FLAG = 0x20000000
 CAN_EFF_MASK = 0x1FFFFFFF
+#: python-can's BLF writer stores a start date only for times from 1990 on (Unix time)
+BLF_EARLIEST_START = 631152000.0
 CANFD_BRS = 0x01
 CANFD_ESI = 0x02
 _FD_LENGTHS = frozenset((0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64))
@@ -423,6 +428,9 @@ class PythonCanWriter:
     def write(self, msg: can.Message) -> None:
         if self._w is None:
             raise ValueError("PythonCanWriter is closed")
+        if not self.frames and self.path.suffix.lower() == ".blf" and msg.timestamp < BLF_EARLIEST_START:
+            log.warning("%s: times before 1990 (%.6f s: a monotonic or boot clock?) have no BLF start date;"
+                        " read back, they count from the first frame's millisecond", self.path, msg.timestamp)
         self._w.on_message_received(msg)
         self.frames += 1
 
