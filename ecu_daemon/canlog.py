@@ -7,14 +7,27 @@ can-utils syntax (``(sec.frac) iface ID#DATA``, ``ID#R``, FD ``ID##<flags>DATA``
 ids, error frames with CAN_ERR_FLAG) and a line that is not valid stops the read with ONE
 message naming file:line and what is wrong, instead of being skipped silently.
 
-Frames come out as tuples ``(t, arbitration_id, is_extended, is_error_frame, data)``; for an error
-frame ``arbitration_id`` holds the error class bits (linux/can/error.h). Remote frames carry no
-data and are skipped (counted in :attr:`CanLogReader.remote_frames`).
+Two views of the same reader: frames as tuples ``(t, arbitration_id, is_extended,
+is_error_frame, data)`` (the estimator's input; for an error frame ``arbitration_id`` holds the
+error class bits of linux/can/error.h; remote frames carry no data and are only counted), or,
+with ``messages=True``, ``can.Message`` s carrying everything the log says (channel, CAN FD,
+BRS/ESI, remote frames with their DLC, error frames). Either view can keep one channel only
+(``channel=``), as ``canplayer`` does with ``can0=can1``: a log of two buses must not be mixed.
+
+Time: ASC and BLF store times from the start of the measurement plus the start as a date;
+python-can's ASC reader drops the date by default. Here the date is applied, so every format
+comes out on the log's absolute clock (rounded to 1 us, the resolution candump and the
+daemon's recordings have), and :attr:`CanLogReader.absolute_time` says when a log has no start
+date (python-can's BLF writer stores none for times before 1990, e.g. monotonic/boot clocks);
+``time_offset`` is added to every time, to line such a log up with a GNSS capture.
 """
 from __future__ import annotations
 
+import collections
 import gzip
 import io
+import itertools
+import logging
 import math
 import re
 from pathlib import Path
@@ -22,8 +35,14 @@ from typing import Iterator
 
 import can
 
+log = logging.getLogger(__name__)
+
 CAN_ERR_FLAG = 0x20000000
 CAN_EFF_MASK = 0x1FFFFFFF
+#: python-can's BLF writer stores a start date only for times from 1990 on (Unix time)
+BLF_EARLIEST_START = 631152000.0
+CANFD_BRS = 0x01
+CANFD_ESI = 0x02
 _FD_LENGTHS = frozenset((0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64))
 #: suffixes read through python-can's LogReader; everything else is candump text
 PYTHON_CAN_SUFFIXES = (".asc", ".blf", ".trc", ".csv", ".mf4", ".db")
@@ -69,23 +88,36 @@ def _open_text(path: Path):
 
 
 class CanLogReader:
-    """Iterator over the frames of a CAN log (see module doc); opens the file on construction."""
+    """Iterator over the frames of a CAN log (see module doc); opens the file on construction.
 
-    def __init__(self, path: str | Path):
+    ``channel``: keep only the frames of this log channel (candump interface name, or the
+    python-can channel of an ASC/BLF message as ``str``); ``None`` keeps all. ``channels``
+    counts the frames seen per channel, kept or not.
+    """
+
+    def __init__(self, path: str | Path, *, channel: str | None = None, time_offset: float = 0.0,
+                 messages: bool = False):
         self.path = Path(path)
+        self.channel = channel
+        self.time_offset = float(time_offset)
+        self.messages = messages
         self.remote_frames = 0
         self.lines = 0
-        suffixes = [s.lower() for s in self.path.suffixes[-2:]]
-        self.format = "python-can" if any(s in PYTHON_CAN_SUFFIXES for s in suffixes) else "candump"
+        self.channels: dict[str, int] = {}
+        #: False for an ASC/BLF log without a start date: its times count from 0
+        self.absolute_time = True
+        self.format = "python-can" if _is_python_can(self.path) else "candump"
         try:
             if self.format == "candump":
                 self._file = _open_text(self.path)
                 self._it = self._candump(self._file)
             else:
-                self._file = can.LogReader(str(self.path))
+                self._file = _python_can_reader(self.path)
                 self._it = self._python_can(self._file)
         except OSError as e:
             raise CanLogError(f"cannot read CAN log {self.path}: {e.strerror or e}") from None
+        except CanLogError:
+            raise
         except Exception as e:  # python-can readers raise assorted types for a bad header
             raise CanLogError(f"cannot read CAN log {self.path}: {e}") from None
 
@@ -122,6 +154,10 @@ class CanLogReader:
     def _candump(self, f) -> Iterator[Frame]:
         match = _LINE.fullmatch
         fromhex = bytes.fromhex
+        want = self.channel
+        seen = self.channels
+        offset = self.time_offset
+        messages = self.messages
         lineno = 0
         try:
             for line in f:
@@ -132,13 +168,16 @@ class CanLogReader:
                     if not s or s.startswith("#"):
                         continue  # blank lines and comments, as canplayer ignores them
                     raise self._error(lineno, line)
-                ts, _iface, ident, rtr, _rdlc, fd_flags, fd_data, data = m.groups()
+                ts, iface, ident, rtr, rdlc, fd_flags, fd_data, data = m.groups()
+                seen[iface] = seen.get(iface, 0) + 1
+                if want is not None and iface != want:
+                    continue
                 can_id = int(ident, 16)
-                if rtr:
+                if rtr and not messages:
                     self.remote_frames += 1
                     continue
                 try:
-                    payload = fromhex((fd_data if fd_flags is not None else data).replace(".", ""))
+                    payload = b"" if rtr else fromhex((fd_data if fd_flags is not None else data).replace(".", ""))
                 except ValueError:
                     raise self._error(lineno, line) from None
                 if len(ident) == 3:
@@ -161,7 +200,19 @@ class CanLogReader:
                 t = float(ts)
                 if not math.isfinite(t):
                     raise CanLogError(f"{self.path}:{lineno}: timestamp {ts} out of range")
-                yield (t, can_id, is_ext, is_err, payload)
+                if offset:
+                    t = round(t + offset, 6)
+                if messages:
+                    flags = int(fd_flags, 16) if fd_flags is not None else 0
+                    if rtr:
+                        self.remote_frames += 1
+                    yield can.Message(timestamp=t, arbitration_id=can_id, is_extended_id=is_ext,
+                                      is_error_frame=is_err, is_remote_frame=bool(rtr),
+                                      dlc=int(rdlc) if rdlc else n, data=payload, channel=iface,
+                                      is_fd=fd_flags is not None, bitrate_switch=bool(flags & CANFD_BRS),
+                                      error_state_indicator=bool(flags & CANFD_ESI), check=False)
+                else:
+                    yield (t, can_id, is_ext, is_err, payload)
         except OSError as e:
             raise CanLogError(f"{self.path}:{lineno + 1}: read error: {e.strerror or e}") from None
         finally:
@@ -170,13 +221,33 @@ class CanLogReader:
 
     def _python_can(self, reader) -> Iterator[Frame]:
         n = 0
+        want = self.channel
+        seen = self.channels
         try:
-            for msg in reader:
+            it = iter(reader)
+            first = next(it, None)  # ASC: the header (date, time format) is read with the first frame
+            self.absolute_time = _has_start_date(reader)
+            if getattr(reader, "timestamps_format", None) == "relative":
+                raise CanLogError(f"{self.path}: 'timestamps relative' (each time since the previous event) is"
+                                  " not supported; export the log with absolute timestamps")
+            offset = self.time_offset
+            for msg in itertools.chain((first,) if first is not None else (), it):
                 n += 1
+                name = "" if msg.channel is None else str(msg.channel)
+                seen[name] = seen.get(name, 0) + 1
+                if want is not None and name != want:
+                    continue
+                t = round(float(msg.timestamp) + offset, 6)
+                if self.messages:
+                    if msg.is_remote_frame:
+                        self.remote_frames += 1
+                    msg.timestamp = t
+                    yield msg
+                    continue
                 if msg.is_remote_frame:
                     self.remote_frames += 1
                     continue
-                yield (float(msg.timestamp), msg.arbitration_id, bool(msg.is_extended_id and not msg.is_error_frame),
+                yield (t, msg.arbitration_id, bool(msg.is_extended_id and not msg.is_error_frame),
                        bool(msg.is_error_frame), bytes(msg.data))
         except CanLogError:
             raise
@@ -186,14 +257,93 @@ class CanLogReader:
             self._release()
 
 
-def read_can_log(path: str | Path) -> CanLogReader:
+def _is_python_can(path: Path) -> bool:
+    return any(s.lower() in PYTHON_CAN_SUFFIXES for s in path.suffixes[-2:])
+
+
+def _python_can_reader(path: Path):
+    """python-can's reader for ``path``; ASC with its start date applied (absolute times)."""
+    if path.suffix.lower() == ".asc":
+        return _ASCReader(str(path), relative_timestamp=False)
+    return can.LogReader(str(path))
+
+
+_ASC_SECONDS_FRACTION = re.compile(r":\d\d\.(\d+)\b")
+
+
+class _ASCReader(can.ASCReader):
+    """python-can's ASC reader, reading the start date as python-can's own writer meant it.
+
+    python-can's ASCWriter (up to 4.6 at least) writes the milliseconds of the start date
+    without leading zeros (``00:20:00.3`` for 3 ms), which its reader takes for 300 ms. Vector's
+    tools always write three digits, so a shorter fraction can only be that writer's and is
+    read as milliseconds.
+    """
+
+    @staticmethod
+    def _datetime_to_timestamp(datetime_string: str) -> float:
+        t = can.ASCReader._datetime_to_timestamp(datetime_string)
+        m = _ASC_SECONDS_FRACTION.search(datetime_string)
+        if m and len(m.group(1)) < 3:
+            t += int(m.group(1)) / 1000.0 - float("0." + m.group(1))
+        return t
+
+
+class _ASCWriter(can.ASCWriter):
+    """python-can's ASC writer with the start date's milliseconds in three digits (see above)."""
+
+    FORMAT_DATE = "%a %b %d %H:%M:%S.{:03d} %Y"
+
+
+def _has_start_date(reader) -> bool:
+    """Whether python-can found the log's start date (else its times count from 0)."""
+    if isinstance(reader, can.ASCReader):
+        return reader.start_time != 0.0
+    if isinstance(reader, can.BLFReader):
+        return reader.start_timestamp != 0
+    return True  # the other formats store each frame's time as recorded
+
+
+def read_can_log(path: str | Path, *, channel: str | None = None, time_offset: float = 0.0,
+                 messages: bool = False) -> CanLogReader:
     """Frames ``(t, arbitration_id, is_extended, is_error_frame, data)`` of a candump ``-L`` log
-    (``.log``, also ``.log.gz``) or any python-can format (``.asc``, ``.blf``, ...).
+    (``.log``, also ``.log.gz``) or any python-can format (``.asc``, ``.blf``, ...); with
+    ``messages=True`` ``can.Message`` s with everything the log says. See :class:`CanLogReader`.
 
     Raises :class:`CanLogError` at once for a missing/unreadable file, and while iterating for a
     malformed line (message: ``file:line: what is wrong: 'the line'``).
     """
-    return CanLogReader(path)
+    return CanLogReader(path, channel=channel, time_offset=time_offset, messages=messages)
+
+
+_CANDUMP_CHANNEL = re.compile(rb"^[ \t]*\(\d+\.\d+\)[ \t]+(\S+)", re.M)
+
+
+def log_channels(path: str | Path, max_frames: int | None = None) -> dict[str, int]:
+    """Frames per channel of a CAN log (a quick scan; the lines themselves are checked on reading).
+
+    Text candump is scanned whole (a regex over the bytes); other formats are read through
+    python-can, so ``max_frames`` can bound that to the log's beginning.
+    """
+    p = Path(path)
+    if _is_python_can(p) or p.suffix.lower() == ".gz":
+        with CanLogReader(p) as r:
+            for _ in itertools.islice(r, max_frames):
+                pass
+            return r.channels
+    counts: collections.Counter = collections.Counter()
+    try:
+        with open(p, "rb") as f:
+            tail = b""
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                chunk = tail + chunk
+                cut = chunk.rfind(b"\n") + 1
+                counts.update(_CANDUMP_CHANNEL.findall(chunk, 0, cut))
+                tail = chunk[cut:]
+            counts.update(_CANDUMP_CHANNEL.findall(tail))
+    except OSError as e:
+        raise CanLogError(f"cannot read CAN log {p}: {e.strerror or e}") from None
+    return {k.decode("ascii", "replace"): v for k, v in counts.items()}
 
 
 class CandumpWriter:
@@ -258,3 +408,46 @@ class CandumpWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class PythonCanWriter:
+    """The writer python-can picks for the file's extension (``can.Logger``: .asc, .blf, ...),
+    with :class:`CandumpWriter`'s interface."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.frames = 0
+        try:
+            asc = self.path.suffix.lower() == ".asc"
+            self._w = _ASCWriter(str(self.path)) if asc else can.Logger(str(self.path))
+        except OSError as e:
+            raise CanLogError(f"cannot write CAN log {self.path}: {e.strerror or e}") from None
+        except (ValueError, ImportError) as e:  # an extension python-can has no writer (or library) for
+            raise CanLogError(f"cannot write CAN log {self.path}: {e}") from None
+
+    def write(self, msg: can.Message) -> None:
+        if self._w is None:
+            raise ValueError("PythonCanWriter is closed")
+        if not self.frames and self.path.suffix.lower() == ".blf" and msg.timestamp < BLF_EARLIEST_START:
+            log.warning("%s: times before 1990 (%.6f s: a monotonic or boot clock?) have no BLF start date;"
+                        " read back, they count from the first frame's millisecond", self.path, msg.timestamp)
+        self._w.on_message_received(msg)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self._w is not None:
+            self._w.stop()
+            self._w = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def open_can_writer(path: str | Path, channel: str = "can0"):
+    """A writer for the format the file name says: candump ``-L`` text for ``.log`` (and any name
+    python-can does not know), python-can's writer for ``.asc``, ``.blf``, ``.trc``, ..."""
+    p = Path(path)
+    return PythonCanWriter(p) if _is_python_can(p) else CandumpWriter(p, channel)

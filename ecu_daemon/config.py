@@ -21,6 +21,8 @@ import tomli_w
 from .samples import INPUT_NAMES
 
 PACKAGE_ROOT = Path(__file__).resolve().parent
+#: ``[inputs.NAME] checksum`` values (implemented in checksums.py)
+CHECKSUM_SCHEMES = ("none", "e2e_p2", "toyota", "honda", "subaru", "hyundai_canfd")
 
 
 class ConfigError(ValueError):
@@ -101,7 +103,9 @@ class InputMapping:
     max: float = math.inf
     timeout_s: float = 0.0  # 0: ten times the observed cycle time
     counter: str = ""  # name of a rolling-counter signal in the message to check, "" = none
-    checksum: str = "none"  # none | e2e_p2 (AUTOSAR E2E profile 2, CRC8H2F) | toyota
+    checksum: str = "none"  # one of CHECKSUM_SCHEMES
+    #: e2e_p2 data id: one byte, or 16 (one per counter value, VW MQB); None: the DBC's E2EDataId, else id & 0xFF
+    data_id: Any = None
 
     def signal_names(self) -> list[str]:
         return list(self.signals) if self.signals else [self.signal]
@@ -258,13 +262,28 @@ def _validate(cfg: Config) -> None:
             raise ConfigError(f"[inputs.{name}] signals must be non-empty strings")
         if m.scale == 0:
             raise ConfigError(f"[inputs.{name}] scale must not be 0")
-        if m.checksum not in ("none", "e2e_p2", "toyota"):
-            raise ConfigError(f"[inputs.{name}] checksum must be none, e2e_p2 or toyota, got {m.checksum!r}")
+        if m.checksum not in CHECKSUM_SCHEMES:
+            raise ConfigError(f"[inputs.{name}] checksum must be one of {', '.join(CHECKSUM_SCHEMES)},"
+                              f" got {m.checksum!r}")
+        if m.data_id is not None:
+            _check_data_id(name, m)
         if not m.min < m.max:
             raise ConfigError(f"[inputs.{name}] min must be below max")
     missing = [n for n in INPUT_NAMES if n not in cfg.inputs]
     if missing:
         raise ConfigError("missing input mapping(s): " + ", ".join(f"[inputs.{n}]" for n in missing))
+
+
+def _check_data_id(name: str, m: InputMapping) -> None:
+    def byte(v) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255
+
+    if m.checksum != "e2e_p2":
+        raise ConfigError(f"[inputs.{name}] data_id is for checksum = \"e2e_p2\", not {m.checksum!r}")
+    ids = m.data_id
+    if not (byte(ids) or (isinstance(ids, list) and len(ids) == 16 and all(byte(v) for v in ids))):
+        raise ConfigError(f"[inputs.{name}] data_id must be a byte (0..255) or a list of 16 bytes, one per"
+                          f" counter value; got {ids!r}")
 
 
 def from_dict(data: dict, base_dir: Path | None = None) -> Config:
@@ -317,7 +336,7 @@ def to_dict(cfg: Config) -> dict:
     for name in INPUT_NAMES:
         d = dataclasses.asdict(cfg.inputs[name])
         d = {k: v for k, v in d.items()
-             if not ((k == "signals" and not v) or (k == "signal" and not v)
+             if not ((k == "signals" and not v) or (k == "signal" and not v) or (k == "data_id" and v is None)
                      or (k in ("min", "max") and math.isinf(v)))}
         inputs[name] = d
     out["inputs"] = inputs

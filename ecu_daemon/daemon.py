@@ -465,7 +465,7 @@ class Daemon:
         if not ests:
             ests = [no_estimate(t_step, self.cfg)]
         elif mask:
-            ests = [e._replace(status=e.status | STATUS_INPUT_STALE, **mask) for e in ests]
+            ests = [with_stale_mask(e, mask) for e in ests]
         # Catching up after an overrun: only the newest step's frames go out (no burst; each
         # message's COUNTER still steps by one per frame sent); the slots missed stay empty.
         frames = self.encoder.frames(k, ests[-1], diag)
@@ -503,6 +503,11 @@ def stale_validity_mask(stale: list[str]) -> dict:
     if "steering_wheel_angle" in s:
         mask["sideslip_valid"] = False
     return mask
+
+
+def with_stale_mask(est: Estimate, mask: dict) -> Estimate:
+    """The estimate as published while inputs are stale (``mask`` from :func:`stale_validity_mask`)."""
+    return est._replace(status=est.status | STATUS_INPUT_STALE, **mask) if mask else est
 
 
 def _sample_order(s) -> tuple:

@@ -16,7 +16,9 @@ BUS_ACTIVE = 0
 BUS_WARNING = 1
 BUS_PASSIVE = 2
 BUS_OFF = 3
-BUS_STATE_NAMES = {BUS_ACTIVE: "active", BUS_WARNING: "warning", BUS_PASSIVE: "passive", BUS_OFF: "bus-off"}
+BUS_NOT_AVAILABLE = 7  # offline (replay): no bus to have a state
+BUS_STATE_NAMES = {BUS_ACTIVE: "active", BUS_WARNING: "warning", BUS_PASSIVE: "passive", BUS_OFF: "bus-off",
+                   BUS_NOT_AVAILABLE: "not available"}
 
 #: error kinds counted per input by the decoder (``signals.InputHealth.errors``)
 ERROR_KINDS = ("dlc", "decode", "range", "counter", "checksum", "stale")
@@ -56,11 +58,11 @@ class Diagnostics:
     can_bus_state: int = BUS_ACTIVE
     can_error_frames: int = 0
     can_tx_failures: int = 0
-    tick_late_p50_us: float = 0.0
+    tick_late_p50_us: float = 0.0  # NaN = not available (replay)
     tick_late_p99_us: float = 0.0
     tick_late_max_us: float = 0.0
     tick_overruns: int = 0
-    cpu_load_pct: float = 0.0  # percent of one core
+    cpu_load_pct: float = 0.0  # percent of one core; NaN = not available (replay)
 
     def summary(self) -> str:
         """One human line (for systemd ``STATUS=`` and logs)."""

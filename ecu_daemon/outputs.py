@@ -23,11 +23,12 @@ from pathlib import Path
 import can
 
 from .config import Config, ConfigError
+from .dbc_loading import load_dbc
 from .diagnostics import Diagnostics
 from .estimator import estimate as estimate_module
 from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import data_id_for, e2e_p2_crc, next_counter
-from .signals import RateLimitedLog, load_dbc
+from .signals import RateLimitedLog
 
 log = logging.getLogger(__name__)
 
@@ -93,9 +94,9 @@ _DIAG_FIELDS = {
     "GNSS_CHECKSUM_ERRORS": ("gnss_checksum_errors", _WRAP), "GNSS_RX_AGE": ("gnss_receive_age_ms", _UNKNOWN_HI),
     "GNSS_LATENCY": ("gnss_latency_ms", _UNKNOWN_HI), "GNSS_PARSE_ERRORS": ("gnss_parse_errors", _WRAP),
     "CAN_BUS_STATE": ("can_bus_state", _CLAMP), "CAN_ERROR_FRAMES": ("can_error_frames", _WRAP),
-    "CAN_TX_FAILURES": ("can_tx_failures", _WRAP), "TICK_LATE_P50": ("tick_late_p50_us", _CLAMP),
-    "TICK_LATE_P99": ("tick_late_p99_us", _CLAMP), "TICK_LATE_MAX": ("tick_late_max_us", _CLAMP),
-    "TICK_OVERRUNS": ("tick_overruns", _WRAP), "CPU_LOAD": ("cpu_load_pct", _CLAMP),
+    "CAN_TX_FAILURES": ("can_tx_failures", _WRAP), "TICK_LATE_P50": ("tick_late_p50_us", _UNKNOWN_HI),
+    "TICK_LATE_P99": ("tick_late_p99_us", _UNKNOWN_HI), "TICK_LATE_MAX": ("tick_late_max_us", _UNKNOWN_HI),
+    "TICK_OVERRUNS": ("tick_overruns", _WRAP), "CPU_LOAD": ("cpu_load_pct", _UNKNOWN_HI),
 }
 
 

@@ -22,11 +22,14 @@ from pathlib import Path
 import numpy as np
 
 from . import config as config_mod
-from .canlog import CandumpWriter, CanLogError, read_can_log
+from .canlog import CanLogError, open_can_writer, read_can_log
 from .cli import UserError
+from .daemon import DIAG_S, stale_validity_mask, with_stale_mask
 from .estimator import ESTIMATE_FIELDS, Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .gnss.stream import GnssStreamParser
+from .io.health import build_diagnostics
+from .replay_input import check_time_base, choose_channel, report_other_channels
 from .samples import INPUT_NAMES
 from .signals import SignalDecoder
 
@@ -38,7 +41,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", "-C", help="TOML configuration (default: built-in defaults)")
     p.add_argument("--can", required=True, help="input CAN log: candump -L (.log), ASC or BLF")
     p.add_argument("--gnss", help="GNSS capture log: '(seconds.micros) PORT PAYLOAD' per line")
-    p.add_argument("--out-can", help="write the output CAN frames as a candump -L log")
+    p.add_argument("--can-channel", metavar="NAME", help="replay only the frames of this log channel"
+                   " (canplayer's IF=NAME works too); needed for a log of several channels")
+    p.add_argument("--can-time-offset", type=float, metavar="SECONDS", help="add SECONDS to every CAN log time"
+                   " to line it up with the GNSS capture (an ASC/BLF without a start date counts from 0)")
+    p.add_argument("--out-can", help="write the output CAN frames: candump -L (.log), or the format python-can"
+                   " writes for the extension (.asc, .blf, ...)")
     p.add_argument("--out-csv", help="write one row per 6 ms estimator step")
     p.add_argument("--plots", metavar="DIR", help="write PNG plots of the drive into DIR (estimates, validity, "
                    "inputs; also DIR/out.csv when --out-csv is not given); needs matplotlib")
@@ -81,14 +89,25 @@ def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict):
             yield s.t, 1, s
 
 
-def _can_samples(path: str, decoder: SignalDecoder, counters: dict):
-    for t, fid, ext, err, data in read_can_log(path):
+def _can_samples(path: str, decoder: SignalDecoder, counters: dict, channel: str | None, time_offset: float):
+    reader = read_can_log(path, channel=channel, time_offset=time_offset)
+    counters["channels"] = reader.channels  # frames per log channel, replayed or not
+    for t, fid, ext, err, data in reader:
         counters["frames"] += 1
         if err:
             counters["error_frames"] += 1
             continue
         for s in decoder.decode(t, fid, data, ext):
             yield t, 0, s
+
+
+def _sum_stats(parsers: dict) -> dict:
+    """GNSS parser counters summed over the capture's ports (the daemon has one port)."""
+    total: dict = {}
+    for p in parsers.values():
+        for k, v in p.stats.items():
+            total[k] = total.get(k, 0) + v
+    return total
 
 
 def _count_lines(path: str) -> int:
@@ -129,15 +148,19 @@ class _Progress:
 
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
-               inputs: dict | None = None) -> dict:
+               inputs: dict | None = None, can_channel: str | None = None,
+               can_time_offset: float | None = None) -> dict:
     """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files.
 
     ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
-    GNSS speed as ``"gnss_speed"`` (for plots).
+    GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
+    :mod:`ecu_daemon.replay_input`.
     """
     for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
+    channel = choose_channel(can_path, can_channel, cfg.can.channel)
+    check_time_base(can_path, gnss_path, channel, can_time_offset)
     decoder = SignalDecoder(cfg)
     est = Estimator(cfg)
     encoder = None
@@ -146,11 +169,14 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         from .outputs import OutputEncoder
 
         encoder = OutputEncoder(cfg)
-        can_out = CandumpWriter(out_can)
+        try:
+            can_out = open_can_writer(out_can)
+        except CanLogError as e:
+            raise UserError(str(e)) from None
     csv_out = open(out_csv, "w", encoding="ascii", newline="\n") if out_csv else None
     counters = {"frames": 0, "error_frames": 0, "gnss_samples": 0, "steps": 0}
     parsers: dict = {}
-    streams = [_can_samples(can_path, decoder, counters)]
+    streams = [_can_samples(can_path, decoder, counters, channel, can_time_offset or 0.0)]
     if gnss_path:
         streams.append(_gnss_samples(gnss_path, cfg, parsers))
     merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
@@ -165,21 +191,36 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         if csv_out:
             csv_out.write(csv_header())
 
+        diag = None
+        stale_mask: dict = {}
+        diag_every = max(1, round(DIAG_S / dt))
+
         def emit(results):
+            nonlocal diag, stale_mask
             for e in results:
                 if write_csv:
                     write_csv(fmt % tuple(e))
                 if encoder is not None:
-                    for msg in encoder.frames(round(e.t / dt), e, None):
+                    k = round(e.t / dt)
+                    if diag is None or k % diag_every == 0:
+                        # what the daemon's housekeeping does every DIAG_S, on the step grid
+                        stale_mask = stale_validity_mask(decoder.check_stale(e.t))
+                        diag = build_diagnostics(
+                            e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
+                            gnss_connected=gnss_path is not None, gnss_delay_s=e.gnss_delay_s, bus=None,
+                            tick=None, cpu_pct=math.nan, error_frames=counters["error_frames"])
+                    for msg in encoder.frames(k, with_stale_mask(e, stale_mask), diag):
                         can_out.write(msg)
             counters["steps"] += len(results)
 
         n = 0
+        gnss_last = None
         for t, kind, s in merged:
             if not math.isfinite(t):
                 continue
             if kind:
                 est.push_gnss(s)
+                gnss_last = s
                 counters["gnss_samples"] += 1
             else:
                 est.push_input(s)
@@ -209,6 +250,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
             csv_out.close()
         if can_out:
             can_out.close()
+    report_other_channels(can_path, channel, counters.pop("channels", {}))
     wall = time.perf_counter() - wall0
     dur = (t_last - t_first) if t_first is not None else 0.0
     counters.update(duration_s=dur, wall_s=wall, realtime_factor=dur / wall if wall > 0 else math.inf,
@@ -243,7 +285,8 @@ def main(args: argparse.Namespace) -> int:
         out_csv = str(Path(args.plots) / "out.csv")
     inputs: dict | None = {} if args.plots else None
     summary = run_replay(cfg, args.can, args.gnss, out_csv, args.out_can,
-                         progress=not args.no_progress, inputs=inputs)
+                         progress=not args.no_progress, inputs=inputs, can_channel=args.can_channel,
+                         can_time_offset=args.can_time_offset)
     files = _write_plots(args.plots, out_csv, inputs) if args.plots else []
     print(f"replayed {summary['duration_s']:.1f} s of drive ({summary['frames']} frames, "
           f"{summary['gnss_samples']} GNSS samples) into {summary['steps']} steps in "

@@ -21,14 +21,12 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-
-import cantools
-import cantools.database
 
 from .config import Config, ConfigError, InputMapping
+from .dbc_loading import load_dbc
 from .diagnostics import ERROR_KINDS, InputDiagnostics
-from .integrity import CounterCheck, data_id_for, e2e_p2_check, e2e_p2_crc, toyota_check, toyota_checksum
+from .checksums import FrameChecksum
+from .integrity import CounterCheck, data_id_for
 from .samples import INPUT_INDEX, InputSample
 
 log = logging.getLogger(__name__)
@@ -72,29 +70,6 @@ def _did_you_mean(word: str, options) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
-def load_dbc(path: Path, what: str = "[can] dbc", allow_non_strict: bool = True):
-    """Load a DBC with ``strict=True``; real production DBCs (opendbc) need ``strict=False``.
-
-    Falls back to non-strict loading with ONE info line when allowed. Any failure to read or
-    parse becomes a :class:`ConfigError` naming the file.
-    """
-    path = Path(path)
-    try:
-        return cantools.database.load_file(str(path), strict=True)
-    except OSError as e:
-        raise ConfigError(f"{what}: cannot read {path}: {e.strerror or e}") from None
-    except Exception as strict_error:  # cantools raises several types for a file it rejects
-        if not allow_non_strict:
-            raise ConfigError(f"{what}: {path} is not a valid DBC: {strict_error}") from None
-        try:
-            db = cantools.database.load_file(str(path), strict=False)
-        except Exception as e:
-            raise ConfigError(f"{what}: {path} is not a valid DBC: {e}") from None
-        log.info("%s: %s fails cantools' strict checks (%s); loaded it with strict=False",
-                 what, path, strict_error)
-        return db
-
-
 @dataclass(slots=True)
 class InputHealth:
     """Counters of one ``[inputs.NAME]``; updated by :meth:`SignalDecoder.decode`."""
@@ -115,7 +90,7 @@ class _Binding:
     """One input bound to its message: everything decode needs, precomputed."""
 
     __slots__ = ("name", "index", "health", "signals", "sig1", "scale", "offset", "lo", "hi",
-                 "counter", "e2e", "toyota", "timeout_s", "label")
+                 "counter", "checksum", "timeout_s", "label")
 
     def __init__(self, name: str, m: InputMapping, signals: tuple[str, ...], label: str):
         self.name = name
@@ -129,8 +104,7 @@ class _Binding:
         self.lo = max(float(m.min), -sys.float_info.max)
         self.hi = min(float(m.max), sys.float_info.max)
         self.counter = m.counter or None
-        self.e2e = m.checksum == "e2e_p2"
-        self.toyota = m.checksum == "toyota"
+        self.checksum = m.checksum != "none"
         self.timeout_s = float(m.timeout_s)
         self.label = label
 
@@ -138,8 +112,8 @@ class _Binding:
 class _FramePlan:
     """Per frame id: the message, its checks and the inputs it carries."""
 
-    __slots__ = ("message", "decode", "frame_id", "length", "label", "data_id", "need_e2e",
-                 "need_toyota", "counters", "bindings", "fast")
+    __slots__ = ("message", "decode", "frame_id", "length", "label", "checksum", "checksum_of",
+                 "counters", "bindings", "fast")
 
     def __init__(self, message, label: str):
         self.message = message
@@ -147,9 +121,8 @@ class _FramePlan:
         self.frame_id = message.frame_id
         self.length = message.length
         self.label = label
-        self.data_id = data_id_for(message)
-        self.need_e2e = False
-        self.need_toyota = False
+        self.checksum: FrameChecksum | None = None
+        self.checksum_of = ""  # the input whose configuration set it (for a conflict's message)
         self.counters: dict[str, tuple[CounterCheck, float, float]] = {}
         self.bindings: tuple[_Binding, ...] = ()
         self.fast: tuple = ()  # per binding, the values decode needs, unpacked in one go
@@ -157,7 +130,7 @@ class _FramePlan:
     def bind(self, bindings: list[_Binding]) -> None:
         self.bindings = tuple(bindings)
         self.fast = tuple((b, b.health, b.sig1, b.scale, b.offset, b.lo, b.hi, b.index,
-                           b.e2e or b.toyota or b.counter is not None) for b in bindings)
+                           b.checksum or b.counter is not None) for b in bindings)
 
 
 class SignalDecoder:
@@ -191,13 +164,8 @@ class SignalDecoder:
                                       " a rolling counter has at most 32")
                 if m.counter not in plan.counters:
                     plan.counters[m.counter] = (CounterCheck(sig.length), float(sig.scale), float(sig.offset))
-            if b.e2e:
-                if msg.length < 2:
-                    raise ConfigError(f"[inputs.{name}] checksum = \"e2e_p2\" needs a message of at least"
-                                      f" 2 bytes; {label} has {msg.length}")
-                plan.need_e2e = True
-            if b.toyota:
-                plan.need_toyota = True
+            if b.checksum:
+                self._bind_checksum(name, m, plan)
             bindings.setdefault(key, []).append(b)
         for key, bs in bindings.items():
             plans[key].bind(bs)
@@ -209,6 +177,26 @@ class SignalDecoder:
         self._stale_ref: float | None = None
 
     # ----------------------------------------------------------------------------- binding
+    @staticmethod
+    def _bind_checksum(name: str, m: InputMapping, plan: _FramePlan) -> None:
+        """The message's checksum, from the first input that asks for one; the others must agree."""
+        msg = plan.message
+        if m.data_id is None:
+            ids = (data_id_for(msg),)
+        else:
+            ids = tuple(m.data_id) if isinstance(m.data_id, list) else (m.data_id,)
+        ck = FrameChecksum(m.checksum, msg.frame_id, msg.is_extended_frame, ids)
+        if msg.length < ck.min_length:
+            raise ConfigError(f"[inputs.{name}] checksum = \"{m.checksum}\" needs a message of at least"
+                              f" {ck.min_length} bytes; {plan.label} has {msg.length}")
+        have = plan.checksum
+        if have is None:
+            plan.checksum, plan.checksum_of = ck, name
+        elif (have.scheme, have.data_ids) != (ck.scheme, ck.data_ids):
+            raise ConfigError(f"[inputs.{name}] checksum {ck.scheme} (data id {list(ck.data_ids)}) differs from"
+                              f" [inputs.{plan.checksum_of}] ({have.scheme}, data id {list(have.data_ids)}), which"
+                              f" reads the same message {plan.label}")
+
     def _find_message(self, name: str, ref):
         where = f"[inputs.{name}] message"
         if isinstance(ref, str):
@@ -249,11 +237,8 @@ class SignalDecoder:
         if len(data) != plan.length:
             self._fail_all(plan, t, "dlc", f"{plan.label}: {len(data)} data bytes, expected {plan.length}")
             return []
-        e2e_ok = toyota_ok = True
-        if plan.need_e2e:
-            e2e_ok = e2e_p2_check(data, plan.data_id)
-        if plan.need_toyota:
-            toyota_ok = toyota_check(plan.frame_id, data)
+        checksum = plan.checksum
+        intact = checksum is None or checksum.check(data)
         try:
             values = plan.decode(data, False)
         except Exception as e:  # cantools: bad multiplexer id and the like
@@ -262,7 +247,6 @@ class SignalDecoder:
         counter_ok = None
         if plan.counters:
             counter_ok = {}
-            intact = e2e_ok and toyota_ok
             for cname, (chk, sc, off) in plan.counters.items():
                 if not intact:
                     # a corrupted frame's counter is not evidence either way, and the next good frame's
@@ -283,13 +267,8 @@ class SignalDecoder:
         for b, h, sig1, scale, offset, lo, hi, index, checked in plan.fast:
             h.frames += 1
             if checked:
-                if b.e2e and not e2e_ok:
-                    self._fail(b, t, "checksum", f"{plan.label}: E2E CRC 0x{data[0]:02X},"
-                                                 f" expected 0x{e2e_p2_crc(data, plan.data_id):02X}")
-                    continue
-                if b.toyota and not toyota_ok:
-                    self._fail(b, t, "checksum", f"{plan.label}: checksum 0x{data[-1]:02X},"
-                                                 f" expected 0x{toyota_checksum(plan.frame_id, data):02X}")
+                if b.checksum and not intact:
+                    self._fail(b, t, "checksum", f"{plan.label}: {checksum.describe(data)}")
                     continue
                 if b.counter is not None and counter_ok[b.counter] is not None:
                     self._fail(b, t, "counter", counter_ok[b.counter])

@@ -8,7 +8,7 @@ from pathlib import Path
 import can
 import pytest
 
-from ecu_daemon.canlog import CandumpWriter, CanLogError, read_can_log
+from ecu_daemon.canlog import CandumpWriter, CanLogError, log_channels, open_can_writer, read_can_log
 
 DATA = Path(__file__).parent / "data" / "comma2k19"
 SHARED_LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "comma2k19-rav4" / "rav4_bus0_candump.log"
@@ -179,3 +179,93 @@ def test_full_rav4_log_matches_python_can_reader_and_round_trips(tmp_path):
         for t, fid, ext, err, data in read_can_log(SHARED_LOG):
             w.write_frame(t, fid, data, ext, err)
     assert out.read_text() == SHARED_LOG.read_text()  # byte-identical: same 6-decimal format
+
+
+TWO_BUSES = "\n".join([
+    "(1700000000.000100) can0 0AA#0102",
+    "(1700000000.000200) can1 0AA#FFFF",
+    "(1700000000.000300) can0 123#R4",
+    "(1700000000.000400) can1 7FF##3" + "22" * 16,  # FD with BRS and ESI
+    "(1700000000.000500) can0 124##0" + "11" * 8,  # FD without flags, 8 bytes
+    "(1700000000.000600) can0 12345678#DEADBEEF T",
+    "(1700000000.000700) can1 125#R",
+]) + "\n"
+
+
+def test_messages_keep_channel_fd_flags_and_remote_frames_as_python_can_reads_them(tmp_path):
+    p = write(tmp_path, TWO_BUSES)
+    r = read_can_log(p, messages=True)
+    ours = list(r)
+    theirs = list(can.CanutilsLogReader(str(p)))
+    assert len(ours) == len(theirs) == 7 and r.remote_frames == 2
+    for a, b in zip(ours, theirs):
+        assert a.equals(b, timestamp_delta=None, check_channel=True, check_direction=False), (a, b)
+        assert a.timestamp == b.timestamp
+    assert [(m.channel, m.is_fd, m.bitrate_switch, m.error_state_indicator, m.is_remote_frame, m.dlc)
+            for m in ours] == [("can0", False, False, False, False, 2), ("can1", False, False, False, False, 2),
+                               ("can0", False, False, False, True, 4), ("can1", True, True, True, False, 16),
+                               ("can0", True, False, False, False, 8), ("can0", False, False, False, False, 4),
+                               ("can1", False, False, False, True, 0)]
+
+
+def test_channel_selection_keeps_one_bus_and_counts_all(tmp_path):
+    p = write(tmp_path, TWO_BUSES)
+    r = read_can_log(p, channel="can1")
+    assert [(f[1], f[4]) for f in r] == [(0x0AA, b"\xff\xff"), (0x7FF, b"\x22" * 16)]
+    assert r.channels == {"can0": 4, "can1": 3} and r.remote_frames == 1
+    assert log_channels(p) == {"can0": 4, "can1": 3}
+    asc = tmp_path / "two.asc"
+    w = can.ASCWriter(str(asc))
+    for m in read_can_log(p, messages=True):
+        w.on_message_received(m)
+    w.stop()
+    assert log_channels(asc) == {"0": 4, "1": 3}  # python-can's channel numbers
+    assert [(f[1], f[4]) for f in read_can_log(asc, channel="1")] == [(0x0AA, b"\xff\xff"), (0x7FF, b"\x22" * 16)]
+
+
+def test_time_offset_is_added_to_every_frame_on_the_microsecond_grid(tmp_path):
+    p = write(tmp_path, TWO_BUSES)
+    plain = [f[0] for f in read_can_log(p)]
+    shifted = [f[0] for f in read_can_log(p, time_offset=-1699999000.0)]
+    assert shifted == [round(t - 1699999000.0, 6) for t in plain] and shifted[0] == 1000.0001
+
+
+def test_asc_keeps_its_start_date_and_says_when_it_has_none(tmp_path):
+    p = tmp_path / "x.asc"
+    w = can.ASCWriter(str(p))
+    for i in range(3):
+        w.on_message_received(can.Message(timestamp=1700000000.25 + i * 0.01, arbitration_id=0x100 + i,
+                                          is_extended_id=False, data=bytes([i])))
+    w.stop()
+    r = read_can_log(p)
+    assert [f[0] for f in r] == [1700000000.25, 1700000000.26, 1700000000.27] and r.absolute_time
+    undated = tmp_path / "undated.asc"
+    undated.write_text("".join(line for line in p.read_text().splitlines(keepends=True)
+                               if not line.lower().startswith(("date", "begin triggerblock"))))
+    r = read_can_log(undated)
+    assert [f[0] for f in r] == [0.0, 0.01, 0.02] and not r.absolute_time
+
+
+@pytest.mark.parametrize("suffix, reader", [(".asc", can.ASCReader), (".blf", can.BLFReader), (".log", None)])
+def test_open_can_writer_writes_what_the_extension_names(tmp_path, suffix, reader):
+    p = tmp_path / f"out{suffix}"
+    msgs = [can.Message(timestamp=1700000000.006 * (1 + i * 1e-12), arbitration_id=0x300 + i, is_extended_id=False,
+                        data=bytes([i] * 8)) for i in range(4)]
+    with open_can_writer(p) as w:
+        for m in msgs:
+            w.write(m)
+    if reader is None:
+        assert p.read_text().startswith("(1700000000.006000) can0 300#0000000000000000")
+    else:
+        back = list(reader(str(p)))
+        assert [(m.arbitration_id, bytes(m.data)) for m in back] == [(m.arbitration_id, bytes(m.data)) for m in msgs]
+    assert [(f[1], f[4]) for f in read_can_log(p)] == [(m.arbitration_id, bytes(m.data)) for m in msgs]
+    assert abs(next(iter(read_can_log(p)))[0] - 1700000000.006) < 1e-6
+
+
+def test_asc_with_timestamps_relative_to_the_previous_event_is_refused(tmp_path):
+    p = tmp_path / "delta.asc"
+    p.write_text("date Mon Jan 01 00:00:00.000 2024\nbase hex  timestamps relative\ninternal events logged\n"
+                 "   0.010000 1  100             Rx   d 1 01\n   0.010000 1  101             Rx   d 1 02\n")
+    with pytest.raises(CanLogError, match="delta.asc: 'timestamps relative'.*export the log with absolute"):
+        list(read_can_log(p))

@@ -346,7 +346,7 @@ def smooth(x, n=83):
 def test_rav4_extract_matches_comma_reference_and_iso_signs(caplog):
     cfg = config.load(EXAMPLE)
     cfg.can.dbc = str(DATA / "_toyota_2017.dbc")  # the vendored copy, identical to examples/
-    with caplog.at_level(logging.INFO, logger="ecu_daemon.signals"):
+    with caplog.at_level(logging.INFO, logger="ecu_daemon.dbc_loading"):
         dec, s = decode_log(cfg, DATA / "rav4_bus0_candump_5s.log")
     assert len([r for r in caplog.records if "strict=False" in r.getMessage()]) == 1
     assert all(sum(h.errors.values()) == 0 for h in dec.health.values())

@@ -10,7 +10,7 @@ import math
 import os
 import time
 
-from ..diagnostics import BUS_ACTIVE, BUS_OFF, BUS_PASSIVE, Diagnostics
+from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics
 from ..samples import GnssSample
 from . import can_bus
 from .tick import TickSnapshot
@@ -48,8 +48,11 @@ def thread_cpu_s(native_id: int | None) -> float:
 
 
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
-                      gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth,
-                      tick: TickSnapshot, cpu_pct: float) -> Diagnostics:
+                      gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth | None,
+                      tick: TickSnapshot | None, cpu_pct: float, error_frames: int = 0) -> Diagnostics:
+    """The snapshot at time ``t``. Offline (replay) there is no bus, tick or CPU to speak of:
+    ``bus``/``tick`` None and ``cpu_pct`` NaN give the "not available" values, and the log's
+    own ``error_frames`` are counted."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     if gnss_last is not None:
@@ -63,12 +66,19 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.gnss_parse_errors = (gnss_stats.get("malformed", 0) + gnss_stats.get("truncated", 0)
                                + gnss_stats.get("garbage_bytes", 0))
     d.gnss_serial_connected = gnss_connected
-    d.can_bus_state = _BUS_MAP.get(bus.state, BUS_ACTIVE)
-    d.can_error_frames = bus.error_frames
-    d.can_tx_failures = bus.tx_failures
-    d.tick_late_p50_us = tick.late_p50_s * 1e6
-    d.tick_late_p99_us = tick.late_p99_s * 1e6
-    d.tick_late_max_us = tick.late_max_s * 1e6
-    d.tick_overruns = tick.overruns
+    if bus is None:
+        d.can_bus_state = BUS_NOT_AVAILABLE
+        d.can_error_frames = error_frames
+    else:
+        d.can_bus_state = _BUS_MAP.get(bus.state, BUS_ACTIVE)
+        d.can_error_frames = bus.error_frames
+        d.can_tx_failures = bus.tx_failures
+    if tick is None:
+        d.tick_late_p50_us = d.tick_late_p99_us = d.tick_late_max_us = math.nan
+    else:
+        d.tick_late_p50_us = tick.late_p50_s * 1e6
+        d.tick_late_p99_us = tick.late_p99_s * 1e6
+        d.tick_late_max_us = tick.late_max_s * 1e6
+        d.tick_overruns = tick.overruns
     d.cpu_load_pct = cpu_pct
     return d

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from ..config import Config, ConfigError
 from ..integrity import data_id_for, e2e_p2_apply, toyota_checksum
-from ..signals import load_dbc
+from ..dbc_loading import load_dbc
 
 
 class SignalInfo:
