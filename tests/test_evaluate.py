@@ -168,7 +168,7 @@ def test_validity_metrics_on_a_table_with_known_answers():
     assert v["valid_beyond_3sigma"] == 1
     assert v["worst_error_valid"] == 4.0
     assert v["time_to_valid_s"] == 2.0
-    assert v["time_to_valid_after_fix_s"] == 0.5  # first valid row at or after the fix: t = 5
+    assert v["time_to_valid_after_fix_s"] == 0.0  # already valid when the fix came
     assert v["valid_fraction"] == pytest.approx(0.7)
     # above 5 m/s and from 3 s after the fix (t >= 7.5): rows 8 (valid) and 9 (not)
     assert v["valid_fraction_above_5mps"] == pytest.approx(0.5)
@@ -229,3 +229,6 @@ def test_time_to_valid_after_fix_is_zero_when_already_valid():
     v = validity_metrics(t, np.zeros(6), np.ones(6), np.array([0, 1, 1, 1, 0, 1], bool), np.full(6, 9.0),
                          0.0, 2.5)
     assert v["time_to_valid_after_fix_s"] == 0.0 and v["time_to_valid_s"] == 1.0
+    v = validity_metrics(t, np.zeros(6), np.ones(6), np.array([0, 1, 1, 1, 0, 1], bool), np.full(6, 9.0),
+                         0.0, 4.5)
+    assert v["time_to_valid_after_fix_s"] == 0.5  # invalid when the fix came, valid at t = 5
