@@ -207,7 +207,7 @@ def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
     out: dict = {"rows": int(sel.sum()), "t_start": float(t[0]), "t_end": float(t[-1]), "settle_s": settle_s,
                  "drive_start": float(t_all[0]), "first_good_fix_above_5mps": t_fix}
     for name, (tc, ec, vc, _, _) in SIGNALS.items():
-        if name == "heading":
+        if name in ("heading", "sideslip"):  # angles: +-180 deg apart is 0 (heading north, reversing)
             ref = np.interp(t_all, tt, np.unwrap(truth[tc]))
             err_all = _wrap(est[ec][span] - ref)
         else:
@@ -380,8 +380,14 @@ def plot(truth_csv: str | Path, estimate_csv: str | Path, out_dir: str | Path) -
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--truth", required=True, help="truth.csv from 'ecu-daemon simulate'")
-    parser.add_argument("--estimate", required=True, help="estimate CSV from 'ecu-daemon replay'")
+    parser.add_argument("--truth", help="truth.csv from 'ecu-daemon simulate'")
+    parser.add_argument("--estimate", help="estimate CSV from 'ecu-daemon replay'")
+    parser.add_argument("--suite", action="store_true",
+                        help="simulate, replay and score the scenario suite; one table, exit 1 if a target fails")
+    parser.add_argument("--only", metavar="PATTERN",
+                        help="--suite: only scenarios whose name or family matches (globs, comma-separated)")
+    parser.add_argument("--jobs", type=int, default=0, help="--suite: parallel scenarios (default: CPU count)")
+    parser.add_argument("--out", metavar="DIR", help="--suite: folder for every scenario's files (default out/suite)")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
     parser.add_argument("--settle-s", type=float, default=10.0,
                         help="seconds at the start of the estimate left out of the statistics (default 10)")
@@ -391,6 +397,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from .cli import UserError
 
+    if args.suite:
+        from .suite import main as suite_main
+
+        if args.truth or args.estimate or args.plots:
+            raise UserError("--suite makes its own drives: give it without --truth, --estimate, --plots")
+        if args.jobs < 0:
+            raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+        return suite_main(args)
+    if not (args.truth and args.estimate):
+        raise UserError("give --truth and --estimate (or --suite)")
     if not (args.settle_s >= 0 and math.isfinite(args.settle_s)):
         raise UserError(f"--settle-s must be >= 0, got {args.settle_s}")
     try:
