@@ -87,6 +87,19 @@ def _baseline_rms(cfg, can_path: Path, truth: dict, t_from: float) -> float:
 
 
 def run_case(case: SuiteCase, out_dir: str | Path) -> dict:
+    """:func:`score_case`, or a row that says in one line why the case could not run (the suite goes on)."""
+    started = time.perf_counter()
+    try:
+        return score_case(case, out_dir)
+    except Exception as e:  # noqa: BLE001 - one broken case must not hide the other rows
+        row = {key: math.nan for _, key, _ in COLUMNS}
+        row.update(scenario=case.name, family=case.family, has_fix=False, spun_out=False,
+                   wall_s=time.perf_counter() - started,
+                   failed=[f"error: {e.__class__.__name__}: {str(e).splitlines()[0] if str(e) else ''}"])
+        return row
+
+
+def score_case(case: SuiteCase, out_dir: str | Path) -> dict:
     """Simulate, replay, evaluate one case; returns its table row (SI, plus the failed targets)."""
     from .io.state_store import load_state, save_state
     from .replay import run_replay

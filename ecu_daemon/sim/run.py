@@ -164,7 +164,7 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
         t_rx = sens.receive_times(t_send, scenario.sensors, rng_timing)
         keep = t_rx <= truth.t[-1]
         t_send, t_rx = t_send[keep], t_rx[keep]
-        values = {name: sensors.measure(name, t_send) for name, _, _ in plan.inputs}
+        values = {name: sensors.measure(name, t_send) for name, *_ in plan.inputs}
         fid = plan.frame_id
         if plan.is_extended:
             extended.add(fid)
