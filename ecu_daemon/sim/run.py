@@ -133,7 +133,9 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
     lat = scenario.gnss.latency_s
-    prior = lat if not wrong else (lat - 0.2 if lat >= 0.3 else lat + 0.2)
+    prior = lat if scenario.gnss_delay_prior_s is None else scenario.gnss_delay_prior_s
+    if wrong:
+        prior = lat - 0.2 if lat >= 0.3 else lat + 0.2
     g.delay_s = round(prior, 3)
     g.max_delay_s = max(g.max_delay_s, round(lat + 0.3, 3))
     return cfg
