@@ -133,7 +133,7 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
     lat = scenario.gnss.latency_s
-    prior = lat if scenario.gnss_delay_prior_s is None else scenario.gnss_delay_prior_s
+    prior = lat if scenario.latency_prior_s is None else scenario.latency_prior_s
     if wrong:
         prior = lat - 0.2 if lat >= 0.3 else lat + 0.2
     g.delay_s = round(prior, 3)

@@ -41,7 +41,7 @@ class Scenario:
     #: (parameter, factor) pairs: the config handed to the estimator has these wrong (mass,
     #: inertia, cf, cr), the simulated car does not
     config_errors: tuple = ()
-    gnss_delay_prior_s: float | None = None  # the config's GNSS latency prior (None: the true latency)
+    latency_prior_s: float | None = None  # the config's GNSS latency prior (None: the true latency)
 
     def build_manoeuvre(self) -> Manoeuvre:
         return BUILDERS[self.manoeuvre](self.mu, **dict(self.params))

@@ -59,7 +59,7 @@ def _gnss_and_road() -> list[SuiteCase]:
         out.append(SuiteCase(f"gnss_{rate:g}hz", "gnss", _base(f"gnss_{rate:g}hz", "dlc_dry", gnss_rate_hz=rate)))
     for lat in (0.1, 0.25, 0.6, 0.8):  # the config's prior is the default receiver guess, not the truth
         out.append(SuiteCase(f"latency_{lat:g}", "latency", _base(f"latency_{lat:g}", "straight",
-                                                                 gnss_latency_s=lat, gnss_delay_prior_s=0.4)))
+                                                                 gnss_latency_s=lat, latency_prior_s=0.4)))
     for kind, value, dur in (("scaled", 3.0, 5.0), ("constant", 140.0, 5.0), ("dropout", 0.0, 5.0)):
         name = f"gnss_{'glitch' if kind == 'scaled' else kind}"
         out.append(SuiteCase(name, "gnss", _base(name, "dlc_dry", gnss_faults=(Fault("gnss", kind, 24.0, dur, value),))))
