@@ -9,7 +9,8 @@ daemon's ``[daemon] state_file``), and is scored from the restart on.
 
 Targets (issue 7), each a short code in the table when it fails:
 
-* ``cov-b`` / ``cov-h``: valid sideslip / heading rows within 3 reported sigma >= 99 %;
+* ``cov-b`` / ``cov-h`` / ``cov-v``: valid sideslip / heading / vx rows within 3 reported sigma >= 99 %
+  (a valid flag is a promise, ``velocity_valid`` too);
 * ``worst-b`` / ``worst-h``: worst error while valid <= 2 deg (sideslip) / 5 deg (heading);
 * ``avail-b``: sideslip valid on >= 90 % of the rows above 5 m/s once converged;
 * ``ttv-b`` / ``ttv-h``: valid within 3 s of the first good GNSS fix above 5 m/s;
@@ -145,7 +146,7 @@ def score_case(case: SuiteCase, out_dir: str | Path) -> dict:
 def summarise(case: SuiteCase, r: dict, baseline_rms: float) -> dict:
     """One table row from an evaluation (see :func:`ecu_daemon.evaluate.evaluate`)."""
     b, h = r["sideslip"], r["heading"]
-    bv, hv = b.get("validity", {}), h.get("validity", {})
+    bv, hv, vv = b.get("validity", {}), h.get("validity", {}), r["vx"].get("validity", {})
     g = lambda d, k: d.get(k, math.nan)  # noqa: E731
     row = {
         "scenario": case.name, "family": case.family,
@@ -155,6 +156,7 @@ def summarise(case: SuiteCase, r: dict, baseline_rms: float) -> dict:
         "sideslip_valid_above_5mps": g(bv, "valid_fraction_above_5mps"),
         "heading_valid_above_5mps": g(hv, "valid_fraction_above_5mps"),
         "sideslip_coverage_3sigma": g(bv, "coverage_3sigma"), "heading_coverage_3sigma": g(hv, "coverage_3sigma"),
+        "vx_coverage_3sigma": g(vv, "coverage_3sigma"), "vx_worst_valid_mps": g(vv, "worst_error_valid"),
         "sideslip_worst_valid_deg": g(bv, "worst_error_valid") * DEG,
         "heading_worst_valid_deg": g(hv, "worst_error_valid") * DEG,
         "sideslip_time_to_valid_after_fix_s": g(bv, "time_to_valid_after_fix_s"),
@@ -181,6 +183,8 @@ def failed_targets(row: dict, case: SuiteCase) -> list[str]:
         worst = row[f"{q}_worst_valid_deg"]
         if math.isfinite(worst) and worst > T[f"worst_{q}_deg"]:
             fails.append(f"worst-{code}")
+    if math.isfinite(row["vx_coverage_3sigma"]) and row["vx_coverage_3sigma"] < T["coverage_3sigma"]:
+        fails.append("cov-v")
     if bad(row["sideslip_valid_above_5mps"], T["sideslip_valid_above_5mps"], above=False):
         fails.append("avail-b")
     if row["has_fix"]:
@@ -205,6 +209,7 @@ COLUMNS = (  # header, key, format
     ("h val>5", "heading_valid_above_5mps", "{:.0%}"),
     ("b 3sig", "sideslip_coverage_3sigma", "{:.1%}"),
     ("h 3sig", "heading_coverage_3sigma", "{:.1%}"),
+    ("vx 3sig", "vx_coverage_3sigma", "{:.1%}"),
     ("b worst", "sideslip_worst_valid_deg", "{:.2f}"),
     ("h worst", "heading_worst_valid_deg", "{:.1f}"),
     ("b ttv", "sideslip_time_to_valid_after_fix_s", "{:.1f}"),

@@ -19,6 +19,7 @@ from ecu_daemon.suite import COLUMNS, failed_targets, format_table, run_case, se
 def _row(**changes):
     row = {key: 0.0 for _, key, _ in COLUMNS}
     row.update(scenario="x", family="f", sideslip_coverage_3sigma=1.0, heading_coverage_3sigma=1.0,
+               vx_coverage_3sigma=1.0,
                sideslip_valid_above_5mps=1.0, heading_valid_above_5mps=1.0, has_fix=True, ratio_to_baseline=0.5,
                sideslip_rms_deg=0.2)
     row.update(changes)
@@ -33,6 +34,8 @@ def test_targets_are_the_issues_limits():
     assert failed_targets(_row(heading_coverage_3sigma=0.99), case) == []
     assert failed_targets(_row(sideslip_worst_valid_deg=2.01, heading_worst_valid_deg=5.0), case) == ["worst-b"]
     assert failed_targets(_row(heading_worst_valid_deg=5.01), case) == ["worst-h"]
+    assert failed_targets(_row(vx_coverage_3sigma=0.98), case) == ["cov-v"]
+    assert failed_targets(_row(vx_coverage_3sigma=math.nan), case) == []  # never valid: no promise made
     assert failed_targets(_row(sideslip_valid_above_5mps=0.89), case) == ["avail-b"]
     assert failed_targets(_row(sideslip_valid_above_5mps=math.nan), case) == ["avail-b"]  # never a silent pass
     assert failed_targets(_row(heading_time_to_valid_after_fix_s=3.1), case) == ["ttv-h"]
@@ -83,7 +86,7 @@ def test_cli_options_are_checked_in_one_line(capsys):
 
 
 # ----------------------------------------------------------------------------- the subset
-TARGETS = ("cov-b", "cov-h", "worst-b", "worst-h", "avail-b", "ttv-b", "ttv-h", "lat")
+TARGETS = ("cov-b", "cov-h", "cov-v", "worst-b", "worst-h", "avail-b", "ttv-b", "ttv-h", "lat")
 #: the subset and what the estimator on this branch misses (measured; see README "Scenario suite")
 SUBSET = {
     "flying_30_straight_h0": {},
