@@ -20,6 +20,7 @@ def test_fault_kinds_on_known_readings():
     f = lambda kind, value=0.0: apply_fault(Fault("yaw_rate", kind, 0.2, 0.5, value), t, v, T0, rng)  # noqa: E731
     on = slice(2, 7)  # 0.2 <= t < 0.7
     assert list(f("stuck")[on]) == [3.0] * 5 and f("stuck")[7] == 8.0
+    assert list(f("stuck", 29.9)[on]) == [29.9] * 5
     assert list(f("zero")[on]) == [0.0] * 5 and f("zero")[1] == 2.0
     assert list(f("offset", 2.0)[on]) == list(v[on] + 2.0)
     assert list(f("scaled", 3.0)[on]) == list(v[on] * 3.0)

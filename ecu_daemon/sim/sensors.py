@@ -45,7 +45,8 @@ class Fault:
     """A sensor fault during ``[t_rel, t_rel + duration_s)`` seconds after the drive's start.
 
     CAN inputs (``input`` = an input name, or ``wheels`` for all four wheel speeds), ``kind``:
-    ``stuck`` (holds the reading at the fault's start), ``zero``, ``offset`` (+ ``value``, SI),
+    ``stuck`` (holds the reading at the fault's start, or ``value`` when it is non-zero),
+    ``zero``, ``offset`` (+ ``value``, SI),
     ``scaled`` (x ``value``), ``noisy`` (+ white noise of 1-sigma ``value``), ``intermittent``
     (reads 0 for 0.1 s out of every 0.3 s: a loose connector). GNSS (``input`` = ``gnss``):
     ``scaled`` (velocity x ``value``, a glitch), ``constant`` (north and east velocity both
@@ -75,7 +76,7 @@ def apply_fault(fault: Fault, t: np.ndarray, v: np.ndarray, t0: float, rng: np.r
         return v
     k = fault.kind
     if k == "stuck":
-        v[on] = v[on][0]
+        v[on] = fault.value if fault.value else v[on][0]
     elif k == "zero":
         v[on] = 0.0
     elif k == "offset":

@@ -102,6 +102,11 @@ def _sensor_faults() -> list[SuiteCase]:
             name = f"fault_{inp}_{kind}"
             fault = Fault(inp, kind, FAULT_T_S, FAULT_S, value.get(kind, 0.0))
             out.append(SuiteCase(name, "fault", _base(name, "dlc_dry", sensor_faults=(fault,))))
+    # stuck at an implausible but in-range value (what issue 7 saw: 29.9 m/s^2, 20 deg/s)
+    for inp, value, label in (("accel_x", 29.9, "29.9mps2"), ("yaw_rate", math.radians(20.0), "20degps")):
+        name = f"fault_{inp}_stuck_at_{label}"
+        fault = Fault(inp, "stuck", FAULT_T_S, FAULT_S, value)
+        out.append(SuiteCase(name, "fault", _base(name, "dlc_dry", sensor_faults=(fault,))))
     return out
 
 
