@@ -137,3 +137,13 @@ def test_subset_rows_are_on_disk_as_strict_json(subset_rows):
         doc = json.loads((out / name / "evaluation.json").read_text(),
                          parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
         assert doc["row"]["scenario"] == name and "validity" in doc["evaluation"]["sideslip"]
+
+
+def test_cli_suite_runs_through_the_process_pool_and_writes_strict_json(tmp_path, capsys):
+    rc = cli_main(["evaluate", "--suite", "--only", "flying_30_straight_h0", "--jobs", "2", "--out", str(tmp_path)])
+    out = capsys.readouterr().out.splitlines()
+    assert rc == 0  # every target met: exit 0 (a miss exits 1)
+    assert out[1].startswith("flying_30_straight_h0") and out[1].endswith("pass")
+    doc = json.loads((tmp_path / "suite.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    assert [r["scenario"] for r in doc] == ["flying_30_straight_h0"] and doc[0]["failed"] == []
+    assert (tmp_path / "flying_30_straight_h0" / "estimate.csv").exists()
