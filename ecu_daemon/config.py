@@ -106,6 +106,9 @@ class InputMapping:
     checksum: str = "none"  # one of CHECKSUM_SCHEMES
     #: e2e_p2 data id: one byte, or 16 (one per counter value, VW MQB); None: the DBC's E2EDataId, else id & 0xFF
     data_id: Any = None
+    #: sign-magnitude signals (VW's ESP_Gierrate + ESP_VZ_Gierrate): a signal (or sign bit) in the
+    #: same message whose non-zero value makes the magnitude negative, before ``scale``/``offset``
+    sign_signal: str = ""
 
     def signal_names(self) -> list[str]:
         return list(self.signals) if self.signals else [self.signal]
@@ -336,7 +339,7 @@ def to_dict(cfg: Config) -> dict:
     for name in INPUT_NAMES:
         d = dataclasses.asdict(cfg.inputs[name])
         d = {k: v for k, v in d.items()
-             if not ((k == "signals" and not v) or (k == "signal" and not v) or (k == "data_id" and v is None)
+             if not ((k in ("signals", "signal", "sign_signal") and not v) or (k == "data_id" and v is None)
                      or (k in ("min", "max") and math.isinf(v)))}
         inputs[name] = d
     out["inputs"] = inputs

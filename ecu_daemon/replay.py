@@ -51,6 +51,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plots", metavar="DIR", help="write PNG plots of the drive into DIR (estimates, validity, "
                    "inputs; also DIR/out.csv when --out-csv is not given); needs matplotlib")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    p.add_argument("--state", metavar="FILE",
+                   help="learned-state file, as the daemon's [daemon] state_file: restored at the start"
+                        " when it exists, written at the end (a restart mid-drive is two replays)")
 
 
 def csv_header() -> str:
@@ -149,8 +152,9 @@ class _Progress:
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
                inputs: dict | None = None, can_channel: str | None = None,
-               can_time_offset: float | None = None) -> dict:
-    """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files.
+               can_time_offset: float | None = None, learned: dict | None = None) -> dict:
+    """Replay one drive, starting from ``learned`` (see :class:`Estimator`); returns a summary
+    (counts, duration, speed, the final learned state). Raises UserError on bad files.
 
     ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
     GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
@@ -162,7 +166,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     channel = choose_channel(can_path, can_channel, cfg.can.channel)
     check_time_base(can_path, gnss_path, channel, can_time_offset)
     decoder = SignalDecoder(cfg)
-    est = Estimator(cfg)
+    est = Estimator(cfg, learned)
     encoder = None
     can_out = None
     if out_can:
@@ -275,6 +279,8 @@ def _write_plots(plots_dir: str, csv_path: str, inputs: dict) -> list[Path]:
 
 
 def main(args: argparse.Namespace) -> int:
+    from .io.state_store import StateFileError, load_state, save_state
+
     cfg = config_mod.load(args.config)
     out_csv = args.out_csv
     if args.plots and not out_csv:
@@ -284,9 +290,20 @@ def main(args: argparse.Namespace) -> int:
             raise UserError(f"cannot write plots to {args.plots}: {e.strerror or e}") from None
         out_csv = str(Path(args.plots) / "out.csv")
     inputs: dict | None = {} if args.plots else None
+    learned = None
+    if args.state:
+        try:
+            learned = load_state(args.state)
+        except StateFileError as e:
+            raise UserError(str(e)) from None
     summary = run_replay(cfg, args.can, args.gnss, out_csv, args.out_can,
                          progress=not args.no_progress, inputs=inputs, can_channel=args.can_channel,
-                         can_time_offset=args.can_time_offset)
+                         can_time_offset=args.can_time_offset, learned=learned)
+    if args.state:
+        try:
+            save_state(args.state, summary["learned"])
+        except OSError as e:
+            raise UserError(f"cannot write state file {args.state}: {e.strerror or e}") from None
     files = _write_plots(args.plots, out_csv, inputs) if args.plots else []
     print(f"replayed {summary['duration_s']:.1f} s of drive ({summary['frames']} frames, "
           f"{summary['gnss_samples']} GNSS samples) into {summary['steps']} steps in "
