@@ -17,6 +17,7 @@ import gzip
 import io
 import math
 import re
+import zlib
 from pathlib import Path
 from typing import Iterator
 
@@ -162,8 +163,10 @@ class CanLogReader:
                 if not math.isfinite(t):
                     raise CanLogError(f"{self.path}:{lineno}: timestamp {ts} out of range")
                 yield (t, can_id, is_ext, is_err, payload)
-        except OSError as e:
-            raise CanLogError(f"{self.path}:{lineno + 1}: read error: {e.strerror or e}") from None
+        except (OSError, EOFError, zlib.error) as e:  # EOFError, zlib.error: a cut-off or corrupt .gz
+            raise CanLogError(f"{self.path}:{lineno + 1}: read error: {e.strerror or e}"
+                              if isinstance(e, OSError) else
+                              f"{self.path}:{lineno + 1}: compressed data is cut off or corrupt ({e})") from None
         finally:
             self.lines = lineno
             self._release()

@@ -112,6 +112,7 @@ class Daemon:
         self.diag = Diagnostics()
         self.latest: Estimate | None = None
         self.late_samples = 0
+        self._gaps_said = 0  # estimator gaps (clock jumps) already logged
         self.samples_pushed = 0
         self.frames_sent = 0
         self.steps = 0
@@ -340,6 +341,10 @@ class Daemon:
                 pass
             now = self.clock()
             self._drain_out()
+            est = self.estimator
+            if est is not None and est.gaps != self._gaps_said:  # a clock jump: one line
+                self._gaps_said = est.gaps
+                log.warning("%s", health_mod.gap_line(est))
             if now >= next_diag:
                 next_diag = now + DIAG_S
                 self._update_diagnostics(now)

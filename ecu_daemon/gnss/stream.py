@@ -23,6 +23,7 @@ import re
 from collections import deque
 from typing import Callable
 
+from ..io.logging_setup import RateLimitedLog
 from ..samples import GnssSample
 from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
 from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, NAV_PVT, UbxDecoder, UbxError, ubx_checksum
@@ -63,23 +64,6 @@ def crc24q(data: bytes | bytearray | memoryview) -> int:
     return crc
 
 
-class _ErrorReporter:
-    """One log line per error kind per interval (stream time), carrying the suppressed count."""
-
-    def __init__(self, name: str, interval_s: float) -> None:
-        self.name, self.interval = name, interval_s
-        self._state: dict[str, list] = {}
-
-    def __call__(self, t: float, kind: str, text: str) -> None:
-        st = self._state.get(kind)
-        if st is None or not (st[0] <= t < st[0] + self.interval):
-            more = f" (+{st[1]} more since last report)" if st and st[1] else ""
-            log.warning("%s: %s%s", self.name, text, more)
-            self._state[kind] = [t, 0]
-        else:
-            st[1] += 1
-
-
 class GnssStreamParser:
     """Incremental parser for one receiver byte stream.
 
@@ -102,7 +86,8 @@ class GnssStreamParser:
         self.protocol = protocol
         self.stats: dict[str, int] = dict.fromkeys(STAT_KEYS, 0)
         self.last_error = ""
-        self._report = _ErrorReporter(name, log_interval_s)
+        self._name = name
+        self._report = RateLimitedLog(log, log_interval_s)
         self._sink = raw_sink
         self._prefer_ubx_s = prefer_ubx_s
         self._ubx = UbxDecoder()
@@ -358,4 +343,4 @@ class GnssStreamParser:
         if counter:
             self.stats[counter] += 1
         self.last_error = text
-        self._report(t, kind, text)
+        self._report.report(kind, logging.WARNING, f"{self._name}: {text}", now=t)
