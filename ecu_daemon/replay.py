@@ -36,8 +36,7 @@ log = logging.getLogger("ecu_daemon.replay")
 #: inputs without which the estimator publishes nothing valid; a replay that never had one fails
 REQUIRED_INPUTS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr",
                    "yaw_rate", "accel_x", "accel_y")
-#: exit status of a replay that ran to the end but a required input never gave a usable sample
-EXIT_UNUSABLE_INPUT = 3
+MIN_USED_FRACTION = 0.1
 
 _BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
 _INT_FIELDS = {"status", "gnss_fused", "gnss_rejected", "gnss_late"}
@@ -326,14 +325,17 @@ def format_input_table(rows: dict[str, dict]) -> list[str]:
 
 
 def unusable_inputs(rows: dict[str, dict]) -> list[str]:
-    """'name (why)' for each required input (and GNSS, when given) with no usable sample."""
+    """'name (why)' for each required input (and GNSS, when given) that was never usable: no sample,
+    or samples from fewer than :data:`MIN_USED_FRACTION` of its frames (a checksum of the wrong
+    scheme still passes 1 frame in 256; that is not an input)."""
     out = []
     for name in REQUIRED_INPUTS + ("gnss",):
         r = rows.get(name)
-        if r is None or r["samples"] > 0:
+        if r is None or (r["samples"] > 0 and r["samples"] >= MIN_USED_FRACTION * r["frames"]):
             continue
         drops = ", ".join(f"{r[k]} {h}" for k, h in _TABLE[2:] if r.get(k))
-        out.append(f"{name} ({r['frames']} frames" + (f", dropped: {drops})" if drops else ", none decoded)"))
+        out.append(f"{name} ({r['samples']} of {r['frames']} frames used"
+                   + (f"; dropped: {drops})" if drops else ")"))
     return out
 
 
