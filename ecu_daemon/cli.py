@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from . import __version__
@@ -102,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(entries[args.command](args) or 0)
     except (ConfigError, UserError) as e:
-        print(f"ecu-daemon {args.command}: error: {e}", file=sys.stderr)
+        prio = "<3>" if os.environ.get("JOURNAL_STREAM") else ""  # journald: an error entry
+        print(f"{prio}ecu-daemon {args.command}: error: {e}", file=sys.stderr)
         return getattr(e, "exit_code", 2)
     except KeyboardInterrupt:
         return 130

@@ -208,6 +208,8 @@ def test_replay_logs_through_the_common_set_up(drive, tmp_path):
     assert any("inputs at the end of the replay" in line for line in err)
     rc, err = replay(drive, "--out-csv", tmp_path / "o.csv", "--log-level", "warning")
     assert rc == 0 and err == []
+    rc, err = replay(drive, "--out-csv", drive / "drive.log", env={"JOURNAL_STREAM": "8:1234"})
+    assert rc == 2 and len(err) == 1 and err[0].startswith("<3>ecu-daemon replay: error:")
 
 
 def test_cli_error_line_is_the_last_line_in_process(drive, tmp_path, capsys):
