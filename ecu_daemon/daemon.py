@@ -341,10 +341,7 @@ class Daemon:
                 pass
             now = self.clock()
             self._drain_out()
-            est = self.estimator
-            if est is not None and est.gaps != self._gaps_said:  # a clock jump: one line
-                self._gaps_said = est.gaps
-                log.warning("%s", health_mod.gap_line(est))
+            self._say_gaps()
             if now >= next_diag:
                 next_diag = now + DIAG_S
                 self._update_diagnostics(now)
@@ -366,6 +363,13 @@ class Daemon:
                 self._learned_req = True
         if persist_task is not None:
             await persist_task
+
+    def _say_gaps(self) -> None:
+        """One line per input gap the estimator skipped (a clock jump, a stopped process)."""
+        est = self.estimator
+        if est is not None and est.gaps != self._gaps_said:
+            self._gaps_said = est.gaps
+            log.warning("%s", health_mod.gap_line(est))
 
     def _drain_out(self) -> None:
         out = self._out

@@ -1,6 +1,7 @@
 """Estimator.advance_to over a gap in its input: skipped, not stepped through; re-initialised after."""
 from __future__ import annotations
 
+import logging
 import math
 
 from ecu_daemon import config
@@ -59,3 +60,27 @@ def test_a_clock_jump_with_nothing_queued_runs_one_step_not_millions():
     out = est.advance_to((k + 10_000_000) * DT)
     assert est.gaps == 1 and len(out) <= 2 and round(out[-1].t / DT) == k + 10_000_000
     assert not out[-1].velocity_valid
+
+
+def test_the_live_daemon_skips_a_clock_jump_and_says_so_once(caplog):
+    """The tick thread's view: samples in, ticks on k; then the clock jumps 1e6 steps ahead."""
+    from ecu_daemon.daemon import Daemon
+
+    cfg = config.load(None)
+    cfg.can.send_outputs = False
+    d = Daemon(cfg)
+    d.estimator = Estimator(cfg)
+    k0 = 20000
+    for j in range(200):
+        k = k0 + j
+        for name in INPUT_INDEX:
+            d._samples.append(InputSample(k * DT - 0.002, INPUT_INDEX[name], 15.0 if name.startswith("wheel") else 0.0))
+        d._on_tick(k, k * DT)
+    assert d.latest is None and d.steps == 200 and d.estimator.gaps == 0
+    d._on_tick(k + 1_000_000, (k + 1_000_000) * DT)  # the clock jumped by 6000 s
+    assert d.steps <= 202 and d.estimator.gaps == 1
+    with caplog.at_level(logging.WARNING, logger="ecu_daemon"):
+        d._say_gaps()
+        d._say_gaps()
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 1 and "input gap" in lines[0] and "6000" in lines[0] and "re-initialised" in lines[0]
