@@ -217,3 +217,14 @@ def test_cli_error_line_is_the_last_line_in_process(drive, tmp_path, capsys):
                    "--out-can", str(drive / "drive.log")])
     assert rc == 2
     assert capsys.readouterr().err.strip().splitlines()[-1].startswith("ecu-daemon replay: error:")
+
+
+def test_a_gnss_log_that_never_gives_a_sample_is_exit_3(drive, tmp_path):
+    g = tmp_path / "g.log"
+    lines = (drive / "drive_gnss.log").read_text().splitlines()
+    # every frame's checksum broken (UBX in hex, NMEA as text): counted, never a sample
+    g.write_text("\n".join(x[:-2] + ("00" if x[-2:] != "00" else "11") for x in lines) + "\n")
+    rc, err = replay(drive, gnss=g)
+    assert rc == 3, err
+    assert "never usable: gnss (0 of" in err[-1] and "checksum" in err[-1]
+    assert not any("yaw_rate (" in line for line in err[-1:])
