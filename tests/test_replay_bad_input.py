@@ -213,10 +213,12 @@ def test_replay_logs_through_the_common_set_up(drive, tmp_path):
 
 
 def test_cli_error_line_is_the_last_line_in_process(drive, tmp_path, capsys):
-    rc = cli.main(["replay", "--config", str(drive / "config.toml"), "--can", str(drive / "drive.log"),
-                   "--out-can", str(drive / "drive.log")])
-    assert rc == 2
-    assert capsys.readouterr().err.strip().splitlines()[-1].startswith("ecu-daemon replay: error:")
+    log = tmp_path / "in.log"
+    log.write_bytes((drive / "drive.log").read_bytes())
+    rc = cli.main(["replay", "--config", str(drive / "config.toml"), "--can", str(log), "--out-can", str(log)])
+    assert rc == 2 and log.read_bytes() == (drive / "drive.log").read_bytes()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("ecu-daemon replay: error:") and "same file" in err[0]
 
 
 def test_a_gnss_log_that_never_gives_a_sample_is_exit_3(drive, tmp_path):
