@@ -168,3 +168,16 @@ def test_a_counter_mapped_onto_a_value_signal_is_counted_not_raised(caplog):
         data = msg.encode({s.name: 0 for s in msg.signals} | {"ACCEL_X": ax, "COUNTER": i})
         dec.decode(i * 0.01, msg.frame_id, data)
     assert dec.health["yaw_rate"].errors["counter"] >= 2
+
+
+def test_library_warnings_and_records_go_through_the_one_handler(capsys):
+    import warnings
+
+    setup_logging("info")
+    warnings.warn("a library complains", UserWarning)
+    logging.getLogger("can.interfaces.x").warning("python-can says %s", "hello")
+    logging.getLogger("can.interfaces.x").info("python-can chatter")  # libraries: warnings only
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2, err
+    assert " WARNING " in err[0] and "a library complains" in err[0]
+    assert " WARNING python-can says hello" in err[1]

@@ -21,6 +21,7 @@ import os
 import sys
 import re
 import time
+import warnings
 
 _DIGITS = re.compile(r"0x[0-9A-Fa-f]+|[0-9]+(?:\.[0-9]+)?")
 _PRIORITY = {logging.DEBUG: 7, logging.INFO: 6, logging.WARNING: 4, logging.ERROR: 3, logging.CRITICAL: 2}
@@ -113,6 +114,14 @@ class _StderrHandler(logging.StreamHandler):
 _FOREIGN = ("py.warnings", "can", "cantools", "pyubx2", "serial", "matplotlib")
 
 
+_SHOWWARNING = warnings.showwarning
+
+
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.warn`` as ONE log line (the stdlib's own format spans two, with the source)."""
+    logging.getLogger("py.warnings").warning("%s: %s (%s:%s)", category.__name__, message, filename, lineno)
+
+
 def setup_logging(level: str = "info", stream=None, interval_s: float = 10.0) -> logging.Logger:
     """Configure the ``ecu_daemon`` logger tree and the libraries' loggers (idempotent); returns
     the ``ecu_daemon`` logger. ``stream``: default the current ``sys.stderr`` at each record."""
@@ -124,7 +133,7 @@ def setup_logging(level: str = "info", stream=None, interval_s: float = 10.0) ->
         handler.setFormatter(logging.Formatter("%(asctime)s.%(msecs)03d %(levelname)s %(message)s",
                                                datefmt="%H:%M:%S"))
     handler.addFilter(RateLimitFilter(interval_s))
-    logging.captureWarnings(True)
+    warnings.showwarning = _warning_line
     for name in ("ecu_daemon",) + _FOREIGN:
         lg = logging.getLogger(name)
         for h in list(lg.handlers):
@@ -142,7 +151,7 @@ def setup_logging(level: str = "info", stream=None, interval_s: float = 10.0) ->
 
 def reset_logging() -> None:
     """Undo :func:`setup_logging` (tests, embedding): records propagate to the root logger again."""
-    logging.captureWarnings(False)
+    warnings.showwarning = _SHOWWARNING
     for name in ("ecu_daemon",) + _FOREIGN:
         lg = logging.getLogger(name)
         for h in list(lg.handlers):
