@@ -53,7 +53,7 @@ class TimeOrder:
             if pending is not None:
                 if t < pending[0] - gap:
                     self.outliers += 1
-                    self._note(f"item {self.items - 1} stamped {pending[0]:.6f}, {pending[0] - last:.6g} s"
+                    self._note(f"entry {self.items - 1} stamped {pending[0]:.6f}, {pending[0] - last:.6g} s"
                                f" after the one before it and {pending[0] - t:.6g} s after the one behind it")
                 else:
                     last = pending[0]
@@ -61,7 +61,7 @@ class TimeOrder:
                 pending = None
             if t < last:
                 self.backwards += 1
-                self._note(f"item {self.items} stamped {t:.6f}, {last - t:.6g} s before the one before it")
+                self._note(f"entry {self.items} stamped {t:.6f}, {last - t:.6g} s before the one before it")
                 if self.backwards >= MAX_BACKWARDS and self.backwards > MAX_BACKWARDS_FRACTION * self.items:
                     raise TimeOrderError(
                         f"{self.what} is not in time order: {self.backwards} of its first {self.items} lines"
