@@ -168,6 +168,7 @@ def test_a_counter_mapped_onto_a_value_signal_is_counted_not_raised(caplog):
         data = msg.encode({s.name: 0 for s in msg.signals} | {"ACCEL_X": ax, "COUNTER": i})
         dec.decode(i * 0.01, msg.frame_id, data)
     assert dec.health["yaw_rate"].errors["counter"] >= 2
+    assert dec.input_diagnostics(0.05)["yaw_rate"].counter_errors >= 2  # what EST_DIAG carries
 
 
 def test_library_warnings_and_records_go_through_the_one_handler(capsys):
