@@ -188,24 +188,23 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     wall0 = time.perf_counter()
     failed = True
     try:
-        write_csv = csv_out.write if csv_out else None
         if csv_out:
             _write(csv_file, csv_out.write, csv_header())
+
+        def write_frames(results):
+            for e in results:
+                for msg in encoder.frames(round(e.t / dt), e, None):
+                    can_out.write(msg)
 
         def emit(results):
             nonlocal gaps_said
             if est.gaps != gaps_said:
                 gaps_said = est.gaps
                 gap_log.report("gap", logging.WARNING, gap_line(est))
-            if write_csv:
-                _write(csv_file, lambda rows: csv_out.writelines(rows), [fmt % tuple(e) for e in results])
+            if csv_out:
+                _write(csv_file, csv_out.writelines, [fmt % tuple(e) for e in results])
             if encoder is not None:
-                try:
-                    for e in results:
-                        for msg in encoder.frames(round(e.t / dt), e, None):
-                            can_out.write(msg)
-                except OSError as err:
-                    raise OutputPathError(f"cannot write {can_file.path}: {err.strerror or err}") from None
+                _write(can_file, write_frames, results)
             counters["steps"] += len(results)
 
         n = 0
@@ -265,6 +264,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
 
 
 def _write(out: OutputFile, write, data) -> None:
+    """``write(data)``, a failure (full disk...) phrased with the output's own name."""
     try:
         write(data)
     except OSError as e:
