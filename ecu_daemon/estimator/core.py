@@ -124,10 +124,11 @@ class Estimator:
                 return out
             self.k = math.ceil(q[0].t / dt - 1e-9)
         k = self.k
+        gap = self.gap_s
         while k * dt <= t + 1e-9:
             tk = k * dt
             lim = tk + 1e-9
-            if (q[0].t if q else t) - tk > self.gap_s:
+            if (q[0].t if q else t) - tk > gap:
                 k = self.k = self._skip_gap(k, q[0].t if q else t, bool(q))
                 continue
             while q and q[0].t <= lim:
