@@ -27,7 +27,8 @@ from .diagnostics import Diagnostics
 from .estimator import estimate as estimate_module
 from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import data_id_for, e2e_p2_crc, next_counter
-from .signals import RateLimitedLog, load_dbc
+from .io.logging_setup import RateLimitedLog
+from .signals import load_dbc
 
 log = logging.getLogger(__name__)
 

@@ -28,8 +28,8 @@ import cantools.database
 
 from .config import Config, ConfigError, InputMapping
 from .diagnostics import ERROR_KINDS, InputDiagnostics
-from .io.logging_setup import RateLimitedLog
 from .integrity import CounterCheck, data_id_for, e2e_p2_check, e2e_p2_crc, toyota_check, toyota_checksum
+from .io.logging_setup import RateLimitedLog
 from .samples import INPUT_INDEX, InputSample
 
 log = logging.getLogger(__name__)
