@@ -56,7 +56,6 @@ class Diagnostics:
     can_bus_state: int = BUS_ACTIVE
     can_error_frames: int = 0
     can_tx_failures: int = 0
-    can_rx_handler_errors: int = 0  # received frames whose handling raised (logged rate-limited); not on the wire
     tick_late_p50_us: float = 0.0
     tick_late_p99_us: float = 0.0
     tick_late_max_us: float = 0.0
@@ -74,7 +73,5 @@ class Diagnostics:
                 + f", input errors {errs}; gnss fix {self.gnss_fix_type} sv {self.gnss_num_sv} age {gnss_age}"
                 + f"{'' if self.gnss_serial_connected else ' (port closed)'}"
                 + f"; can {BUS_STATE_NAMES.get(self.can_bus_state, '?')} err {self.can_error_frames}"
-                + f" txfail {self.can_tx_failures}"
-                + (f" rx handler errors {self.can_rx_handler_errors}" if self.can_rx_handler_errors else "")
-                + f"; tick p99 {self.tick_late_p99_us:.0f} us"
+                + f" txfail {self.can_tx_failures}; tick p99 {self.tick_late_p99_us:.0f} us"
                 + f" overruns {self.tick_overruns}; cpu {self.cpu_load_pct:.0f}%")

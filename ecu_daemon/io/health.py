@@ -49,7 +49,7 @@ def thread_cpu_s(native_id: int | None) -> float:
 
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
                       gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth,
-                      tick: TickSnapshot, cpu_pct: float, rx_handler_errors: int = 0) -> Diagnostics:
+                      tick: TickSnapshot, cpu_pct: float) -> Diagnostics:
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     if gnss_last is not None:
@@ -66,7 +66,6 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
     d.can_bus_state = _BUS_MAP.get(bus.state, BUS_ACTIVE)
     d.can_error_frames = bus.error_frames
     d.can_tx_failures = bus.tx_failures
-    d.can_rx_handler_errors = rx_handler_errors
     d.tick_late_p50_us = tick.late_p50_s * 1e6
     d.tick_late_p99_us = tick.late_p99_s * 1e6
     d.tick_late_max_us = tick.late_max_s * 1e6
