@@ -305,10 +305,11 @@ class Daemon:
         s = self.tick_stats.snapshot()
         h = self.canio.health if self.canio else None
         log.info("stopped after %d ticks: lateness p50 %.0f us, p99 %.0f us, max %.0f us; %d overruns;"
-                 " %d late samples; %d frames sent, %d suppressed, %d tx failures",
+                 " %d late samples; %d frames sent, %d suppressed, %d tx failures; %d received frames"
+                 " whose handling failed",
                  s.ticks, s.late_p50_s * 1e6, s.late_p99_s * 1e6, s.late_max_total_s * 1e6, s.overruns,
                  self.late_samples, h.tx_sent if h else 0, h.tx_suppressed if h else 0,
-                 h.tx_failures if h else 0)
+                 h.tx_failures if h else 0, self.canio.callback_errors if self.canio else 0)
 
     # ----------------------------------------------------------------------------- loop thread
     def _on_frame(self, t: float, msg: can.Message) -> None:
