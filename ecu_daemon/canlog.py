@@ -30,6 +30,7 @@ import itertools
 import logging
 import math
 import re
+import zlib
 from pathlib import Path
 from typing import Iterator
 
@@ -213,8 +214,10 @@ class CanLogReader:
                                       error_state_indicator=bool(flags & CANFD_ESI), check=False)
                 else:
                     yield (t, can_id, is_ext, is_err, payload)
-        except OSError as e:
-            raise CanLogError(f"{self.path}:{lineno + 1}: read error: {e.strerror or e}") from None
+        except (OSError, EOFError, zlib.error) as e:  # EOFError, zlib.error: a cut-off or corrupt .gz
+            raise CanLogError(f"{self.path}:{lineno + 1}: read error: {e.strerror or e}"
+                              if isinstance(e, OSError) else
+                              f"{self.path}:{lineno + 1}: compressed data is cut off or corrupt ({e})") from None
         finally:
             self.lines = lineno
             self._release()

@@ -2,13 +2,16 @@
 
 Each subcommand's module contributes its own options (``add_arguments``) and entry point
 (``main(args) -> int``) and is imported lazily, so ``show-config`` does not pay for numpy or
-python-can. Every expected failure (bad config, unreadable file) ends as one line on stderr and a
-non-zero exit status, never a traceback.
+python-can. Every command logs through the same set-up (``io/logging_setup.py``, ``--log-level``).
+Every expected failure (bad config, unreadable file) ends as one line on stderr and a non-zero
+exit status, never a traceback: 2 for a bad option, file or config, 3 for a replay that ran to
+the end but never had a usable sample of a required input.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from . import __version__
@@ -26,7 +29,19 @@ SUBCOMMANDS = {
 
 
 class UserError(Exception):
-    """An expected failure reported as one line (bad file, bad option)."""
+    """An expected failure reported as one line (bad file, bad option); exit status 2."""
+
+    exit_code = 2
+
+
+class UnusableInputError(UserError):
+    """A run that went to the end but a required input never gave a usable sample; exit status 3."""
+
+    exit_code = 3
+
+    def __init__(self, message: str, summary: dict | None = None):
+        super().__init__(message)
+        self.summary = summary
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:  # show-config
@@ -59,6 +74,12 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
             continue
         mod.add_arguments(p)
         entries[name] = mod.main
+    for p in sub.choices.values():  # one logging set-up for every command (``run`` has its own option)
+        try:
+            p.add_argument("--log-level", choices=("debug", "info", "warning", "error"),
+                           help="log level of the lines on stderr (default: info)")
+        except argparse.ArgumentError:
+            pass
     return parser, entries
 
 
@@ -77,11 +98,15 @@ def main(argv: list[str] | None = None) -> int:
     if not args.command:
         parser.print_help()
         return 2
+    from .io.logging_setup import setup_logging
+
+    setup_logging(getattr(args, "log_level", None) or "info")
     try:
         return int(entries[args.command](args) or 0)
     except (ConfigError, UserError) as e:
-        print(f"ecu-daemon {args.command}: error: {e}", file=sys.stderr)
-        return 2
+        prio = "<3>" if os.environ.get("JOURNAL_STREAM") else ""  # journald: an error entry
+        print(f"{prio}ecu-daemon {args.command}: error: {e}", file=sys.stderr)
+        return getattr(e, "exit_code", 2)
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:

@@ -190,10 +190,7 @@ def _coerce(where: str, default: Any, value: Any) -> Any:
     if isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{where}: expected a number, got {value!r}")
-        v = float(value)
-        if math.isnan(v):
-            raise ConfigError(f"{where}: NaN is not allowed")
-        return v
+        return float(value)  # NaN and the range: _validate, which knows the allowed range
     if isinstance(default, int):
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f"{where}: expected an integer, got {value!r}")
@@ -225,33 +222,74 @@ def _fill(cls, where: str, table: Any, base=None):
     return obj
 
 
-def _validate(cfg: Config) -> None:
-    def positive(section: str, obj, *names):
-        for n in names:
-            v = getattr(obj, n)
-            if not (v > 0 and math.isfinite(v)):
-                raise ConfigError(f"[{section}] {n} must be a positive number, got {v!r}")
+#: Allowed range of every number in the file, ``(section, key) -> (low, high, unit)``, checked after
+#: the types. Wide enough for any road vehicle and receiver, narrow enough that nothing downstream
+#: overflows, divides by zero or allocates without bound (a 1e-320 s step, a 1e20 s ring buffer).
+RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
+    ("can", "bitrate"): (1_000, 10_000_000, "bit/s"),
+    ("gnss", "baudrate"): (300, 4_000_000, "baud"),
+    ("gnss", "delay_s"): (0.0, 5.0, "s"),
+    ("gnss", "max_delay_s"): (0.001, 10.0, "s"),
+    ("gnss", "min_fix_type"): (0, 5, ""),
+    ("gnss", "max_speed_acc_mps"): (0.001, 100.0, "m/s"),
+    ("gnss", "nmea_speed_acc_mps"): (0.001, 100.0, "m/s"),
+    ("gnss", "timeout_s"): (0.01, 3600.0, "s"),
+    ("vehicle", "mass_kg"): (10.0, 100_000.0, "kg"),
+    ("vehicle", "yaw_inertia_kgm2"): (1.0, 10_000_000.0, "kg m^2"),
+    ("vehicle", "cg_to_front_axle_m"): (0.05, 20.0, "m"),
+    ("vehicle", "cg_to_rear_axle_m"): (0.05, 20.0, "m"),
+    ("vehicle", "track_m"): (0.1, 5.0, "m"),
+    ("vehicle", "wheel_radius_m"): (0.05, 2.0, "m"),
+    ("vehicle", "steering_ratio"): (-100.0, 100.0, ""),
+    ("vehicle", "cornering_stiffness_front_n_per_rad"): (100.0, 10_000_000.0, "N/rad"),
+    ("vehicle", "cornering_stiffness_rear_n_per_rad"): (100.0, 10_000_000.0, "N/rad"),
+    ("vehicle", "cg_height_m"): (0.0, 5.0, "m"),
+    ("estimator", "dt_s"): (0.001, 0.1, "s"),
+    ("estimator", "gnss_gate_sigma"): (1.0, 1000.0, ""),
+    ("estimator", "accel_noise_mps2"): (1e-6, 100.0, "m/s^2/sqrt(Hz)"),
+    ("estimator", "yaw_rate_noise_radps"): (1e-9, 10.0, "rad/s/sqrt(Hz)"),
+    ("estimator", "yaw_rate_bias_walk"): (0.0, 1.0, "rad/s/sqrt(s)"),
+    ("estimator", "accel_bias_walk"): (0.0, 10.0, "m/s^2/sqrt(s)"),
+    ("estimator", "wheel_scale_walk"): (0.0, 1.0, "1/sqrt(s)"),
+    ("estimator", "wheel_speed_noise_mps"): (1e-4, 100.0, "m/s"),
+    ("daemon", "realtime_priority"): (0, 99, ""),
+    # per [inputs.NAME]
+    ("inputs", "scale"): (-1e12, 1e12, ""),
+    ("inputs", "offset"): (-1e12, 1e12, ""),
+    ("inputs", "timeout_s"): (0.0, 3600.0, "s"),
+}
+LEVER_ARM_MAX_M = 20.0
+MIN_STEERING_RATIO = 0.5
+MIN_ABS_SCALE = 1e-12
 
-    positive("vehicle", cfg.vehicle, "mass_kg", "yaw_inertia_kgm2", "cg_to_front_axle_m",
-             "cg_to_rear_axle_m", "track_m", "wheel_radius_m",
-             "cornering_stiffness_front_n_per_rad", "cornering_stiffness_rear_n_per_rad")
-    if cfg.vehicle.steering_ratio == 0 or not math.isfinite(cfg.vehicle.steering_ratio):
-        raise ConfigError("[vehicle] steering_ratio must be a non-zero number")
+
+def _check_range(where: str, key: str, value, rng: tuple) -> None:
+    lo, hi, unit = rng
+    if not lo <= value <= hi:  # also NaN
+        raise ConfigError(f"{where} {key} = {value!r} is out of range: allowed {lo:g} to {hi:g}"
+                          + (f" {unit}" if unit else ""))
+
+
+def _validate(cfg: Config) -> None:
+    for (section, key), rng in RANGES.items():
+        if section != "inputs":
+            _check_range(f"[{section}]", key, getattr(getattr(cfg, section), key), rng)
+    if abs(cfg.vehicle.steering_ratio) < MIN_STEERING_RATIO:
+        raise ConfigError(f"[vehicle] steering_ratio = {cfg.vehicle.steering_ratio!r} is out of range: allowed"
+                          f" {MIN_STEERING_RATIO:g} to 100 (negative flips the sign)")
     if cfg.vehicle.driven_axle not in ("front", "rear", "all"):
         raise ConfigError(f"[vehicle] driven_axle must be front, rear or all, got {cfg.vehicle.driven_axle!r}")
-    positive("gnss", cfg.gnss, "baudrate", "max_delay_s", "max_speed_acc_mps", "nmea_speed_acc_mps",
-             "timeout_s")
     if cfg.gnss.protocol not in ("auto", "ubx", "nmea"):
         raise ConfigError(f"[gnss] protocol must be auto, ubx or nmea, got {cfg.gnss.protocol!r}")
-    if not (0.0 <= cfg.gnss.delay_s <= 5.0):
-        raise ConfigError(f"[gnss] delay_s must be between 0 and 5 s, got {cfg.gnss.delay_s}")
     # the ring buffer must reach back past the latency prior (and what it may be identified as)
     cfg.gnss.max_delay_s = max(cfg.gnss.max_delay_s, round(cfg.gnss.delay_s + 0.3, 3))
     arm = cfg.gnss.lever_arm_m
     if len(arm) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in arm):
         raise ConfigError(f"[gnss] lever_arm_m must be [x, y] in metres, got {arm!r}")
     cfg.gnss.lever_arm_m = [float(a) for a in arm]
-    positive("estimator", cfg.estimator, "dt_s", "gnss_gate_sigma")
+    if not all(abs(a) <= LEVER_ARM_MAX_M for a in cfg.gnss.lever_arm_m):
+        raise ConfigError(f"[gnss] lever_arm_m = {arm!r} is out of range: allowed -{LEVER_ARM_MAX_M:g} to"
+                          f" {LEVER_ARM_MAX_M:g} m each")
     if cfg.daemon.log_level.lower() not in ("debug", "info", "warning", "error"):
         raise ConfigError(f"[daemon] log_level must be debug, info, warning or error, got {cfg.daemon.log_level!r}")
     for name, m in cfg.inputs.items():
@@ -263,15 +301,20 @@ def _validate(cfg: Config) -> None:
             raise ConfigError(f"[inputs.{name}] needs 'signal' (or 'signals = [...]')")
         if not all(isinstance(s, str) and s for s in m.signal_names()):
             raise ConfigError(f"[inputs.{name}] signals must be non-empty strings")
-        if m.scale == 0:
-            raise ConfigError(f"[inputs.{name}] scale must not be 0")
+        for (section, key), rng in RANGES.items():
+            if section == "inputs":
+                _check_range(f"[inputs.{name}]", key, getattr(m, key), rng)
+        if abs(m.scale) < MIN_ABS_SCALE:
+            raise ConfigError(f"[inputs.{name}] scale = {m.scale!r} is out of range: allowed {MIN_ABS_SCALE:g} to"
+                              " 1e+12 in magnitude (negative flips the axis)")
         if m.checksum not in CHECKSUM_SCHEMES:
             raise ConfigError(f"[inputs.{name}] checksum must be one of {', '.join(CHECKSUM_SCHEMES)},"
                               f" got {m.checksum!r}")
         if m.data_id is not None:
             _check_data_id(name, m)
-        if not m.min < m.max:
-            raise ConfigError(f"[inputs.{name}] min must be below max")
+        if not m.min < m.max:  # also NaN
+            raise ConfigError(f"[inputs.{name}] min = {m.min!r}, max = {m.max!r}: min must be below max"
+                              " (either may be inf)")
     missing = [n for n in INPUT_NAMES if n not in cfg.inputs]
     if missing:
         raise ConfigError("missing input mapping(s): " + ", ".join(f"[inputs.{n}]" for n in missing))

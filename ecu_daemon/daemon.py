@@ -112,6 +112,7 @@ class Daemon:
         self.diag = Diagnostics()
         self.latest: Estimate | None = None
         self.late_samples = 0
+        self._gaps_said = 0  # estimator gaps (clock jumps) already logged
         self.samples_pushed = 0
         self.frames_sent = 0
         self.steps = 0
@@ -303,10 +304,11 @@ class Daemon:
         s = self.tick_stats.snapshot()
         h = self.canio.health if self.canio else None
         log.info("stopped after %d ticks: lateness p50 %.0f us, p99 %.0f us, max %.0f us; %d overruns;"
-                 " %d late samples; %d frames sent, %d suppressed, %d tx failures",
+                 " %d late samples; %d frames sent, %d suppressed, %d tx failures; %d received frames"
+                 " whose handling failed",
                  s.ticks, s.late_p50_s * 1e6, s.late_p99_s * 1e6, s.late_max_total_s * 1e6, s.overruns,
                  self.late_samples, h.tx_sent if h else 0, h.tx_suppressed if h else 0,
-                 h.tx_failures if h else 0)
+                 h.tx_failures if h else 0, self.canio.callback_errors if self.canio else 0)
 
     # ----------------------------------------------------------------------------- loop thread
     def _on_frame(self, t: float, msg: can.Message) -> None:
@@ -339,6 +341,7 @@ class Daemon:
                 pass
             now = self.clock()
             self._drain_out()
+            self._say_gaps()
             if now >= next_diag:
                 next_diag = now + DIAG_S
                 self._update_diagnostics(now)
@@ -360,6 +363,13 @@ class Daemon:
                 self._learned_req = True
         if persist_task is not None:
             await persist_task
+
+    def _say_gaps(self) -> None:
+        """One line per input gap the estimator skipped (a clock jump, a stopped process)."""
+        est = self.estimator
+        if est is not None and est.gaps != self._gaps_said:
+            self._gaps_said = est.gaps
+            log.warning("%s", health_mod.gap_line(est))
 
     def _drain_out(self) -> None:
         out = self._out

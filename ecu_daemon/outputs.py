@@ -28,7 +28,7 @@ from .diagnostics import Diagnostics
 from .estimator import estimate as estimate_module
 from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import data_id_for, e2e_p2_crc, next_counter
-from .signals import RateLimitedLog
+from .io.logging_setup import RateLimitedLog
 
 log = logging.getLogger(__name__)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import heapq
+import logging
 import math
 import sys
 import time
@@ -23,15 +24,24 @@ import numpy as np
 
 from . import config as config_mod
 from .canlog import CanLogError, open_can_writer, read_can_log
-from .cli import UserError
+from .cli import UnusableInputError, UserError
 from .daemon import DIAG_S, stale_validity_mask, with_stale_mask
 from .estimator import ESTIMATE_FIELDS, Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .gnss.stream import GnssStreamParser
-from .io.health import build_diagnostics
+from .io.health import build_diagnostics, gap_line
+from .io.logging_setup import RateLimitedLog
+from .io.output_file import OutputFile, OutputPathError, check_output_paths
 from .replay_input import check_time_base, choose_channel, report_other_channels
 from .samples import INPUT_NAMES
 from .signals import SignalDecoder
+from .time_order import TimeOrder, TimeOrderError
+
+log = logging.getLogger("ecu_daemon.replay")
+#: inputs without which the estimator publishes nothing valid; a replay that never had one fails
+REQUIRED_INPUTS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr",
+                   "yaw_rate", "accel_x", "accel_y")
+MIN_USED_FRACTION = 0.1
 
 _BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
 _INT_FIELDS = {"status", "gnss_fused", "gnss_rejected", "gnss_late"}
@@ -79,9 +89,9 @@ def format_row(est) -> str:
     return ROW_FORMAT % tuple(est)
 
 
-def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict):
+def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict, order: TimeOrder):
     """(t, sample) for every GNSS sample in a capture, one parser per port."""
-    for t, port, payload in read_gnss_log(path):
+    for t, port, payload in order(read_gnss_log(path)):
         p = parsers.get(port)
         if p is None:
             p = parsers[port] = GnssStreamParser(cfg.gnss.protocol, name=f"gnss {port}")
@@ -92,10 +102,11 @@ def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict):
             yield s.t, 1, s
 
 
-def _can_samples(path: str, decoder: SignalDecoder, counters: dict, channel: str | None, time_offset: float):
+def _can_samples(path: str, decoder: SignalDecoder, counters: dict, order: TimeOrder, channel: str | None,
+                 time_offset: float):
     reader = read_can_log(path, channel=channel, time_offset=time_offset)
     counters["channels"] = reader.channels  # frames per log channel, replayed or not
-    for t, fid, ext, err, data in reader:
+    for t, fid, ext, err, data in order(reader):
         counters["frames"] += 1
         if err:
             counters["error_frames"] += 1
@@ -151,11 +162,14 @@ class _Progress:
 
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
-               inputs: dict | None = None, can_channel: str | None = None,
+               config_path: str | None = None, inputs: dict | None = None, can_channel: str | None = None,
                can_time_offset: float | None = None, learned: dict | None = None) -> dict:
     """Replay one drive, starting from ``learned`` (see :class:`Estimator`); returns a summary
-    (counts, duration, speed, the final learned state). Raises UserError on bad files.
+    (counts, duration, speed, per-input table, the final learned state).
 
+    Raises UserError on bad files (nothing is opened for writing before the paths are checked;
+    outputs are written aside and renamed at the end, a failure keeps them as ``*.partial.*``) and
+    :class:`~ecu_daemon.cli.UnusableInputError` when a required input never gave a usable sample.
     ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
     GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
     :mod:`ecu_daemon.replay_input`.
@@ -163,62 +177,84 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
+    try:
+        check_output_paths({"--out-csv": out_csv, "--out-can": out_can},
+                           {"--can": can_path, "--gnss": gnss_path, "--config": config_path})
+    except OutputPathError as e:
+        raise UserError(str(e)) from None
     channel = choose_channel(can_path, can_channel, cfg.can.channel)
     check_time_base(can_path, gnss_path, channel, can_time_offset)
     decoder = SignalDecoder(cfg)
     est = Estimator(cfg, learned)
     encoder = None
-    can_out = None
     if out_can:
         from .outputs import OutputEncoder
 
         encoder = OutputEncoder(cfg)
-        try:
-            can_out = open_can_writer(out_can)
-        except CanLogError as e:
-            raise UserError(str(e)) from None
-    csv_out = open(out_csv, "w", encoding="ascii", newline="\n") if out_csv else None
+    outputs: list[OutputFile] = []
+    try:
+        csv_file = OutputFile(out_csv) if out_csv else None
+        outputs += [csv_file] if csv_file else []
+        can_file = OutputFile(out_can) if out_can else None
+        outputs += [can_file] if can_file else []
+        csv_out = csv_file.open() if csv_file else None
+        can_out = open_can_writer(can_file.write_path) if can_file else None
+    except (OutputPathError, CanLogError) as e:
+        for o in outputs:
+            o.keep_partial()
+        raise UserError(str(e)) from None
     counters = {"frames": 0, "error_frames": 0, "gnss_samples": 0, "steps": 0}
     parsers: dict = {}
-    streams = [_can_samples(can_path, decoder, counters, channel, can_time_offset or 0.0)]
+    orders = [TimeOrder(f"CAN log {can_path}", est.gap_s)]
+    streams = [_can_samples(can_path, decoder, counters, orders[0], channel, can_time_offset or 0.0)]
     if gnss_path:
-        streams.append(_gnss_samples(gnss_path, cfg, parsers))
+        orders.append(TimeOrder(f"GNSS log {gnss_path}", est.gap_s))
+        streams.append(_gnss_samples(gnss_path, cfg, parsers, orders[1]))
     merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
     bar = _Progress(_count_lines(can_path), progress)
     dt = cfg.estimator.dt_s
     fmt = ROW_FORMAT
     t_first = None
     t_last = None
+    gaps_said = 0
+    gap_log = RateLimitedLog(log)
     wall0 = time.perf_counter()
+    failed = True
     try:
-        write_csv = csv_out.write if csv_out else None
         if csv_out:
-            csv_out.write(csv_header())
+            _write(csv_file, csv_out.write, csv_header())
 
         diag = None
         stale_mask: dict = {}
         diag_every = max(1, round(DIAG_S / dt))
+        gnss_last = None
 
-        def emit(results):
+        def write_frames(results):
             nonlocal diag, stale_mask
             for e in results:
-                if write_csv:
-                    write_csv(fmt % tuple(e))
-                if encoder is not None:
-                    k = round(e.t / dt)
-                    if diag is None or k % diag_every == 0:
-                        # what the daemon's housekeeping does every DIAG_S, on the step grid
-                        stale_mask = stale_validity_mask(decoder.check_stale(e.t))
-                        diag = build_diagnostics(
-                            e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
-                            gnss_connected=gnss_path is not None, gnss_delay_s=e.gnss_delay_s, bus=None,
-                            tick=None, cpu_pct=math.nan, error_frames=counters["error_frames"])
-                    for msg in encoder.frames(k, with_stale_mask(e, stale_mask), diag):
-                        can_out.write(msg)
+                k = round(e.t / dt)
+                if diag is None or k % diag_every == 0:
+                    # what the daemon's housekeeping does every DIAG_S, on the step grid
+                    stale_mask = stale_validity_mask(decoder.check_stale(e.t))
+                    diag = build_diagnostics(
+                        e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
+                        gnss_connected=gnss_path is not None, gnss_delay_s=e.gnss_delay_s, bus=None,
+                        tick=None, cpu_pct=math.nan, error_frames=counters["error_frames"])
+                for msg in encoder.frames(k, with_stale_mask(e, stale_mask), diag):
+                    can_out.write(msg)
+
+        def emit(results):
+            nonlocal gaps_said
+            if est.gaps != gaps_said:
+                gaps_said = est.gaps
+                gap_log.report("gap", logging.WARNING, gap_line(est))
+            if csv_out:
+                _write(csv_file, csv_out.writelines, [fmt % tuple(e) for e in results])
+            if encoder is not None:
+                _write(can_file, write_frames, results)
             counters["steps"] += len(results)
 
         n = 0
-        gnss_last = None
         for t, kind, s in merged:
             if not math.isfinite(t):
                 continue
@@ -244,24 +280,39 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
                 bar.update(counters["frames"], t - t_first)
         if t_last is not None:
             emit(est.advance_to(t_last))
-    except CanLogError as e:
-        raise UserError(str(e)) from None
-    except GnssLogError as e:
-        raise UserError(str(e)) from None
+        if can_out is not None:
+            _write(can_file, lambda _: can_out.close(), None)
+        for o in outputs:
+            o.commit()
+        failed = False
+    except (CanLogError, GnssLogError, TimeOrderError, OutputPathError, OSError) as e:
+        _close_quietly(can_out)
+        if isinstance(e, OSError):
+            e = f"I/O error: {e.strerror or e}" + (f": {e.filename}" if e.filename else "")
+        raise UserError(str(e) + _kept(outputs)) from None
     finally:
         bar.done()
-        if csv_out:
-            csv_out.close()
-        if can_out:
-            can_out.close()
+        if failed:  # anything else (Ctrl-C, a bug): still keep what was written
+            _close_quietly(can_out)
+            for o in outputs:
+                o.keep_partial()
     report_other_channels(can_path, channel, counters.pop("channels", {}))
     wall = time.perf_counter() - wall0
     dur = (t_last - t_first) if t_first is not None else 0.0
     counters.update(duration_s=dur, wall_s=wall, realtime_factor=dur / wall if wall > 0 else math.inf,
-                    late_inputs=est.late_inputs, learned=est.learned_state(),
-                    gnss_parse=sum(sum(p.stats.values()) for p in parsers.values()))
-    if t_first is None:
-        raise UserError(f"no usable frames in {can_path}: check [inputs.*] message names / ids against the DBC")
+                    late_inputs=est.late_inputs, learned=est.learned_state(), gaps=est.gaps,
+                    gnss_parse=sum(sum(p.stats.values()) for p in parsers.values()),
+                    inputs=input_table(decoder, parsers if gnss_path else None, est))
+    for line in format_input_table(counters["inputs"]):
+        log.info("%s", line)
+    for o in orders:
+        if o.summary():
+            log.warning("%s", o.summary())
+    unusable = unusable_inputs(counters["inputs"])
+    if unusable:
+        raise UnusableInputError("required input(s) never usable: " + "; ".join(unusable)
+                                 + " (see the input table above); check [inputs.*] against the DBC"
+                                 " (message, signal, counter, checksum)", counters)
     return counters
 
 
@@ -276,6 +327,82 @@ def _write_plots(plots_dir: str, csv_path: str, inputs: dict) -> list[Path]:
         raise UserError(f"--plots needs matplotlib (pip install 'ecu-daemon[plot]'): {e}") from None
     except OSError as e:
         raise UserError(f"cannot write plots to {plots_dir}: {e.strerror or e}") from None
+
+
+def _write(out: OutputFile, write, data) -> None:
+    """``write(data)``, a failure (full disk...) phrased with the output's own name."""
+    try:
+        write(data)
+    except OSError as e:
+        raise OutputPathError(f"cannot write {out.path}: {e.strerror or e}") from None
+
+
+def _close_quietly(writer) -> None:
+    if writer is not None:
+        try:
+            writer.close()
+        except OSError:
+            pass
+
+
+def _kept(outputs: list[OutputFile]) -> str:
+    """What a failed replay keeps, for its error line (the files are renamed by keep_partial)."""
+    kept = []
+    for o in outputs:
+        where = o.keep_partial()
+        if where is not None:
+            kept.append(str(where))
+    return f"; output so far kept in {', '.join(kept)}" if kept else ""
+
+
+#: columns of the end-of-replay input table: (key in the row, heading)
+_TABLE = (("frames", "frames"), ("samples", "used"), ("dlc", "dlc"), ("decode", "decode"),
+          ("range", "range"), ("counter", "counter"), ("checksum", "checksum"))
+
+
+def input_table(decoder: SignalDecoder, parsers: dict | None, est: Estimator) -> dict[str, dict]:
+    """Per input: frames that carried it, samples used, samples dropped by reason; plus ``gnss``
+    (when a GNSS log was given): samples decoded, fused, rejected and the parser's error counts."""
+    rows = {}
+    for name, h in decoder.health.items():
+        rows[name] = {"frames": h.frames, "samples": h.samples, **{k: v for k, v in h.errors.items() if k != "stale"}}
+    if parsers is not None:
+        st = {}
+        for p in parsers.values():
+            for k, v in p.stats.items():
+                st[k] = st.get(k, 0) + v
+        rows["gnss"] = {"frames": st.get("ubx_frames", 0) + st.get("nmea_sentences", 0),
+                        "samples": st.get("samples", 0), "fused": est.gnss.fused, "rejected": est.gnss.rejected,
+                        "checksum": st.get("checksum_errors", 0),
+                        "decode": st.get("malformed", 0) + st.get("truncated", 0)}
+    return rows
+
+
+def format_input_table(rows: dict[str, dict]) -> list[str]:
+    """The table as lines (one log record each, so journald keeps them whole)."""
+    head = f"{'input':22s}" + "".join(f"{h:>9s}" for _, h in _TABLE)
+    lines = ["inputs at the end of the replay:", head]
+    for name, r in rows.items():
+        line = f"{name:22s}" + "".join(f"{r.get(k, 0):9d}" for k, _ in _TABLE)
+        if name == "gnss":
+            line += f"  (fused {r['fused']}, rejected {r['rejected']})"
+        lines.append(line)
+    return lines
+
+
+def unusable_inputs(rows: dict[str, dict]) -> list[str]:
+    """'name (why)' for each required input (and GNSS, when given) that was never usable: no sample,
+    or samples from fewer than :data:`MIN_USED_FRACTION` of its frames (a checksum of the wrong
+    scheme still passes 1 frame in 256; that is not an input)."""
+    out = []
+    for name in REQUIRED_INPUTS + ("gnss",):
+        r = rows.get(name)
+        if r is None or (r["samples"] > 0 and r["samples"] >= MIN_USED_FRACTION * r["frames"]):
+            continue
+        drops = ", ".join(f"{r[k]} {h}" for k, h in _TABLE[2:] if r.get(k))
+        out.append(f"{name} ({r['samples']} of {r['frames']} frames used"
+                   + (f"; dropped: {drops})" if drops else ")"))
+    return out
 
 
 def main(args: argparse.Namespace) -> int:
@@ -297,17 +424,17 @@ def main(args: argparse.Namespace) -> int:
         except StateFileError as e:
             raise UserError(str(e)) from None
     summary = run_replay(cfg, args.can, args.gnss, out_csv, args.out_can,
-                         progress=not args.no_progress, inputs=inputs, can_channel=args.can_channel,
-                         can_time_offset=args.can_time_offset, learned=learned)
+                         progress=not args.no_progress, config_path=args.config, inputs=inputs,
+                         can_channel=args.can_channel, can_time_offset=args.can_time_offset, learned=learned)
     if args.state:
         try:
             save_state(args.state, summary["learned"])
         except OSError as e:
             raise UserError(f"cannot write state file {args.state}: {e.strerror or e}") from None
     files = _write_plots(args.plots, out_csv, inputs) if args.plots else []
-    print(f"replayed {summary['duration_s']:.1f} s of drive ({summary['frames']} frames, "
-          f"{summary['gnss_samples']} GNSS samples) into {summary['steps']} steps in "
-          f"{summary['wall_s']:.2f} s (x{summary['realtime_factor']:.0f} real time)", file=sys.stderr)
+    log.info("replayed %.1f s of drive (%d frames, %d GNSS samples) into %d steps in %.2f s"
+             " (x%.0f real time)", summary["duration_s"], summary["frames"], summary["gnss_samples"],
+             summary["steps"], summary["wall_s"], summary["realtime_factor"])
     for f in files:
-        print(f"wrote {f}", file=sys.stderr)
+        log.info("wrote %s", f)
     return 0

@@ -28,6 +28,7 @@ from .dbc_loading import load_dbc
 from .diagnostics import ERROR_KINDS, InputDiagnostics
 from .checksums import FrameChecksum
 from .integrity import CounterCheck, data_id_for
+from .io.logging_setup import RateLimitedLog
 from .samples import INPUT_INDEX, InputSample
 
 log = logging.getLogger(__name__)
@@ -38,32 +39,6 @@ _new_tuple = tuple.__new__
 DEFAULT_STALE_S = 1.0
 #: staleness timeout in multiples of the observed cycle time (as opendbc's CANParser)
 STALE_CYCLES = 10.0
-
-
-class RateLimitedLog:
-    """One log line per key at its first occurrence, then at most one per ``interval_s`` with a count."""
-
-    def __init__(self, logger: logging.Logger, interval_s: float = 10.0, clock=time.monotonic):
-        self.logger = logger
-        self.interval_s = interval_s
-        self.clock = clock
-        self._state: dict = {}  # key -> [time of last line, occurrences suppressed since]
-
-    def report(self, key, level: int, message: str) -> bool:
-        """Log ``message`` now or count it; returns True if a line was written."""
-        now = self.clock()
-        st = self._state.get(key)
-        if st is None:
-            self._state[key] = [now, 0]
-            self.logger.log(level, "%s", message)
-            return True
-        if now - st[0] >= self.interval_s:
-            more = st[1]
-            st[0], st[1] = now, 0
-            self.logger.log(level, "%s (+%d more in the last %.0f s)", message, more, self.interval_s)
-            return True
-        st[1] += 1
-        return False
 
 
 def _did_you_mean(word: str, options) -> str:
@@ -165,6 +140,14 @@ class SignalDecoder:
                 if sig.length > 32:
                     raise ConfigError(f"[inputs.{name}] counter '{m.counter}' is {sig.length} bits long;"
                                       " a rolling counter has at most 32")
+                if sig.is_float or not sig.scale or not math.isfinite(sig.scale):
+                    raise ConfigError(f"[inputs.{name}] counter '{m.counter}' cannot be a rolling counter"
+                                      f" ({'a float signal' if sig.is_float else f'scale {sig.scale}'} in"
+                                      f" {self.dbc_path}); name the message's counter signal")
+                if sig.scale != 1 or sig.offset != 0:
+                    log.warning("[inputs.%s] counter '%s' has scale %g, offset %g in %s: a rolling counter"
+                                " normally has scale 1 and offset 0; is it a value signal?", name, m.counter,
+                                sig.scale, sig.offset, self.dbc_path)
                 if m.counter not in plan.counters:
                     plan.counters[m.counter] = (CounterCheck(sig.length), float(sig.scale), float(sig.offset))
             if b.checksum:
@@ -237,6 +220,14 @@ class SignalDecoder:
         plan = self._plans.get(arbitration_id | _EXTENDED_KEY if is_extended else arbitration_id)
         if plan is None:
             return []
+        try:
+            return self._decode(plan, t, data)
+        except Exception as e:  # never let one frame stop reception: count it, say it (rate-limited)
+            self._fail_all(plan, t, "decode", f"{plan.label}: cannot decode {bytes(data).hex().upper()}:"
+                                              f" {e.__class__.__name__}: {e}")
+            return []
+
+    def _decode(self, plan: _FramePlan, t: float, data: bytes) -> list[InputSample]:
         if len(data) != plan.length:
             self._fail_all(plan, t, "dlc", f"{plan.label}: {len(data)} data bytes, expected {plan.length}")
             return []
@@ -263,7 +254,13 @@ class SignalDecoder:
                     counter_ok[cname] = None
                     continue
                 prev = chk.prev
-                raw = int(round((value - off) / sc))
+                raw = (value - off) / sc
+                if not -0.5 <= raw < chk.mask + 0.5:  # NaN, inf, huge, negative: not a counter value
+                    chk.reset()
+                    counter_ok[cname] = (f"{plan.label}: {cname} = {value!r} is not a"
+                                         f" {chk.mask.bit_length()}-bit counter value")
+                    continue
+                raw = int(round(raw))
                 counter_ok[cname] = None if chk.check(raw) else (
                     f"{plan.label}: {cname} {raw} after {prev}, expected {(prev + 1) & chk.mask}")
         out = []

@@ -16,7 +16,8 @@ from ecu_daemon.config import ConfigError
 from ecu_daemon.integrity import (CounterCheck, e2e_p2_apply, e2e_p2_check, e2e_p2_crc, toyota_check,
                                   toyota_checksum)
 from ecu_daemon.samples import INPUT_INDEX, INPUT_NAMES
-from ecu_daemon.signals import DEFAULT_STALE_S, RateLimitedLog, SignalDecoder
+from ecu_daemon.io.logging_setup import RateLimitedLog
+from ecu_daemon.signals import DEFAULT_STALE_S, SignalDecoder
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).parent / "data" / "comma2k19"

@@ -100,6 +100,19 @@ def main() -> None:
     print(f"pygpsdata-MIXED.log ({len(data)} B, {msgs} msgs, {p.stats['samples']} NAV-PVT), one feed: "
           f"{t_mixed * 1e3:.1f} ms = {t_mixed / msgs * us:.1f} us/msg, {len(data) / t_mixed / 1e6:.2f} MB/s")
 
+    # garbage made of frame headers that each claim a long frame: resynchronising must stay linear
+    for label, unit in (("repeated UBX sync+header, 8191 B claimed", b"\xb5\x62\x01\x07\xff\x1f"),
+                        ("repeated RTCM3 header, 1023 B claimed", b"\xd3\x03\xff")):
+        for size in (60_000, 240_000):
+            junk = unit * (size // len(unit))
+
+            def run_junk():
+                p = GnssStreamParser()
+                for i in range(0, len(junk), 256):  # 256-byte reads, as from a serial port
+                    p.feed(i * 1e-5, junk[i:i + 256])
+                p.finish()
+            row(f"{label}, {size // 1000} kB", len(junk) / best(run_junk, 1, r) / 1e3, "kB/s")
+
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "gnss.log"
         with GnssLogWriter(log) as w:

@@ -85,6 +85,10 @@ class Estimator:
         self.held_t = [-math.inf] * len(INPUT_INDEX)
         self.queue: deque = deque()
         self.k: int | None = None
+        # no sample for longer than every timeout: a gap, skipped instead of stepped through
+        self.gap_s = max(max(self.timeouts), gn.timeout_s)
+        self.gaps = 0
+        self.last_gap: tuple[float, float] | None = None  # (last step run, next sample or target)
         self.initialized = False
         self.aligned = False
         self.wheel_new = False
@@ -120,9 +124,13 @@ class Estimator:
                 return out
             self.k = math.ceil(q[0].t / dt - 1e-9)
         k = self.k
+        gap = self.gap_s
         while k * dt <= t + 1e-9:
             tk = k * dt
             lim = tk + 1e-9
+            if (q[0].t if q else t) - tk > gap:
+                k = self.k = self._skip_gap(k, q[0].t if q else t, bool(q))
+                continue
             while q and q[0].t <= lim:
                 self._apply(q.popleft(), k)
             out.append(self._step(k, tk))
@@ -177,6 +185,19 @@ class Estimator:
                 self.wheel_new = True
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
+
+    def _skip_gap(self, k: int, t_next: float, to_sample: bool) -> int:
+        """Nothing arrives from step k until ``t_next``, longer than every input timeout (a logging
+        gap, a timestamp typo, a clock jump): every input is stale, so instead of building each step
+        of the gap, mark them stale, re-initialise (keeping what was learned) and return the step to
+        resume at -- the next sample's, or the target's when nothing is queued (a live clock jump).
+        """
+        self.gaps += 1
+        self.last_gap = ((k - 1) * self.dt, t_next)
+        self.held_t = [-math.inf] * len(self.held_t)
+        if self.initialized:
+            self._reset(k)
+        return math.ceil(t_next / self.dt - 1e-9) if to_sample else math.floor(t_next / self.dt + 1e-9)
 
     def _initialize(self, k: int, wheel_speed: float) -> None:
         L = self._learned0

@@ -23,6 +23,9 @@ import re
 from collections import deque
 from typing import Callable
 
+import numpy as np
+
+from ..io.logging_setup import RateLimitedLog
 from ..samples import GnssSample
 from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
 from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError, ubx_checksum
@@ -65,21 +68,64 @@ def crc24q(data: bytes | bytearray | memoryview) -> int:
     return crc
 
 
-class _ErrorReporter:
-    """One log line per error kind per interval (stream time), carrying the suppressed count."""
+def _mulmod24(a: int, b: int) -> int:
+    """a * b in GF(2)[x] modulo the CRC-24Q polynomial."""
+    r = 0
+    while b:
+        if b & 1:
+            r ^= a
+        b >>= 1
+        a <<= 1
+        if a & 0x1000000:
+            a ^= 0x1864CFB
+    return r
 
-    def __init__(self, name: str, interval_s: float) -> None:
-        self.name, self.interval = name, interval_s
-        self._state: dict[str, list] = {}
 
-    def __call__(self, t: float, kind: str, text: str) -> None:
-        st = self._state.get(kind)
-        if st is None or not (st[0] <= t < st[0] + self.interval):
-            more = f" (+{st[1]} more since last report)" if st and st[1] else ""
-            log.warning("%s: %s%s", self.name, text, more)
-            self._state[kind] = [t, 0]
-        else:
-            st[1] += 1
+def _zero_byte_powers(n: int) -> list[int]:
+    """x^(8k) mod the CRC-24Q polynomial for k = 0..n: what k zero bytes do to a CRC register."""
+    out = [1]
+    for _ in range(n):
+        out.append(_mulmod24(out[-1], 0x100))
+    return out
+
+
+_RTCM_MAX = 6 + 1023
+_X8K = _zero_byte_powers(_RTCM_MAX)
+#: a claimed frame longer than this is checked through the prefix sums of the whole buffer
+_LONG = 64
+
+
+class _RangeChecks:
+    """Fletcher-8 (UBX) and CRC-24Q (RTCM3) of any range of the buffer in O(1), after one O(n) pass.
+
+    Why: garbage made of repeated frame headers (``B5 62 01 07 FF 1F`` ...) claims a long frame
+    every few bytes; checking each candidate over its whole claimed length made resynchronising
+    cost length x bytes (4 kB/s). Both checks are linear in the data, so a range follows from two
+    prefixes: Fletcher from prefix sums, CRC-24Q (init 0, no final xor) from prefix CRCs as
+    ``crc(B) = crc(A || B) ^ crc(A) * x^(8 |B|)``.
+    """
+
+    def __init__(self, buf: bytearray, n: int):
+        a = np.frombuffer(bytes(buf[:n]), dtype=np.uint8).astype(np.int64)
+        self.s = np.concatenate(([0], np.cumsum(a)))
+        self.w = np.concatenate(([0], np.cumsum(a * np.arange(n, dtype=np.int64))))
+        self.buf = buf
+        self.n = n
+        self._crc: list[int] | None = None
+
+    def fletcher(self, a: int, b: int) -> bytes:
+        """UBX checksum of buf[a:b]: byte i is added into CK_B (b - i) times."""
+        sa = int(self.s[b] - self.s[a])
+        return bytes((sa & 0xFF, (b * sa - int(self.w[b] - self.w[a])) & 0xFF))
+
+    def crc24q(self, a: int, b: int) -> int:
+        if self._crc is None:
+            crc, table, p = 0, _CRC24Q, [0]
+            for byte in self.buf[:self.n]:
+                crc = ((crc << 8) & 0xFFFFFF) ^ table[(crc >> 16) ^ byte]
+                p.append(crc)
+            self._crc = p
+        return self._crc[b] ^ _mulmod24(self._crc[a], _X8K[b - a])
 
 
 class GnssStreamParser:
@@ -102,7 +148,8 @@ class GnssStreamParser:
         self.protocol = protocol
         self.stats: dict[str, int] = dict.fromkeys(STAT_KEYS, 0)
         self.last_error = ""
-        self._report = _ErrorReporter(name, log_interval_s)
+        self._name = name
+        self._report = RateLimitedLog(log, log_interval_s)
         self._sink = raw_sink
         self._prefer_ubx_s = prefer_ubx_s
         self._ubx = UbxDecoder()
@@ -114,6 +161,7 @@ class GnssStreamParser:
         self._junk = bytearray()  # rejected bytes not yet handed to raw_sink
         self._junk_t = 0.0
         self._last_pvt_t: float | None = None
+        self._checks: _RangeChecks | None = None
 
     # ------------------------------------------------------------------------------ public API
 
@@ -146,6 +194,7 @@ class GnssStreamParser:
 
     def _scan(self, out: list, final: bool) -> None:
         buf, n, pos = self._buf, len(self._buf), 0
+        self._checks = None  # _RangeChecks of buf[:n], built when a long candidate needs it
         if self._skip_lf and n:
             if buf[0] == 0x0A:
                 pos = 1
@@ -222,7 +271,8 @@ class GnssStreamParser:
             end = s + 8 + length
             if end > n:
                 return _NEED, 0
-            if ubx_checksum(buf[s + 2:end - 2]) != buf[end - 2:end]:
+            ck = ubx_checksum(buf[s + 2:end - 2]) if length <= _LONG else self._range_checks(buf, n).fletcher(s + 2, end - 2)
+            if ck != buf[end - 2:end]:
                 self._error(self._t_at(end - 1), "checksum", "checksum_errors",
                             f"UBX {buf[s + 2]:02X} {buf[s + 3]:02X} checksum error ({length} byte payload)")
                 return _BAD, 0
@@ -235,10 +285,16 @@ class GnssStreamParser:
         end = s + 6 + ((buf[s + 1] & 0x03) << 8 | buf[s + 2])
         if end > n:
             return _NEED, 0
-        if crc24q(buf[s:end - 3]) != int.from_bytes(buf[end - 3:end], "big"):
+        crc = crc24q(buf[s:end - 3]) if end - s <= _LONG else self._range_checks(buf, n).crc24q(s, end - 3)
+        if crc != int.from_bytes(buf[end - 3:end], "big"):
             self._error(self._t_at(end - 1), "checksum", "checksum_errors", "RTCM3 CRC error")
             return _BAD, 0
         return _RTCM, end
+
+    def _range_checks(self, buf: bytearray, n: int) -> _RangeChecks:
+        if self._checks is None:
+            self._checks = _RangeChecks(buf, n)
+        return self._checks
 
     # ------------------------------------------------------------------------------ dispatch
 
@@ -367,4 +423,4 @@ class GnssStreamParser:
         if counter:
             self.stats[counter] += 1
         self.last_error = text
-        self._report(t, kind, text)
+        self._report.report(kind, logging.WARNING, f"{self._name}: {text}", now=t)

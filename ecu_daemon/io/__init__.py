@@ -7,5 +7,6 @@
 ``recorder``  ``--record DIR``: replayable capture of what was received
 ``state_store``  atomic persistence of the learned quantities
 ``notify``    systemd READY / WATCHDOG / STATUS / STOPPING
-``logging_setup``  journald-friendly, rate-limited stderr logging
+``logging_setup``  journald-friendly stderr logging for every command, the one rate limiter
+``output_file``  outputs checked against inputs, written aside, renamed into place (replay)
 """

@@ -32,6 +32,8 @@ from typing import Callable, Iterable
 
 import can
 
+from .logging_setup import RateLimitedLog
+
 log = logging.getLogger("ecu_daemon.can")
 
 # linux/can/error.h
@@ -271,6 +273,7 @@ class CanIO:
         self.rx_frames = 0
         self.rx_ignored = 0
         self.callback_errors = 0
+        self._err_log = RateLimitedLog(log)
         self.kernel_filters = False
         self._notifier: can.Notifier | None = None
         if _has_own_filtering(bus) and self.wanted:
@@ -301,8 +304,8 @@ class CanIO:
             self.on_frame(t, msg)
         except Exception as e:  # a listener error must not kill reception (python-can #1912)
             self.callback_errors += 1
-            log.error("error handling CAN frame 0x%X: %s: %s", msg.arbitration_id,
-                      e.__class__.__name__, e)
+            self._err_log.report(e.__class__.__name__, logging.ERROR,
+                                 f"error handling CAN frame 0x{msg.arbitration_id:X}: {e.__class__.__name__}: {e}")
 
     def drain(self, max_frames: int = 100000) -> int:
         """Handle the frames already waiting in the bus (after :meth:`stop`, at shutdown)."""

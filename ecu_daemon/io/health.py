@@ -82,3 +82,11 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.tick_overruns = tick.overruns
     d.cpu_load_pct = cpu_pct
     return d
+
+
+def gap_line(est) -> str:
+    """The one line that says the estimator skipped a gap in its input (see ``Estimator._skip_gap``)."""
+    t0, t1 = est.last_gap
+    return (f"input gap: nothing from {t0:.3f} s to {t1:.3f} s ({t1 - t0:.6g} s, longer than the"
+            f" {est.gap_s:g} s input timeouts): skipped, every input stale, estimator re-initialised"
+            f" ({est.gaps} gap{'s' if est.gaps > 1 else ''} so far)")

@@ -2,13 +2,15 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import math
-import sys
 import time
 from pathlib import Path
 
 from .. import config as config_mod
 from .scenario import SCENARIOS, get
+
+log = logging.getLogger("ecu_daemon.simulate")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -120,6 +122,6 @@ def main(args: argparse.Namespace) -> int:
     for p in paths.values():
         print(f"  wrote {p}")
     if result.spun_out:
-        print(f"ecu-daemon simulate: warning: the car spun out at t = {tr.spin_time:.2f} s"
-              f" (|sideslip| > 25 deg); the manoeuvre is too hard for this road", file=sys.stderr)
+        log.warning("the car spun out at t = %.2f s (|sideslip| > 25 deg); the manoeuvre is too hard"
+                    " for this road", tr.spin_time)
     return 0
