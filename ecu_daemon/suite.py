@@ -33,7 +33,8 @@ import numpy as np
 
 from . import config as config_mod
 from .baseline import single_track_sideslip
-from .evaluate import TRUTH_REQUIRED, ESTIMATE_REQUIRED, _evaluate, _wrap, public, read_csv
+from .evaluate import TRUTH_REQUIRED, ESTIMATE_REQUIRED, _evaluate, public, read_csv
+from .plots import wrap
 from .sim.suite import SUITE, SuiteCase
 
 DEG = 180.0 / math.pi
@@ -83,7 +84,7 @@ def _baseline_rms(cfg, can_path: Path, truth: dict, t_from: float) -> float:
     sel = (t >= t_from) & (t <= truth["t"][-1]) & np.isfinite(beta)
     if not sel.any():
         return math.nan
-    err = _wrap(beta[sel] - np.interp(t[sel], truth["t"], truth["sideslip_rad"]))
+    err = wrap(beta[sel] - np.interp(t[sel], truth["t"], truth["sideslip_rad"]))
     return float(np.sqrt(np.mean(err ** 2)))
 
 
