@@ -553,9 +553,9 @@ def explicit_can_keys(config_path: str | None) -> set[str]:
 
 def apply_overrides(cfg: Config, args: argparse.Namespace) -> None:
     if getattr(args, "gnss_port", None):
-        cfg.gnss.port = "" if args.gnss_port.lower() == "none" else args.gnss_port
+        cfg.gnss.port = config_mod.off_if_none(args.gnss_port)
     if getattr(args, "state_file", None):
-        cfg.daemon.state_file = "" if args.state_file.lower() == "none" else args.state_file
+        cfg.daemon.state_file = config_mod.off_if_none(args.state_file)
     if getattr(args, "no_send", False):
         cfg.can.send_outputs = False
     if getattr(args, "log_level", None):

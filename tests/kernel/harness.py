@@ -25,13 +25,19 @@ if str(TOOLS) not in sys.path:
 import player  # noqa: E402
 from uml import boot as uml_boot  # noqa: E402
 
-INPUT_DBC = REPO / "dbc" / "ecu_daemon_inputs.dbc"
-OUTPUT_DBC = REPO / "dbc" / "ecu_daemon_outputs.dbc"
+INPUT_DBC = REPO / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc"
+OUTPUT_DBC = REPO / "ecu_daemon" / "dbc" / "ecu_daemon_outputs.dbc"
 
 
 def python_for_guest() -> str:
-    """The interpreter the guest runs (the host's: same files, same packages)."""
-    return os.path.realpath(sys.executable)
+    """The interpreter the guest runs: this very one, by the path it was started with.
+
+    The guest sees the host's files, so it runs the same interpreter with the same packages. Not
+    ``realpath``: a venv's ``bin/python`` is a symlink to the base interpreter, and only when
+    started through the link does Python find the ``pyvenv.cfg`` beside it and so the venv's
+    ``site-packages`` (the base interpreter of a fresh machine has none of our packages).
+    """
+    return os.path.abspath(sys.executable)
 
 
 def daemon_available() -> str | None:

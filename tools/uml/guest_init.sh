@@ -4,7 +4,7 @@
 # Brings up the kernel CAN stack and vcan0, runs one job, records its exit status, powers off.
 # Environment (from the kernel command line, see boot.py):
 #   ECU_UML_OUT     host directory for results (visible here because / is the host's /)
-#   ECU_UML_PYTHON  the host's python3 (its packages work here: same files)
+#   ECU_UML_PYTHON  the test environment's interpreter, e.g. <venv>/bin/python (same files here)
 #   ECU_UML_RUN     the guest-side program to run with the python, e.g. tools/uml/guest_replay.py
 #   ECU_UML_JOB     its argument (a JSON job file)
 # Nothing is mounted over /tmp: a tmpfs there would hide the host's /tmp and our results with it.

@@ -19,6 +19,7 @@ Everything lands in the job's ``out`` directory with ``results.json``; the host 
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -176,9 +177,31 @@ def cpu_seconds(pid: int) -> float | None:
         return None
 
 
+#: what the guest's programs import: tools/player.py, the daemon, ``cantools decode``
+REQUIRED_MODULES = ("can", "cantools", "serial", "numpy", "ecu_daemon")
+
+
+def missing_modules_error() -> str | None:
+    """None if this interpreter can import every module the job needs, else a one-line reason.
+
+    The guest must run the test environment's interpreter (a venv's ``bin/python``, not the base
+    interpreter it links to); the reason names the interpreter and its ``sys.prefix``.
+    """
+    missing = [m for m in REQUIRED_MODULES if importlib.util.find_spec(m) is None]
+    if not missing:
+        return None
+    return (f"guest interpreter {sys.executable} (sys.prefix {sys.prefix}) cannot import "
+            f"{', '.join(missing)}: not the test environment's interpreter?")
+
+
 def main(job_path: str) -> int:
     job = json.loads(Path(job_path).read_text())
     out = Path(job["out"])
+    problem = missing_modules_error()
+    if problem:
+        print(problem, file=sys.stderr)
+        (out / "results.json").write_text(json.dumps({"error": problem}, indent=1))
+        return 1
     py = job["python"]
     channel = job.get("channel", "vcan0")
     res: dict = {"uname": os.uname().release, "t_boot_to_job": time.monotonic()}
