@@ -56,7 +56,6 @@ def angle_diff(a, b):
 
 @pytest.fixture(scope="module")
 def live_run(tmp_path_factory):
-    pytest.importorskip("ecu_daemon.replay", reason="ecu-daemon replay not available yet")
     from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
     tmp = tmp_path_factory.mktemp("live")

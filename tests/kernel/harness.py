@@ -9,9 +9,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,13 +36,6 @@ def python_for_guest() -> str:
     ``site-packages`` (the base interpreter of a fresh machine has none of our packages).
     """
     return os.path.abspath(sys.executable)
-
-
-def daemon_available() -> str | None:
-    """None if ``ecu-daemon run`` can be imported, else the reason."""
-    r = subprocess.run([sys.executable, "-c", "import ecu_daemon.daemon"], cwd=REPO, capture_output=True,
-                       text=True, timeout=60)
-    return None if r.returncode == 0 else (r.stderr.strip().splitlines() or ["?"])[-1]
 
 
 # --------------------------------------------------------------------------- running a guest job
@@ -200,15 +191,6 @@ def log_time_offset(cap: Capture, drive_log: Path, input_ids: set[int]) -> float
     cap_t = [t for t, m in cap.frames if not m.is_error_frame and m.arbitration_id in input_ids]
     n = min(len(log_t), len(cap_t))
     return float(np.median(np.array(cap_t[:n]) - np.array(log_t[:n])))
-
-
-def wait_until(cond, timeout: float, step: float = 0.05) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(step)
-    return cond()
 
 
 def copy_artifacts(src: Path, name: str) -> None:

@@ -45,7 +45,7 @@ FAULTS = [
 
 
 @pytest.fixture(scope="module")
-def run(uml, daemon_ok, sim_drive, tmp_path_factory):
+def run(uml, sim_drive, tmp_path_factory):
     out = tmp_path_factory.mktemp("vcan-faults")
     events = list(harness.player.read_candump(sim_drive / "drive.log"))
     t0 = events[0].t

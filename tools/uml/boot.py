@@ -46,6 +46,10 @@ class UmlUnavailable(Exception):
     """UML cannot run here; the message says why (tests turn it into a skip reason)."""
 
 
+class UmlInstallFailed(RuntimeError):
+    """Installing the packages was asked for and failed (a failure, not a missing capability)."""
+
+
 # --------------------------------------------------------------------------- kernel and packages
 
 def find_kernel() -> Path | None:
@@ -79,7 +83,11 @@ def missing_tools(extra: tuple[str, ...] = ()) -> list[str]:
 
 
 def ensure_installed(extra_packages: tuple[str, ...] = (), log=None) -> None:
-    """apt-get the UML kernel + tools once (root, CI only); raise UmlUnavailable with the reason."""
+    """apt-get the UML kernel + tools once (root, CI only).
+
+    Raises :class:`UmlUnavailable` when they are missing and may not be installed here, and
+    :class:`UmlInstallFailed` when installing them was allowed and did not work.
+    """
     extra_tools = tuple(p for p in extra_packages if p not in UML_PACKAGES)
     missing = missing_tools(extra_tools)
     if not missing:
@@ -95,14 +103,17 @@ def ensure_installed(extra_packages: tuple[str, ...] = (), log=None) -> None:
     t = time.monotonic()
     for cmd in (["apt-get", "update", "-q"],
                 ["apt-get", "install", "-y", "-q", "--no-install-recommends", *UML_PACKAGES, *extra_packages]):
-        r = subprocess.run(cmd, env=env, stdout=out, stderr=subprocess.STDOUT, timeout=600)
+        try:
+            r = subprocess.run(cmd, env=env, stdout=out, stderr=subprocess.STDOUT, timeout=600)
+        except subprocess.TimeoutExpired:
+            raise UmlInstallFailed(f"`{' '.join(cmd)}` took more than 600 s") from None
         if r.returncode != 0:
-            raise UmlUnavailable(f"`{' '.join(cmd)}` failed with status {r.returncode}")
+            raise UmlInstallFailed(f"`{' '.join(cmd)}` failed with status {r.returncode}")
     INSTALL_STAMP.parent.mkdir(parents=True, exist_ok=True)
     INSTALL_STAMP.write_text(f"{' '.join(UML_PACKAGES + extra_packages)} in {time.monotonic() - t:.1f} s\n")
     still = missing_tools(extra_tools)
     if still:
-        raise UmlUnavailable(f"still missing after apt-get install: {', '.join(still)}")
+        raise UmlInstallFailed(f"still missing after apt-get install: {', '.join(still)}")
 
 
 # --------------------------------------------------------------------------- seccomp workaround
@@ -249,7 +260,7 @@ def main(argv: list[str] | None = None) -> int:
         ensure_installed()
         env = dict(w.split("=", 1) for w in a.env)
         r = boot(a.init, console=Path(a.console).resolve(), rootfs=a.rootfs, mem=a.mem, timeout=a.timeout, env=env)
-    except UmlUnavailable as e:
+    except (UmlUnavailable, UmlInstallFailed) as e:
         print(f"uml: {e}", file=sys.stderr)
         return 3
     print(f"uml: {'TIMED OUT after' if r.timed_out else 'exited ' + str(r.returncode) + ' after'} "
