@@ -21,7 +21,8 @@ samples stamped after the current step wait in the tick thread). Live, the step 
 (1 ms) after its time; a sample that reaches the tick thread after its step ran is applied at the
 next step instead (``late_samples``, counted here and by the estimator). That count is the only
 source of difference between ``estimates.csv`` of a recording and ``ecu-daemon replay`` of it:
-with no late sample the two CSVs are identical, row for row.
+with no late sample the two CSVs are identical, row for row, and every step before the earliest
+late sample's time (``earliest_late_t``) is identical whatever came after.
 
 Overrun policy: a tick woken more than a period late runs the missed estimator steps at once
 (``advance_to``), sends only the newest step's frames and counts the overrun; the skipped output
@@ -112,6 +113,7 @@ class Daemon:
         self.diag = Diagnostics()
         self.latest: Estimate | None = None
         self.late_samples = 0
+        self.earliest_late_t = math.inf  # time of the earliest sample applied late
         self.samples_pushed = 0
         self.frames_sent = 0
         self.steps = 0
@@ -441,6 +443,7 @@ class Daemon:
             for s in batch[:n]:
                 if s.t <= last:
                     self.late_samples += 1
+                    self.earliest_late_t = min(self.earliest_late_t, s.t)
                 if type(s) is InputSample:
                     est.push_input(s)
                 else:
