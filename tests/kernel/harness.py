@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+from ecu_daemon.config import find_data_file
+
 REPO = Path(__file__).resolve().parents[2]
 TOOLS = REPO / "tools"
 if str(TOOLS) not in sys.path:
@@ -111,9 +113,9 @@ def guest_config(sim_config: Path, dest: Path, gnss_port: str, channel: str = "v
     cfg = tomllib.loads(sim_config.read_text())
     cfg.setdefault("can", {}).update(interface="socketcan", channel=channel)
     cfg["can"].pop("bus_kwargs", None)
-    for key in ("dbc", "output_dbc"):  # the simulator writes paths relative to the repository
-        if key in cfg["can"] and not os.path.isabs(cfg["can"][key]):
-            cfg["can"][key] = str(REPO / cfg["can"][key])
+    for key in ("dbc", "output_dbc"):  # absolute: resolved as the daemon would from the simulator's config
+        if key in cfg["can"]:
+            cfg["can"][key] = str(find_data_file(cfg["can"][key], sim_config.parent).resolve())
     cfg.setdefault("gnss", {})["port"] = gnss_port
     # Under UML a GNSS message's receive time is when the slow guest got round to the pty (tens of
     # ms of jitter), so the online latency identification would legitimately settle elsewhere live
