@@ -154,14 +154,9 @@ def _install_xstate_filter() -> None:  # runs in the child between fork and exec
 
 def _numpy_simd_targets() -> list[str]:
     """numpy's dispatch targets this CPU supports (all above the SSE baseline) -> to disable."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__  # numpy 2
-    except ImportError:
-        try:
-            from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__  # numpy 1.x
-        except ImportError:
-            return []
-    return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
+    import numpy
+
+    return list(numpy.show_config(mode="dicts").get("SIMD Extensions", {}).get("found", []))
 
 
 def guest_environment() -> dict[str, str]:
