@@ -130,12 +130,10 @@ def test_tick_keeps_running_through_faults(run, db):
         w = _window(ts, a, b)
         p = np.diff(ts[w]) * 1e3
         # under UML a tick that overruns sends only its newest step: on a busy host 20-30 % of the
-        # 6 ms frames were seen in these windows, so demand one in ten (the stall check is above)
+        # 6 ms frames were seen in these windows, so demand one in ten (the stall check is above);
+        # the periods themselves measure how much CPU the host left the guest: reported
         assert len(p) > 0.1 * (b - a) / 0.006, f"{name}: only {len(p)} frames"
         FACTS.append(f"fault {name}: EST_HEADING p50 period {np.median(p):.2f} ms, max {p.max():.1f} ms")
-        # UML shares one slow CPU between the daemon, the injector, canplayer and candump: judge
-        # that the tick goes on (no stall, at most half the frames lost), not its jitter
-        assert np.median(p) < 12.0, f"{name}: median period {np.median(p):.2f} ms"
 
 
 def test_bus_off_pauses_transmission_and_recovers(run, db):
