@@ -20,8 +20,10 @@ Everything lands in the job's ``out`` directory with ``results.json``; the host 
 """
 from __future__ import annotations
 
+import bisect
 import importlib.util
 import json
+import math
 import os
 import signal
 import socket
@@ -118,8 +120,10 @@ class PlaybackProgress(threading.Thread):
     drive is, not where the wall clock says it should be: under a loaded host canplayer starts late
     and falls behind. So each frame received on ``channel`` (kernel-filtered to the log's IDs) is
     matched, in order, against the log; the newest match anchors log time to CLOCK_MONOTONIC, and
-    :meth:`due` extrapolates from it (through silent stretches of the log, such as a bus-off).
-    Frames that match nothing ahead (the injector's own wrong-DLC frames) are passed over.
+    :meth:`due` answers only once the last log frame at or before the fault's time has been seen,
+    and then extrapolates from the newest match (through silent stretches of the log, such as a
+    bus-off): a fault never comes before the drive has got there. Frames that match nothing ahead
+    (the injector's own wrong-DLC frames) are passed over.
     """
 
     LOOKAHEAD = 64  # log frames searched ahead of the last match (a frame our socket missed)
@@ -131,6 +135,7 @@ class PlaybackProgress(threading.Thread):
         events = list(player.read_candump(drive_log))
         first = events[0].t
         self.log = [(ev.t - first, ev.message.arbitration_id, bytes(ev.message.data)) for ev in events]
+        self.times = [t for t, _, _ in self.log]
         self.anchor = (0.0, t0)  # (log time, monotonic time) of the newest matched frame
         self.matched = 0
         self._next = 0
@@ -157,7 +162,9 @@ class PlaybackProgress(threading.Thread):
                     break
 
     def due(self, at: float) -> float:
-        """CLOCK_MONOTONIC time at which the playback reaches log time ``at``."""
+        """CLOCK_MONOTONIC time at which the playback reaches log time ``at`` (inf: not known yet)."""
+        if self._next < bisect.bisect_right(self.times, at):  # the last frame before ``at`` not seen yet
+            return math.inf
         t, m = self.anchor
         return m + (at - t)
 
@@ -170,7 +177,7 @@ def inject(faults: list[dict], progress: PlaybackProgress, channel: str, log: li
     s = raw_can_socket(channel)
     try:
         for f in sorted(faults, key=lambda f: f["at"]):
-            while (rem := progress.due(f["at"]) - time.monotonic()) > 0:
+            while (rem := progress.due(f["at"]) - time.monotonic()) > 0 and progress.is_alive():
                 time.sleep(min(rem, 0.01))
             deadline = time.monotonic()  # the fault's own durations run from when it started
             kind, started, sent, failed = f["kind"], time.time(), 0, 0
