@@ -198,7 +198,7 @@ def test_stopped_sensor_is_flagged_then_recovers(run, db):
     in_gap = _window(ts, last + STALE_MARGIN_S, back)
     before = _window(ts, last - 2.0, last)
     after = ts >= back + 0.5
-    assert in_gap.any() and stale[in_gap].mean() > 0.95, "steering stopped but inputs not flagged stale"
+    assert in_gap.any() and stale[in_gap][-10:].all(), "steering stopped but inputs not flagged stale"
     # STATUS_INPUT_STALE covers every input: a guest the host descheduled past the input timeout
     # flags them all for a moment, so around the gap demand "clear", not "clear throughout"
     assert before.any() and (stale[before] == 0).any(), "inputs stale before the steering stopped"
