@@ -158,9 +158,10 @@ def test_diagnostics_clean(run, capture, out_db):
 def test_estimates_match_offline_replay(run, sim_drive, capture, out_db, tmp_path):
     """The live estimates on vcan follow ``ecu-daemon replay`` of the same drive.
 
-    Asserted: same sign, unit and scale, well correlated, whatever the host's load. How closely
-    (RMS, median |difference|, against the bounds a quiet host meets) is reported: a starved guest
-    runs late. Step-for-step equality is the host's tests/test_daemon_replay.py.
+    Asserted, whatever the host's load: vx with the same sign, unit and scale, well correlated.
+    How closely each estimate follows (RMS, median |difference|, against the bounds a quiet host
+    meets) is reported: a starved guest runs late. Step-for-step equality is the host's
+    tests/test_daemon_replay.py.
     """
     offline = tmp_path / "offline.csv"
     cfg = harness.guest_config(sim_drive / "config.toml", tmp_path / "offline.toml", "none")  # same settings
