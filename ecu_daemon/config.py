@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import importlib.resources
 import math
-import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +20,6 @@ import tomli_w
 
 from .samples import INPUT_NAMES
 
-PACKAGE_ROOT = Path(__file__).resolve().parent
 #: ``[inputs.NAME] checksum`` values (implemented in checksums.py)
 CHECKSUM_SCHEMES = ("none", "e2e_p2", "toyota", "honda", "subaru", "hyundai_canfd")
 
@@ -30,24 +29,27 @@ class ConfigError(ValueError):
 
 
 def find_data_file(name: str, base: Path | None = None) -> Path:
-    """Resolve a data file (DBC) given relative to the config, the CWD, or the installed data.
+    """Resolve a data file (DBC): absolute; else relative to ``base`` (the config file's
+    directory, the current directory without one); else our own copy shipped in the package.
 
-    Order: absolute path; next to the config file; current directory; the repository / sdist
-    ``dbc/`` folder beside the package; ``<prefix>/share/ecu-daemon``. The first that exists wins,
-    so a user's own DBC always shadows ours.
+    A user's own file shadows ours; ``dbc/ecu_daemon_inputs.dbc`` (the default, and what existing
+    configs say) finds the package data (``ecu_daemon/dbc/``) wherever the package is installed.
     """
     p = Path(name).expanduser()
     if p.is_absolute():
         return p
-    candidates = []
-    if base is not None:
-        candidates.append(base / p)
-    candidates += [Path.cwd() / p, PACKAGE_ROOT.parent / p, PACKAGE_ROOT / p,
-                   Path(sys.prefix) / "share" / "ecu-daemon" / p]
-    for c in candidates:
-        if c.exists():
-            return c
-    return candidates[0]
+    own = (base if base is not None else Path.cwd()) / p
+    if own.exists():
+        return own
+    shipped = importlib.resources.files("ecu_daemon").joinpath(*p.parts)
+    if shipped.is_file():
+        return Path(str(shipped))  # a real file: the package is installed from a wheel or in place
+    return own
+
+
+def off_if_none(value: str) -> str:
+    """A port or file setting written as ``none`` (any case) is off, like an empty string."""
+    return "" if value.strip().lower() == "none" else value
 
 
 @dataclass
@@ -350,6 +352,8 @@ def from_dict(data: dict, base_dir: Path | None = None) -> Config:
             _fill(_SECTIONS[key], key, table, base=getattr(cfg, key))
         else:
             raise ConfigError(f"unknown section [{key}]{_did_you_mean(key, list(_SECTIONS) + ['inputs'])}")
+    cfg.gnss.port = off_if_none(cfg.gnss.port)
+    cfg.daemon.state_file = off_if_none(cfg.daemon.state_file)
     _validate(cfg)
     return cfg
 

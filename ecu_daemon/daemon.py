@@ -21,7 +21,8 @@ samples stamped after the current step wait in the tick thread). Live, the step 
 (1 ms) after its time; a sample that reaches the tick thread after its step ran is applied at the
 next step instead (``late_samples``, counted here and by the estimator). That count is the only
 source of difference between ``estimates.csv`` of a recording and ``ecu-daemon replay`` of it:
-with no late sample the two CSVs are identical, row for row.
+with no late sample the two CSVs are identical, row for row, and every step before the earliest
+late sample's time (``earliest_late_t``) is identical whatever came after.
 
 Overrun policy: a tick woken more than a period late runs the missed estimator steps at once
 (``advance_to``), sends only the newest step's frames and counts the overrun; the skipped output
@@ -113,6 +114,7 @@ class Daemon:
         self.latest: Estimate | None = None
         self.late_samples = 0
         self._gaps_said = 0  # estimator gaps (clock jumps) already logged
+        self.earliest_late_t = math.inf  # time of the earliest sample applied late
         self.samples_pushed = 0
         self.frames_sent = 0
         self.steps = 0
@@ -450,6 +452,7 @@ class Daemon:
             for s in batch[:n]:
                 if s.t <= last:
                     self.late_samples += 1
+                    self.earliest_late_t = min(self.earliest_late_t, s.t)
                 if type(s) is InputSample:
                     est.push_input(s)
                 else:
@@ -567,9 +570,9 @@ def explicit_can_keys(config_path: str | None) -> set[str]:
 
 def apply_overrides(cfg: Config, args: argparse.Namespace) -> None:
     if getattr(args, "gnss_port", None):
-        cfg.gnss.port = "" if args.gnss_port.lower() == "none" else args.gnss_port
+        cfg.gnss.port = config_mod.off_if_none(args.gnss_port)
     if getattr(args, "state_file", None):
-        cfg.daemon.state_file = "" if args.state_file.lower() == "none" else args.state_file
+        cfg.daemon.state_file = config_mod.off_if_none(args.state_file)
     if getattr(args, "no_send", False):
         cfg.can.send_outputs = False
     if getattr(args, "log_level", None):

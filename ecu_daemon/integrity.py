@@ -18,9 +18,13 @@ E2E_DATA_ID_ATTRIBUTE = "E2EDataId"
 
 
 def _crc8h2f_table() -> bytes:
-    """T[x] = one byte x pushed through the CRC-8/AUTOSAR register from 0 (no init, no final xor)."""
+    """T[x] = one byte x pushed through the CRC-8/AUTOSAR register from 0 (no init, no final xor).
+
+    Public API only: the final xor is what ``calc`` returns for no data from a zero register.
+    """
     cls = crccheck.crc.Crc8Autosar
-    return bytes(cls.calc(bytes([i]), initvalue=0) ^ cls._xor_output for i in range(256))
+    xor_out = cls.calc(b"", initvalue=0)
+    return bytes(cls.calc(bytes([i]), initvalue=0) ^ xor_out for i in range(256))
 
 
 _T = _crc8h2f_table()

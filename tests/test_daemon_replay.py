@@ -5,9 +5,10 @@ own recording, and sends every output frame at its cycle time.
 Equivalence, precisely: both runs push the same samples (times rounded to 1 us on the daemon's
 monotonic clock, as recorded) into the same estimator and step it on the same grid k * 6 ms.
 Step k uses the samples with t <= k * dt. Live, step k runs at k * dt + grace and a sample that
-reaches the tick thread after that is applied one step later (``Daemon.late_samples``). With no
-late samples the estimates are identical (same CSV text); each late sample may shift later
-estimates by a small amount, bounded here by TOLERANCE.
+reaches the tick thread after that is applied one step later (``Daemon.late_samples``). Every
+step before the earliest late sample (``Daemon.earliest_late_t``; all of them when none was late)
+is identical (same CSV text); each late sample may shift later estimates by a small amount,
+bounded here by TOLERANCE.
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from ecu_daemon.outputs import decode_output_frame
 from ecu_daemon.signals import load_dbc
 
 DURATION_S = 10.0
-GRACE_S = float(os.environ.get('ECU_TEST_GRACE_S', '0.02'))
+GRACE_S = float(os.environ.get('ECU_TEST_GRACE_S', '0.05'))
 #: max |live - replay| when samples were late (identical rows otherwise). Measured with the
 #: default 1 ms grace on a busy 2-CPU VM, ~100 of ~8000 samples late in 10 s: sideslip 0.013 deg,
 #: heading 0.002 deg, vx 0.008 m/s, vy 0.004 m/s, yaw-rate bias 0.026 deg/s, GNSS latency identical.
@@ -46,6 +47,14 @@ def read_csv(path):
     return {round(float(r["t"]) * 1e6): r for r in rows}
 
 
+def wait_until(cond, timeout=30.0, what="condition"):
+    """Poll ``cond`` until true; fail the test after ``timeout`` s (an upper bound, not a window)."""
+    end = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < end, f"timed out after {timeout} s waiting for {what}"
+        time.sleep(0.005)
+
+
 def flag(v: str) -> bool:
     return v.strip().lower() in ("1", "true")
 
@@ -56,7 +65,6 @@ def angle_diff(a, b):
 
 @pytest.fixture(scope="module")
 def live_run(tmp_path_factory):
-    pytest.importorskip("ecu_daemon.replay", reason="ecu-daemon replay not available yet")
     from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
     tmp = tmp_path_factory.mktemp("live")
@@ -68,7 +76,7 @@ def live_run(tmp_path_factory):
     cfg.can.interface, cfg.can.channel = "virtual", channel
     cfg.gnss.port = port
     cfg.daemon.state_file = ""
-    # A 20 ms input grace (default 1 ms) makes late samples rare even on a loaded test machine,
+    # A 50 ms input grace (default 1 ms) makes late samples rare even on a loaded test machine,
     # so the comparison is usually exact; the tolerances cover the runs where some are late.
     daemon = Daemon(cfg, bus_config={"interface": "virtual", "channel": channel}, record_dir=tmp / "rec",
                     input_grace_s=GRACE_S)
@@ -83,13 +91,15 @@ def live_run(tmp_path_factory):
 
     th = threading.Thread(target=run, daemon=True)
     th.start()
-    end = time.monotonic() + 20
-    while not daemon.ready.is_set() and not errors and time.monotonic() < end:
-        time.sleep(0.01)
+    wait_until(lambda: daemon.ready.is_set() or errors, what="daemon ready")
     assert daemon.ready.is_set(), errors
     feeder.start()
     assert feeder.played.wait(DURATION_S + 30), "feeder did not finish"
-    time.sleep(GRACE_S + 0.03)  # let the last frames reach the estimator
+    # every frame and GNSS byte received, then enough ticks for the last of them to be stepped
+    wait_until(lambda: daemon.canio.rx_frames + daemon.canio.rx_ignored >= feeder.frames_sent
+               and daemon.serial.bytes_read >= feeder.gnss_bytes, what="the daemon to receive everything")
+    steps = daemon.steps
+    wait_until(lambda: daemon.steps > steps + math.ceil(GRACE_S / 0.006) + 2, what="the last inputs stepped")
     daemon.request_stop()
     th.join(20)
     feeder.stop()
@@ -112,9 +122,15 @@ def test_replay_of_the_recording_reproduces_the_live_estimates(live_run):
     assert len(live) > 0.9 * DURATION_S / 0.006 * 0.9
     # the same step grid: every replayed step (they end at the last recorded sample) was live too
     assert len(common) >= 0.98 * len(rep)
-    if d.late_samples == 0:  # identical rows, every column
-        for k in common:
-            assert live[k] == rep[k], k
+    # Exact: every step before the earliest late sample's time is identical, every column (all of
+    # them when nothing was late). Late samples are rare with a 50 ms grace, but a loaded machine
+    # can make one late at any time (one 0.35 s into the run has been seen): how many steps were
+    # compared exactly is printed, and there is at least one
+    exact = [k for k in common if k * 1e-6 < d.earliest_late_t]
+    assert d.late_samples > 0 or len(exact) == len(common)
+    assert exact, (d.late_samples, d.earliest_late_t)
+    for k in exact:
+        assert live[k] == rep[k], k
     worst, p99 = {}, {}
     for col in TOLERANCE:
         diff = angle_diff if col == "heading_rad" else (lambda a, b: abs(a - b))
@@ -124,7 +140,8 @@ def test_replay_of_the_recording_reproduces_the_live_estimates(live_run):
                       and math.isfinite(float(live[k][col])) and math.isfinite(float(rep[k][col])))
         worst[col] = errs[-1] if errs else 0.0
         p99[col] = errs[int(0.99 * (len(errs) - 1))] if errs else 0.0
-    print(f"live vs replay: {len(common)} steps, {d.late_samples} late samples, worst |diff|: "
+    print(f"live vs replay: {len(common)} steps, {len(exact)} identical before the first of "
+          f"{d.late_samples} late samples, worst |diff|: "
           + ", ".join(f"{c} {worst[c]:.3g}" for c in TOLERANCE)
           + "; p99: " + ", ".join(f"{c} {p99[c]:.3g}" for c in TOLERANCE_P99))
     assert all(worst[c] <= TOLERANCE[c] for c in TOLERANCE), (d.late_samples, worst)
@@ -143,11 +160,15 @@ def test_output_frames_are_sent_at_their_cycle_times(live_run):
         ts, _, frame = line.split()
         stamps.setdefault(int(frame.split("#")[0], 16), []).append(round(float(ts[1:-1]) / 0.006))
     assert set(stamps) == set(period_steps)
+    ticks = d.tick_stats.snapshot()
     for fid, steps in stamps.items():
         gaps = [b - a for a, b in zip(steps, steps[1:])]
-        on_time = sum(g == period_steps[fid] for g in gaps)
-        assert on_time >= 0.95 * len(gaps), (hex(fid), d.tick_stats.snapshot())
         assert all(g % period_steps[fid] == 0 for g in gaps)  # a late tick skips a slot, never shifts it
+        # a slot is left empty only by an overrun, whose catch-up sends just the newest step's frames:
+        # every missing frame is a step the tick thread counted as skipped (how many depends on load)
+        missing = sum(g // period_steps[fid] - 1 for g in gaps)
+        assert missing <= ticks.skipped, (hex(fid), missing, ticks)
+        print(f"{hex(fid)}: {len(gaps) - missing} of {len(gaps)} periods on time ({ticks.skipped} steps skipped)")
     # what arrived on the bus: every frame, valid CRC, counters running on
     got = [m for _, m in feeder.outputs if m.arbitration_id in period_steps]
     assert len(got) == d.frames_sent

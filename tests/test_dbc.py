@@ -20,8 +20,8 @@ from ecu_daemon.integrity import data_id_for
 from ecu_daemon.outputs import OutputEncoder, _DIAG_FIELDS, _DIAG_INPUT_PREFIX, _DIAG_INPUT_SUFFIX, _ESTIMATE_SOURCES
 
 ROOT = Path(__file__).resolve().parents[1]
-INPUTS_DBC = ROOT / "dbc" / "ecu_daemon_inputs.dbc"
-OUTPUTS_DBC = ROOT / "dbc" / "ecu_daemon_outputs.dbc"
+INPUTS_DBC = ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc"
+OUTPUTS_DBC = ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_outputs.dbc"
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from ecu_daemon.estimator.estimate import (STATUS_GNSS_FRESH, STATUS_HEADING_ALI
 from ecu_daemon.outputs import OutputEncoder, OutputFrameError, decode_output_frame
 
 ROOT = Path(__file__).resolve().parents[1]
-OUT_DBC = ROOT / "dbc" / "ecu_daemon_outputs.dbc"
+OUT_DBC = ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_outputs.dbc"
 
 BASE = dict(t=3.0, sideslip_rad=-0.0123, sideslip_std_rad=0.0021, heading_rad=4.5, heading_std_rad=0.015,
             vx_mps=23.4, vy_mps=-0.29, vx_std_mps=0.04, vy_std_mps=0.12, yaw_rate_radps=-0.2345,

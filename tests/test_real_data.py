@@ -16,8 +16,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
-if not (SHARED / "revs-250lm").is_dir() or not (SHARED / "comma2k19-rav4").is_dir():
-    pytest.skip(f"real data not found at {SHARED}", allow_module_level=True)
+if not SHARED.is_dir():  # a clone without ../shared beside it; with it, a missing data set fails
+    pytest.skip(f"shared data not found at {SHARED}", allow_module_level=True)
 
 
 def _load_tool():

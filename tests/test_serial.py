@@ -10,7 +10,7 @@ import tty
 
 import pytest
 
-from ecu_daemon.io.logging_setup import reset_logging, setup_logging
+from ecu_daemon.io.logging_setup import RateLimitFilter, reset_logging, setup_logging
 from ecu_daemon.io.serial_port import GnssSerial
 
 
@@ -70,7 +70,9 @@ def test_unplug_and_replug_reconnects_and_says_so_once(tmp_path, log):
         assert t0 <= got[0][0] <= time.monotonic()  # stamped on the monotonic clock at read
         rx.unplug()
         await wait_for(lambda: not port.connected, what="loss detected")
-        await asyncio.sleep(0.5)  # stay unplugged through several reconnect attempts
+        failures = port.open_failures
+        # stay unplugged through several reconnect attempts (each one must stay quiet in the log)
+        await wait_for(lambda: port.open_failures >= failures + 2, what="two failed reconnect attempts")
         assert not port.connected
         rx.plug()
         await wait_for(lambda: port.connected, timeout=10, what="reconnect")
@@ -99,7 +101,7 @@ def test_port_missing_at_start_is_retried(tmp_path, log):
         port = GnssSerial(link, 9600, on_data=lambda t, b: got.append(b))
         port.start(asyncio.get_running_loop())
         assert not port.connected
-        await asyncio.sleep(0.3)
+        await wait_for(lambda: port.open_failures >= 2, what="a retry that failed too")  # said once only
         rx = FakeReceiver(link)
         await wait_for(lambda: port.connected, timeout=10, what="late port")
         rx.write(b"\xb5\x62hello")
@@ -115,9 +117,24 @@ def test_port_missing_at_start_is_retried(tmp_path, log):
     assert text.count("not available") == 1 and text.count("available after") == 1
 
 
-def test_rate_limited_logging_counts_suppressed_lines(log):
-    lg = logging.getLogger("ecu_daemon.test")
-    for i in range(50):
-        lg.warning("bad frame 0x%X", i)
-    lines = log.getvalue().splitlines()
-    assert len(lines) == 1 and "bad frame 0x0" in lines[0]
+def test_rate_limited_logging_counts_suppressed_lines():
+    """One line per kind per interval; the next line let through says how many were held back."""
+    now = [100.0]
+    buf = io.StringIO()
+    handler = logging.StreamHandler(buf)
+    handler.addFilter(RateLimitFilter(interval_s=10.0, clock=lambda: now[0]))
+    lg = logging.getLogger("ecu_daemon.test.ratelimit")
+    lg.addHandler(handler)
+    try:
+        for i in range(50):
+            lg.warning("bad frame 0x%X", i)
+        lg.warning("another kind of problem")
+        now[0] += 9.9  # still inside the interval: held back and counted
+        lg.warning("bad frame 0x%X", 50)
+        assert buf.getvalue().splitlines() == ["bad frame 0x0", "another kind of problem"]
+        now[0] += 0.1  # the interval is over: this line goes out and says what was suppressed
+        lg.warning("bad frame 0x%X", 51)
+        lg.warning("bad frame 0x%X", 52)
+        assert buf.getvalue().splitlines()[2:] == ["bad frame 0x33 (50 similar suppressed)"]
+    finally:
+        lg.removeHandler(handler)

@@ -21,8 +21,6 @@ from ecu_daemon.sim.sensors import UTC_OFFSET_S
 from ecu_daemon.sim.vehicle import G, Road, VehicleParams, integrate
 from ecu_daemon.sim.writer import write_all
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-TOYOTA_DBC = SHARED / "data" / "comma2k19-rav4" / "_toyota_2017.dbc"
 TOYOTA_EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "toyota_rav4.toml"
 CANDUMP_LINE = re.compile(r"^\(\d+\.\d{6}\) can0 [0-9A-F]{3}#([0-9A-F]{2})*$")
 QUIET = dict(sensor_yaw_rate_noise_radps=0.0, sensor_accel_noise_mps2=0.0, sensor_wheel_speed_noise_mps=0.0,
@@ -197,19 +195,8 @@ def test_drive_log_is_candump_and_round_trips_to_the_sensor_values_within_one_ls
         assert np.max(np.abs(np.array(v) - exp)) <= tol, name
 
 
-@pytest.mark.skipif(not TOYOTA_EXAMPLE.exists() and not TOYOTA_DBC.exists(), reason="no Toyota DBC")
 def test_toyota_dbc_with_split_steering_and_flipped_accelerations_round_trips(tmp_path):
-    if TOYOTA_EXAMPLE.exists():  # the shipped example: opendbc's DBC + our RAV4 mapping
-        cfg = config_mod.load(TOYOTA_EXAMPLE)
-    else:
-        inputs = {f"wheel_speed_{c}": {"message": "WHEEL_SPEEDS", "signal": f"WHEEL_SPEED_{c.upper()}",
-                                       "scale": 1 / 3.6} for c in ("fl", "fr", "rl", "rr")}
-        inputs["steering_wheel_angle"] = {"message": "STEER_ANGLE_SENSOR", "scale": math.pi / 180,
-                                          "signals": ["STEER_ANGLE", "STEER_FRACTION"]}
-        inputs["yaw_rate"] = {"message": "KINEMATICS", "signal": "YAW_RATE", "scale": math.pi / 180}
-        inputs["accel_x"] = {"message": "KINEMATICS", "signal": "ACCEL_X", "scale": -1.0}
-        inputs["accel_y"] = {"message": "KINEMATICS", "signal": "ACCEL_Y", "scale": -1.0}
-        cfg = config_mod.from_dict({"can": {"dbc": str(TOYOTA_DBC)}, "inputs": inputs})
+    cfg = config_mod.load(TOYOTA_EXAMPLE)  # the shipped example: opendbc's DBC + our RAV4 mapping
     sc = SCENARIOS["slalom_dry"].with_(duration_s=24.0, sensor_can_rate_hz=83.3, **QUIET)
     res = simulate(sc, cfg)
     write_all(tmp_path, res, vehicle_config(sc, cfg))
@@ -228,7 +215,6 @@ def test_toyota_dbc_with_split_steering_and_flipped_accelerations_round_trips(tm
     assert min(got["accel_y"][1]) < -2.0
 
 
-@pytest.mark.skipif(not TOYOTA_EXAMPLE.exists(), reason="no examples/toyota_rav4.toml")
 def test_toyota_checksum_is_set_where_the_mapping_asks_for_it():
     cfg = config_mod.load(TOYOTA_EXAMPLE)
     for c in ("fl", "fr", "rl", "rr"):  # the display speed frame carries Toyota's checksum

@@ -9,13 +9,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from ecu_daemon.config import find_data_file
 
 REPO = Path(__file__).resolve().parents[2]
 TOOLS = REPO / "tools"
@@ -25,20 +25,19 @@ if str(TOOLS) not in sys.path:
 import player  # noqa: E402
 from uml import boot as uml_boot  # noqa: E402
 
-INPUT_DBC = REPO / "dbc" / "ecu_daemon_inputs.dbc"
-OUTPUT_DBC = REPO / "dbc" / "ecu_daemon_outputs.dbc"
+INPUT_DBC = REPO / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc"
+OUTPUT_DBC = REPO / "ecu_daemon" / "dbc" / "ecu_daemon_outputs.dbc"
 
 
 def python_for_guest() -> str:
-    """The interpreter the guest runs (the host's: same files, same packages)."""
-    return os.path.realpath(sys.executable)
+    """The interpreter the guest runs: this very one, by the path it was started with.
 
-
-def daemon_available() -> str | None:
-    """None if ``ecu-daemon run`` can be imported, else the reason."""
-    r = subprocess.run([sys.executable, "-c", "import ecu_daemon.daemon"], cwd=REPO, capture_output=True,
-                       text=True, timeout=60)
-    return None if r.returncode == 0 else (r.stderr.strip().splitlines() or ["?"])[-1]
+    The guest sees the host's files, so it runs the same interpreter with the same packages. Not
+    ``realpath``: a venv's ``bin/python`` is a symlink to the base interpreter, and only when
+    started through the link does Python find the ``pyvenv.cfg`` beside it and so the venv's
+    ``site-packages`` (the base interpreter of a fresh machine has none of our packages).
+    """
+    return os.path.abspath(sys.executable)
 
 
 # --------------------------------------------------------------------------- running a guest job
@@ -114,9 +113,9 @@ def guest_config(sim_config: Path, dest: Path, gnss_port: str, channel: str = "v
     cfg = tomllib.loads(sim_config.read_text())
     cfg.setdefault("can", {}).update(interface="socketcan", channel=channel)
     cfg["can"].pop("bus_kwargs", None)
-    for key in ("dbc", "output_dbc"):  # the simulator writes paths relative to the repository
-        if key in cfg["can"] and not os.path.isabs(cfg["can"][key]):
-            cfg["can"][key] = str(REPO / cfg["can"][key])
+    for key in ("dbc", "output_dbc"):  # absolute: resolved as the daemon would from the simulator's config
+        if key in cfg["can"]:
+            cfg["can"][key] = str(find_data_file(cfg["can"][key], sim_config.parent).resolve())
     cfg.setdefault("gnss", {})["port"] = gnss_port
     # Under UML a GNSS message's receive time is when the slow guest got round to the pty (tens of
     # ms of jitter), so the online latency identification would legitimately settle elsewhere live
@@ -194,15 +193,6 @@ def log_time_offset(cap: Capture, drive_log: Path, input_ids: set[int]) -> float
     cap_t = [t for t, m in cap.frames if not m.is_error_frame and m.arbitration_id in input_ids]
     n = min(len(log_t), len(cap_t))
     return float(np.median(np.array(cap_t[:n]) - np.array(log_t[:n])))
-
-
-def wait_until(cond, timeout: float, step: float = 0.05) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(step)
-    return cond()
 
 
 def copy_artifacts(src: Path, name: str) -> None:

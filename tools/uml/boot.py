@@ -46,6 +46,10 @@ class UmlUnavailable(Exception):
     """UML cannot run here; the message says why (tests turn it into a skip reason)."""
 
 
+class UmlInstallFailed(RuntimeError):
+    """Installing the packages was asked for and failed (a failure, not a missing capability)."""
+
+
 # --------------------------------------------------------------------------- kernel and packages
 
 def find_kernel() -> Path | None:
@@ -79,7 +83,11 @@ def missing_tools(extra: tuple[str, ...] = ()) -> list[str]:
 
 
 def ensure_installed(extra_packages: tuple[str, ...] = (), log=None) -> None:
-    """apt-get the UML kernel + tools once (root, CI only); raise UmlUnavailable with the reason."""
+    """apt-get the UML kernel + tools once (root, CI only).
+
+    Raises :class:`UmlUnavailable` when they are missing and may not be installed here, and
+    :class:`UmlInstallFailed` when installing them was allowed and did not work.
+    """
     extra_tools = tuple(p for p in extra_packages if p not in UML_PACKAGES)
     missing = missing_tools(extra_tools)
     if not missing:
@@ -95,14 +103,17 @@ def ensure_installed(extra_packages: tuple[str, ...] = (), log=None) -> None:
     t = time.monotonic()
     for cmd in (["apt-get", "update", "-q"],
                 ["apt-get", "install", "-y", "-q", "--no-install-recommends", *UML_PACKAGES, *extra_packages]):
-        r = subprocess.run(cmd, env=env, stdout=out, stderr=subprocess.STDOUT, timeout=600)
+        try:
+            r = subprocess.run(cmd, env=env, stdout=out, stderr=subprocess.STDOUT, timeout=600)
+        except subprocess.TimeoutExpired:
+            raise UmlInstallFailed(f"`{' '.join(cmd)}` took more than 600 s") from None
         if r.returncode != 0:
-            raise UmlUnavailable(f"`{' '.join(cmd)}` failed with status {r.returncode}")
+            raise UmlInstallFailed(f"`{' '.join(cmd)}` failed with status {r.returncode}")
     INSTALL_STAMP.parent.mkdir(parents=True, exist_ok=True)
     INSTALL_STAMP.write_text(f"{' '.join(UML_PACKAGES + extra_packages)} in {time.monotonic() - t:.1f} s\n")
     still = missing_tools(extra_tools)
     if still:
-        raise UmlUnavailable(f"still missing after apt-get install: {', '.join(still)}")
+        raise UmlInstallFailed(f"still missing after apt-get install: {', '.join(still)}")
 
 
 # --------------------------------------------------------------------------- seccomp workaround
@@ -138,19 +149,27 @@ def _install_xstate_filter() -> None:  # runs in the child between fork and exec
     if libc.prctl(22, 2, ctypes.byref(fprog), 0, 0) != 0:  # PR_SET_SECCOMP, SECCOMP_MODE_FILTER
         os.write(2, b"uml boot: cannot install the seccomp filter\n")
         os._exit(126)
+    _new_session()
+
+
+#: nice(2) increment for the guest (root only): a UML guest is one ptrace-driven process tree that
+#: must keep a 6 ms schedule; on a host loaded several times over by other work it otherwise
+#: falls seconds behind real time (inputs buffered, estimates late), which is no property of the
+#: software under test. ``ECU_UML_NICE=0`` leaves the guest at normal priority.
+GUEST_NICE = -10
+
+
+def _new_session() -> None:  # runs in the child between fork and exec
     os.setsid()
+    if os.geteuid() == 0:
+        os.nice(int(os.environ.get("ECU_UML_NICE", GUEST_NICE)))
 
 
 def _numpy_simd_targets() -> list[str]:
     """numpy's dispatch targets this CPU supports (all above the SSE baseline) -> to disable."""
-    try:
-        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__  # numpy 2
-    except ImportError:
-        try:
-            from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__  # numpy 1.x
-        except ImportError:
-            return []
-    return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
+    import numpy
+
+    return list(numpy.show_config(mode="dicts").get("SIMD Extensions", {}).get("found", []))
 
 
 def guest_environment() -> dict[str, str]:
@@ -208,7 +227,7 @@ def boot(init: str, *, console: Path, rootfs: str = "/", mem: str = "768M", time
         out.write(("# " + " ".join(cmd) + "\n").encode())
         out.flush()
         proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-                                preexec_fn=_install_xstate_filter if use_filter else os.setsid,
+                                preexec_fn=_install_xstate_filter if use_filter else _new_session,
                                 env={k: v for k, v in os.environ.items() if k != "TMPDIR"})
         timed_out = False
         try:
@@ -249,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         ensure_installed()
         env = dict(w.split("=", 1) for w in a.env)
         r = boot(a.init, console=Path(a.console).resolve(), rootfs=a.rootfs, mem=a.mem, timeout=a.timeout, env=env)
-    except UmlUnavailable as e:
+    except (UmlUnavailable, UmlInstallFailed) as e:
         print(f"uml: {e}", file=sys.stderr)
         return 3
     print(f"uml: {'TIMED OUT after' if r.timed_out else 'exited ' + str(r.returncode) + ' after'} "

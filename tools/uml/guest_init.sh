@@ -4,7 +4,7 @@
 # Brings up the kernel CAN stack and vcan0, runs one job, records its exit status, powers off.
 # Environment (from the kernel command line, see boot.py):
 #   ECU_UML_OUT     host directory for results (visible here because / is the host's /)
-#   ECU_UML_PYTHON  the host's python3 (its packages work here: same files)
+#   ECU_UML_PYTHON  the test environment's interpreter, e.g. <venv>/bin/python (same files here)
 #   ECU_UML_RUN     the guest-side program to run with the python, e.g. tools/uml/guest_replay.py
 #   ECU_UML_JOB     its argument (a JSON job file)
 # Nothing is mounted over /tmp: a tmpfs there would hide the host's /tmp and our results with it.
@@ -16,6 +16,11 @@ mkdir -p /dev/pts /dev/shm
 mount -t devpts -o gid=5,mode=620,ptmxmode=666 devpts /dev/pts
 mount -t tmpfs -o mode=1777 tmpfs /dev/shm
 hostname uml-ecu
+# Socket receive buffers for ~8 s of this bus instead of ~0.3 s: on a loaded host the whole guest
+# is descheduled for a second or more, and a CAN socket that overflows meanwhile drops frames the
+# drive never lost (the daemon would rightly count them as counter errors). Every frame waits.
+echo 8388608 > /proc/sys/net/core/rmem_default
+echo 8388608 > /proc/sys/net/core/rmem_max
 
 M=/usr/lib/uml/modules/$(uname -r)/kernel
 status=0

@@ -9,8 +9,9 @@ Runs as the job of ``guest_init.sh``. Order of events:
 3. the daemon starts with ``NOTIFY_SOCKET`` pointing at our abstract socket; we wait for READY=1
    (the systemd protocol, for real) and keep every notification with its time;
 4. SIGUSR1 starts the GNSS player and ``canplayer -I drive.log vcan0=<log if>`` starts at once;
-   faults from the job (error frames, a flood of unrelated IDs, wrong DLCs) are injected on their
-   schedule through a raw AF_CAN socket;
+   faults from the job (error frames, a flood of unrelated IDs, wrong DLCs) are injected through
+   a raw AF_CAN socket at their drive-log times, as far as canplayer has actually got (the log's
+   frames seen on the bus, :class:`PlaybackProgress`), not by the wall clock;
 5. when canplayer is done: SIGTERM the daemon (its exit status and shutdown time are recorded),
    SIGINT candump (SIGINT, not SIGTERM, so it flushes), stop the player;
 6. ``cantools decode`` of the capture with the output DBC -> ``decoded.txt``.
@@ -19,7 +20,10 @@ Everything lands in the job's ``out`` directory with ``results.json``; the host 
 """
 from __future__ import annotations
 
+import bisect
+import importlib.util
 import json
+import math
 import os
 import signal
 import socket
@@ -29,6 +33,8 @@ import sys
 import threading
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tools/, for player.py
 
 CAN_ERR_FLAG = 0x20000000
 CAN_FRAME = struct.Struct("=IB3x8s")
@@ -107,14 +113,73 @@ def tx_packets(channel: str) -> int:
     return int(Path(f"/sys/class/net/{channel}/statistics/tx_packets").read_text())
 
 
-def inject(faults: list[dict], t0: float, channel: str, log: list) -> None:
-    """Run the fault schedule (times in seconds after playback start, on CLOCK_MONOTONIC)."""
+class PlaybackProgress(threading.Thread):
+    """Where canplayer is in the drive log, from the log's own frames seen on the bus.
+
+    A fault due at log time ``at`` (seconds after the first frame) must meet the drive where the
+    drive is, not where the wall clock says it should be: under a loaded host canplayer starts late
+    and falls behind. So each frame received on ``channel`` (kernel-filtered to the log's IDs) is
+    matched, in order, against the log; the newest match anchors log time to CLOCK_MONOTONIC, and
+    :meth:`due` answers only once the last log frame at or before the fault's time has been seen,
+    and then extrapolates from the newest match (through silent stretches of the log, such as a
+    bus-off): a fault never comes before the drive has got there. Frames that match nothing ahead
+    (the injector's own wrong-DLC frames) are passed over.
+    """
+
+    LOOKAHEAD = 64  # log frames searched ahead of the last match (a frame our socket missed)
+
+    def __init__(self, channel: str, drive_log: str, t0: float):
+        super().__init__(daemon=True)
+        import player  # tools/player.py; imported here, after the interpreter check in main()
+
+        events = list(player.read_candump(drive_log))
+        first = events[0].t
+        self.log = [(ev.t - first, ev.message.arbitration_id, bytes(ev.message.data)) for ev in events]
+        self.times = [t for t, _, _ in self.log]
+        self.anchor = (0.0, t0)  # (log time, monotonic time) of the newest matched frame
+        self.matched = 0
+        self._next = 0
+        self.sock = socket.socket(socket.AF_CAN, socket.SOCK_RAW, socket.CAN_RAW)
+        ids = sorted({can_id for _, can_id, _ in self.log})
+        self.sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FILTER,
+                             b"".join(struct.pack("=II", i, 0x7FF) for i in ids))
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.sock.bind((channel,))
+
+    def run(self):
+        while self._next < len(self.log):
+            try:
+                can_id, dlc, data = CAN_FRAME.unpack(self.sock.recv(16))
+            except OSError:
+                return
+            now = time.monotonic()
+            data = data[:dlc]
+            for j in range(self._next, min(self._next + self.LOOKAHEAD, len(self.log))):
+                t, lid, ldata = self.log[j]
+                if lid == can_id & 0x7FF and ldata == data:
+                    self.anchor, self._next = (t, now), j + 1
+                    self.matched += 1
+                    break
+
+    def due(self, at: float) -> float:
+        """CLOCK_MONOTONIC time at which the playback reaches log time ``at`` (inf: not known yet)."""
+        if self._next < bisect.bisect_right(self.times, at):  # the last frame before ``at`` not seen yet
+            return math.inf
+        t, m = self.anchor
+        return m + (at - t)
+
+    def close(self):
+        self.sock.close()
+
+
+def inject(faults: list[dict], progress: PlaybackProgress, channel: str, log: list) -> None:
+    """Run the fault schedule: ``at`` in seconds of drive-log time, met where canplayer has got to."""
     s = raw_can_socket(channel)
     try:
         for f in sorted(faults, key=lambda f: f["at"]):
-            deadline = t0 + f["at"]
-            while (rem := deadline - time.monotonic()) > 0:
-                time.sleep(min(rem, 0.1))
+            while (rem := progress.due(f["at"]) - time.monotonic()) > 0 and progress.is_alive():
+                time.sleep(min(rem, 0.01))
+            deadline = time.monotonic()  # the fault's own durations run from when it started
             kind, started, sent, failed = f["kind"], time.time(), 0, 0
             if kind == "error_frame":  # canerrsim-style: class bits in the ID, details in data
                 ok = send_frame(s, CAN_ERR_FLAG | f["class"], bytes.fromhex(f.get("data", "00" * 8)))
@@ -176,9 +241,31 @@ def cpu_seconds(pid: int) -> float | None:
         return None
 
 
+#: what the guest's programs import: tools/player.py, the daemon, ``cantools decode``
+REQUIRED_MODULES = ("can", "cantools", "serial", "numpy", "ecu_daemon")
+
+
+def missing_modules_error() -> str | None:
+    """None if this interpreter can import every module the job needs, else a one-line reason.
+
+    The guest must run the test environment's interpreter (a venv's ``bin/python``, not the base
+    interpreter it links to); the reason names the interpreter and its ``sys.prefix``.
+    """
+    missing = [m for m in REQUIRED_MODULES if importlib.util.find_spec(m) is None]
+    if not missing:
+        return None
+    return (f"guest interpreter {sys.executable} (sys.prefix {sys.prefix}) cannot import "
+            f"{', '.join(missing)}: not the test environment's interpreter?")
+
+
 def main(job_path: str) -> int:
     job = json.loads(Path(job_path).read_text())
     out = Path(job["out"])
+    problem = missing_modules_error()
+    if problem:
+        print(problem, file=sys.stderr)
+        (out / "results.json").write_text(json.dumps({"error": problem}, indent=1))
+        return 1
     py = job["python"]
     channel = job.get("channel", "vcan0")
     res: dict = {"uname": os.uname().release, "t_boot_to_job": time.monotonic()}
@@ -217,6 +304,10 @@ def main(job_path: str) -> int:
 
         # Go: the GNSS player and canplayer start together; the host measures the residual offset.
         t0 = time.monotonic()
+        progress = None
+        if job.get("faults"):  # listening before canplayer sends its first frame
+            progress = PlaybackProgress(channel, job["drive_log"], t0)
+            progress.start()
         res["playback_start_realtime"] = time.time()
         procs["player"].send_signal(signal.SIGUSR1)
         procs["canplayer"] = subprocess.Popen(
@@ -224,8 +315,8 @@ def main(job_path: str) -> int:
             stdout=open(out / "canplayer.log", "wb"), stderr=subprocess.STDOUT)
         fault_log: list = []
         injector = None
-        if job.get("faults"):
-            injector = threading.Thread(target=inject, args=(job["faults"], t0, channel, fault_log), daemon=True)
+        if progress is not None:
+            injector = threading.Thread(target=inject, args=(job["faults"], progress, channel, fault_log), daemon=True)
             injector.start()
         try:
             res["canplayer_rc"] = procs["canplayer"].wait(timeout=job.get("play_timeout", 300))
@@ -235,6 +326,8 @@ def main(job_path: str) -> int:
         res["playback_s"] = round(time.monotonic() - t0, 3)
         if injector is not None:
             injector.join(timeout=30)
+            res["progress_frames_matched"] = progress.matched
+            progress.close()
         res["faults"] = fault_log
         time.sleep(job.get("tail_s", 0.5))  # let the last outputs reach candump before stopping
         res["daemon_cpu_s"] = cpu_seconds(procs["daemon"].pid)

@@ -1,9 +1,9 @@
 #!/bin/sh
 # Runs inside the systemd-under-UML guest (ecu-test-probe.service) and records what systemd did
-# with ecu-daemon.service; the host-side test reads $OUT and judges. Every wait is bounded.
+# with ecu-daemon@can0.service (the template unit's instance for can0); the host-side test reads $OUT and judges. Every wait is bounded.
 # Ends the guest with a forced poweroff whatever happens.
 OUT=/opt/ecu-test/out
-UNIT=ecu-daemon.service
+UNIT=ecu-daemon@can0.service
 mkdir -p "$OUT"
 exec > "$OUT/probe.log" 2>&1
 trap 'echo "probe: finished"; sync; systemctl poweroff --force --force' EXIT

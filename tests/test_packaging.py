@@ -1,0 +1,76 @@
+"""What a packager and a user get: DBCs as package data, "none" in the config, one version, the wheel."""
+from __future__ import annotations
+
+import importlib.metadata
+import importlib.resources
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import ecu_daemon
+from ecu_daemon import config
+from ecu_daemon.cli import main as cli_main
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = importlib.resources.files("ecu_daemon") / "dbc"
+
+
+def test_default_dbcs_are_the_package_data_from_any_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing called dbc/ here
+    cfg = config.load(None)
+    assert cfg.dbc_path() == Path(str(SHIPPED / "ecu_daemon_inputs.dbc"))
+    assert cfg.output_dbc_path() == Path(str(SHIPPED / "ecu_daemon_outputs.dbc"))
+    assert cfg.dbc_path().is_file() and cfg.output_dbc_path().is_file()
+
+
+def test_existing_configs_find_the_shipped_dbc_and_a_users_own_copy_shadows_it(tmp_path):
+    etc = tmp_path / "etc"
+    etc.mkdir()
+    cfg_file = etc / "ecu.toml"
+    cfg_file.write_text('[can]\ndbc = "dbc/ecu_daemon_inputs.dbc"\n')
+    assert config.load(cfg_file).dbc_path() == Path(str(SHIPPED / "ecu_daemon_inputs.dbc"))
+    own = etc / "dbc" / "ecu_daemon_inputs.dbc"
+    own.parent.mkdir()
+    own.write_bytes((SHIPPED / "ecu_daemon_inputs.dbc").read_bytes())
+    assert config.load(cfg_file).dbc_path() == own
+
+
+def test_a_missing_dbc_is_reported_at_the_path_the_user_wrote(tmp_path):
+    cfg_file = tmp_path / "ecu.toml"
+    cfg_file.write_text('[can]\ndbc = "dbc/nope.dbc"\n')
+    assert config.load(cfg_file).dbc_path() == tmp_path / "dbc" / "nope.dbc"
+
+
+@pytest.mark.parametrize("word", ["none", "None", "NONE"])
+def test_none_in_the_config_turns_state_file_and_gnss_port_off(tmp_path, monkeypatch, word):
+    """``state_file = "none"`` once made the daemon write a file called ``none`` into its CWD."""
+    cfg_file = tmp_path / "ecu.toml"
+    cfg_file.write_text(f'[daemon]\nstate_file = "{word}"\n[gnss]\nport = "{word}"\n')
+    cfg = config.load(cfg_file)
+    assert cfg.daemon.state_file == "" and cfg.gnss.port == ""
+    assert config.load(None).daemon.state_file == "/var/lib/ecu-daemon/state.json"  # not every value
+
+
+def test_the_version_is_written_once(capsys):
+    assert importlib.metadata.version("ecu-daemon") == ecu_daemon.__version__
+    with pytest.raises(SystemExit):
+        cli_main(["--version"])
+    assert capsys.readouterr().out.strip() == f"ecu-daemon {ecu_daemon.__version__}"
+    assert "version =" not in (ROOT / "pyproject.toml").read_text().split("[project.optional")[0]
+
+
+def test_wheel_ships_the_dbcs_and_the_licence_and_no_data_files(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path), str(ROOT)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    (whl,) = tmp_path.glob("ecu_daemon-*.whl")
+    names = zipfile.ZipFile(whl).namelist()
+    assert {"ecu_daemon/dbc/ecu_daemon_inputs.dbc", "ecu_daemon/dbc/ecu_daemon_outputs.dbc"} <= set(names)
+    assert any(n.endswith(".dist-info/LICENSE") or "/licenses/LICENSE" in n for n in names), names
+    assert not [n for n in names if ".data/" in n], "setuptools data-files are deprecated: use package data"
+    meta = zipfile.ZipFile(whl).read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
+    requires = [ln.split(":", 1)[1].strip() for ln in meta.splitlines() if ln.startswith("Requires-Dist:")]
+    assert "python-can>=4.6" in requires and "crccheck>=1.3" in requires  # imported directly
