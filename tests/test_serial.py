@@ -135,6 +135,6 @@ def test_rate_limited_logging_counts_suppressed_lines():
         now[0] += 0.1  # the interval is over: this line goes out and says what was suppressed
         lg.warning("bad frame 0x%X", 51)
         lg.warning("bad frame 0x%X", 52)
-        assert buf.getvalue().splitlines()[2:] == ["bad frame 0x33 (50 similar suppressed)"]
+        assert buf.getvalue().splitlines()[2:] == ["bad frame 0x33 (+50 similar suppressed)"]
     finally:
         lg.removeHandler(handler)
