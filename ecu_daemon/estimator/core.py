@@ -24,11 +24,12 @@ from ..config import Config
 from ..samples import INPUT_INDEX, GnssSample, InputSample
 from . import estimate as est_mod
 from .estimate import Estimate
+from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
 from .fusion.gnss_velocity import ALIGN_SPEED, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
-from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, StepHistory
+from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
 from .latency import LatencyEstimator
 
@@ -38,8 +39,8 @@ I_STEER = INPUT_INDEX["steering_wheel_angle"]
 I_YAW = INPUT_INDEX["yaw_rate"]
 I_AX = INPUT_INDEX["accel_x"]
 I_AY = INPUT_INDEX["accel_y"]
-WHEELS = (I_FL, I_FR, I_RL, I_RR)
-assert sorted(WHEELS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
+WHEEL_INPUTS = (I_FL, I_FR, I_RL, I_RR)
+assert sorted(WHEEL_INPUTS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
 I_RR_MAX = 3
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
@@ -47,6 +48,10 @@ SIDESLIP_STD_VALID = math.radians(1.0)
 HEADING_STD_VALID = math.radians(2.0)
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
+# while an IMU signal is isolated its substitute is coarse: process noise for what it drives
+ISO_ACCEL_NOISE = 2.0  # m/s^2/sqrt(Hz)
+ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
+ISO_HEADING_STEP = math.radians(3.0)
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
 
@@ -73,6 +78,7 @@ class Estimator:
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.adapt_cornering_stiffness, learned)
+        self.fdi = FaultDetector(dt, veh.track_m)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned
@@ -91,6 +97,8 @@ class Estimator:
         self.r_lp = 0.0
         self.rdot = 0.0
         self.last_gnss_fused_t = -math.inf
+        self.last_gnss_speed = math.nan
+        self.wheel_gated = False
         self.last_gnss_rejected = False
         self.late_inputs = 0
         self.resets = 0
@@ -228,8 +236,13 @@ class Estimator:
             self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]
         h = self.hist
         i = h.slot(k)
-        if h.last >= h.first:  # predict from the previous step
-            ip = h.slot(k - 1)
+        predict = h.last >= h.first
+        ip = h.slot(k - 1) if predict else i
+        iso = self.fdi.step(k, wheel_z, rl, rr, wheels_ok, r_m, ax_m, ay_m, imu_ok, h.X[ip],
+                            h.P[ip][VX, VX], self.wheels.noise2)
+        if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
+            r_m, ax_m, ay_m = self._substitute(iso, h.X[ip], r_m, ax_m, ay_m)
+        if predict:  # predict from the previous step
             x = h.X[i]
             np.copyto(x, h.X[ip])
             if imu_ok:
@@ -242,6 +255,8 @@ class Estimator:
             x = h.X[i]
             A = h.A[i]
         P = h.P[i]
+        if iso:
+            self._widen(iso, P)
         if imu_ok:
             _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
             r = r_m - b_r
@@ -260,18 +275,20 @@ class Estimator:
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
-        if self.standstill.detect(wheels_max) and imu_ok:
+        if (self.standstill.detect(wheels_max) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
+                and self.fdi.standstill_plausible(x[VX], self._fresh_gnss_speed(t))):
             status |= est_mod.STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
             r = r_m - x[BR]
         else:
-            if wheels_ok and self.wheel_new:
-                self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A)
-            if imu_ok and k % MODEL_EVERY == 0:
+            if wheels_ok and self.wheel_new and not iso & WHEELS:
+                self.wheel_gated = not self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A)
+            if imu_ok and k % MODEL_EVERY == 0 and not iso & (YAW_RATE | ACCEL_Y):
                 self.single_track.fuse(x, P, r, ay, self.rdot, A, MODEL_EVERY)
-            if steer_ok and imu_ok and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
+            if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
+        clamp_learned(x)
         h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k
         if k % 64 == 0:
@@ -282,7 +299,34 @@ class Estimator:
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
             return self._invalid(t)
-        return self._estimate(t, xl, pd, P[VX, VY], r, status, imu_ok, wheels_ok)
+        return self._estimate(t, xl, pd, P[VX, VY], r, status | iso, imu_ok, wheels_ok, iso)
+
+    def _substitute(self, iso: int, x, r_m: float, ax_m: float, ay_m: float) -> tuple[float, float, float]:
+        """Stand-ins for isolated IMU signals (as raw readings): yaw rate from the rear wheels,
+        ax from d(wheel speed)/dt, ay from r * vx; zero rate / acceleration when none is left."""
+        fdi = self.fdi
+        if iso & YAW_RATE:
+            r_m = (fdi.r_wheels if math.isfinite(fdi.r_wheels) else 0.0) + x[BR]
+        if iso & ACCEL_X:
+            ax_m = (0.0 if iso & WHEELS else fdi.ax_wheels) + x[BAX]
+        if iso & ACCEL_Y:
+            ay_m = (r_m - x[BR]) * x[VX] + x[BAY]
+        return r_m, ax_m, ay_m
+
+    def _widen(self, iso: int, P: np.ndarray) -> None:
+        """Covariance for the states a substitute (or nothing) now drives; a step on isolation
+        (the fault acted before it was caught), a random walk while it lasts."""
+        new = self.fdi.new_isolation
+        dt = self.dt
+        if iso & (ACCEL_X | WHEELS):
+            P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+        if iso & (YAW_RATE | ACCEL_Y):
+            P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+        if iso & YAW_RATE:
+            P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
+
+    def _fresh_gnss_speed(self, t: float) -> float:
+        return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan
 
     def _invalid(self, t: float) -> Estimate:
         """No filter yet (or just reset): finite, neutral values, every validity bit false.
@@ -304,7 +348,7 @@ class Estimator:
                         self.single_track.cornering_stiffness_rear, False, False, False, False, status,
                         self.gnss.fused, self.gnss.rejected, self.gnss.late)
 
-    def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok) -> Estimate:
+    def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok, iso) -> Estimate:
         """x: state as a list, pd: covariance diagonal as a list (Python floats are cheaper)."""
         sqrt = math.sqrt
         vx = x[VX]
@@ -335,17 +379,22 @@ class Estimator:
             self._reset_flag = False
         sd = [sqrt(v) if v > 0.0 else 0.0 for v in pd]
         psi_std = sd[PSI]
-        vel_valid = imu_ok and (wheels_ok or gnss_fresh)
+        # valid only from sources that agree: wheels fused and passing their gate, or fresh GNSS
+        # (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
+        wheels_fused = wheels_ok and not iso & WHEELS and not self.wheel_gated
+        vel_valid = (imu_ok and (wheels_fused or gnss_fresh)
+                     and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
+        imu_trusted = not iso & (YAW_RATE | ACCEL_Y)
         st = self.single_track
         gn = self.gnss
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, sd[VX], sd[VY],
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
-            vel_valid and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
-            imu_ok and self.aligned and psi_std < HEADING_STD_VALID,
+            vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
+            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID,
             vel_valid,
-            imu_ok and sd[BR] < BIAS_STD_VALID,
+            imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
 
     # ----------------------------------------------------------------------------------------
@@ -360,18 +409,28 @@ class Estimator:
             self.last_gnss_rejected = True
             return
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        self.latency.observe(k, speed, h)
         delay = self.latency.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
+        js = h.slot(s)
+        agree = self.fdi.check_gnss(s, speed, fus.sigma(g), h.aux[js, AUX_WHEEL] * h.X[js, KW],
+                                    h.X[js, VX], h.P[js][VX, VX])
+        if agree is False or self.fdi.gnss_isolated:  # never fused, never learned from
+            fus.rejected += 1
+            fus.last_reason = "inconsistent with the wheels / IMU"
+            self.last_gnss_rejected = True
+            return
+        if agree and not self.fdi.isolated & WHEELS:
+            self.latency.observe(k, speed, h)
         if late:
             fus.late += 1
-        if not self.aligned or fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS:
+        # a run of gate rejections re-aligns only when the other sources vouch for this GNSS
+        if not self.aligned or (fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree):
             ok = fus.fuse_speed(h, s, g)
             if speed > ALIGN_SPEED:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
-            if ok:
+            if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
                 xs = h.X[i]
@@ -380,6 +439,7 @@ class Estimator:
         self.last_gnss_rejected = not ok
         if ok:
             self.last_gnss_fused_t = k * self.dt
+            self.last_gnss_speed = speed
 
     def _align(self, s: int, g: GnssSample) -> None:
         """Set the heading from the GNSS course at stored step s and carry it to the present."""

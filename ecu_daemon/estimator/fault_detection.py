@@ -1,0 +1,305 @@
+"""Fault detection and isolation (FDI): the sources checked against each other every step.
+
+One place decides which source may be fused (PX4 EKF2's shape; openpilot's input checks). Every
+check compares two *independent* views of one physical quantity, so a sensor that is wrong but
+alive, in range and with good CRCs, is caught by physics rather than by its own plausibility:
+
+* longitudinal: the change of the wheel speed over a short window against the integrated
+  accelerometer (``ax`` vs d(wheel speed)/dt);
+* yaw: the gyro against the rear-wheel speed difference ``(v_rr - v_rl) / track`` and against
+  ``ay / vx`` (the gyro is blamed only when both disagree with it; ``ay`` when only ``ay / vx``
+  does);
+* GNSS speed against the wheel speed at its time of validity (or, with the wheels out, against the
+  filter's velocity);
+* standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree.
+
+When the longitudinal check fails, wheels and accelerometer are both suspects until the evidence
+says which: a GNSS fix taken after the onset (which one it agrees with), else an impossible jump
+of one of them at the onset. A suspect or isolated source is not fused, learned quantities that
+depend on it are not learned, and the outputs that depend on it are not valid. It returns when it
+has agreed with the others for a while (hysteresis, ``_Latch``). Learned states are also bounded
+(:func:`clamp_learned`): a fault that slips through cannot drive them somewhere unphysical.
+
+Isolation is reported as bits of ``Estimate.status`` (``STATUS_*_ISOLATED``, the same values as
+:data:`SOURCE_BITS`) and counted per source in :attr:`FaultDetector.events`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import estimate as est_mod
+from .kinematic import BAX, BAY, BR, GAY, KW, VX, VY
+
+WHEELS = est_mod.STATUS_WHEELS_ISOLATED
+YAW_RATE = est_mod.STATUS_YAW_RATE_ISOLATED
+ACCEL_X = est_mod.STATUS_ACCEL_X_ISOLATED
+ACCEL_Y = est_mod.STATUS_ACCEL_Y_ISOLATED
+GNSS = est_mod.STATUS_GNSS_ISOLATED
+#: source name -> isolation bit
+SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "accel_y": ACCEL_Y, "gnss": GNSS}
+
+# --- longitudinal: wheel speed change vs integrated ax over LON_WINDOW_S
+LON_WINDOW_S = 0.15
+LON_TOL_MPS = 1.0  # + LON_TOL_REL * speed (wheel slip while braking, grade not yet in the bias)
+LON_TOL_REL = 0.03
+WHEEL_JUMP_MPS = 3.0  # wheel-speed change between two steps no tyre can make (> 500 m/s^2)
+AX_IMPLAUSIBLE_MPS2 = 20.0  # beyond any car's longitudinal grip (2 g)
+AX_JUMP_MPS2 = 12.0  # change between two steps
+JUMP_MEMORY_S = 0.5  # a jump this close to the onset counts as evidence
+# --- yaw: gyro vs rear-wheel difference and vs ay / vx
+YAW_TAU_S = 0.1
+YAW_MIN_SPEED = 3.0
+YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
+YAW_TOL_WHEELS_REL = 0.15
+YAW_TOL_AY = 0.06  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the steady-state relation)
+YAW_TOL_AY_REL = 0.25
+LR_TAU_S = 20.0  # learning of the left/right wheel-radius mismatch
+LR_MAX = 0.01
+# --- GNSS speed vs wheels
+GNSS_TOL_MPS = 1.0  # + 5 % of speed (wheel scale bound) + 3 sigma of the fix
+GNSS_TOL_REL = 0.05
+# --- standstill
+STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
+# --- hysteresis (steps at 6 ms)
+ON_STEPS = 3
+OFF_STEPS = 170  # ~1 s of agreement before a source returns
+GNSS_ON = 2  # an inconsistent fix is never fused; GNSS is reported isolated from the second
+GNSS_OFF = 5  # 1 s at 5 Hz
+#: learned states and their bounds (lower, upper)
+LEARNED_BOUNDS = {BR: (-0.1, 0.1), BAX: (-2.0, 2.0), BAY: (-2.0, 2.0), KW: (0.95, 1.05), GAY: (-0.2, 0.2)}
+
+
+def clamp_learned(x: np.ndarray) -> None:
+    """Keep every learned state in its physical range (wheel scale +-5 %, biases, ay gain)."""
+    for i, (lo, hi) in LEARNED_BOUNDS.items():
+        v = x[i]
+        if v < lo:
+            x[i] = lo
+        elif v > hi:
+            x[i] = hi
+
+
+class _Latch:
+    """A failing check isolates after ``on`` verdicts in a row; ``off`` passing ones release it."""
+
+    __slots__ = ("on", "off", "bad", "good", "active", "events")
+
+    def __init__(self, on: int, off: int):
+        self.on, self.off = on, off
+        self.bad = self.good = self.events = 0
+        self.active = False
+
+    def update(self, failing: bool | None) -> bool:
+        if failing is None:  # no verdict possible now
+            return self.active
+        if failing:
+            self.good = 0
+            self.bad += 1
+            if not self.active and self.bad >= self.on:
+                self.active = True
+                self.events += 1
+        else:
+            self.bad = 0
+            self.good += 1
+            if self.active and self.good >= self.off:
+                self.active = False
+        return self.active
+
+
+class FaultDetector:
+    """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
+
+    def __init__(self, dt: float, track_m: float):
+        self.dt = dt
+        self.track = track_m
+        n = max(2, int(round(LON_WINDOW_S / dt)))
+        self._ring_v = [math.nan] * n  # wheel speed (scaled) per step
+        self._ring_a = [0.0] * n  # cumulative integral of ax per step
+        self._n = n
+        self._cum_a = 0.0
+        self._v_prev = math.nan
+        self._ax_prev = math.nan
+        self.lon = _Latch(ON_STEPS, OFF_STEPS)
+        self.lon_onset = -1  # step at which the present longitudinal disagreement started
+        self.lon_culprit = 0  # WHEELS | ACCEL_X while the longitudinal check fails
+        self._wheel_jump_k = -10 ** 9
+        self._ax_jump_k = -10 ** 9
+        self._gnss_wheel_verdict: tuple[int, bool] | None = None  # (validity step, wheels agree)
+        self.wheels_back = _Latch(1, OFF_STEPS)  # isolated wheels: agree with the filter again
+        self.gyro = _Latch(ON_STEPS, OFF_STEPS)
+        self.ay = _Latch(ON_STEPS, OFF_STEPS)
+        self.gnss = _Latch(GNSS_ON, GNSS_OFF)
+        self._a_yaw = dt / (YAW_TAU_S + dt)
+        self._a_lr = dt / (LR_TAU_S + dt)
+        self.e_w = 0.0  # low-passed gyro - wheel yaw rate
+        self.e_a = 0.0  # low-passed gyro - ay / vx
+        self.lr = 0.0  # learned (v_rr - v_rl) / v at zero yaw rate
+        self.r_wheels = math.nan  # yaw rate from the rear wheels (substitute for a faulty gyro)
+        self.ax_wheels = 0.0  # d(wheel speed)/dt over the window (substitute for a faulty ax)
+        self.wheels_isolated = False
+        self.isolated = 0
+        self.events = {name: 0 for name in SOURCE_BITS}
+        self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
+
+    # ------------------------------------------------------------------------------------------
+    def step(self, k: int, wheel_z: float, rl: float, rr: float, wheels_ok: bool, r_m: float,
+             ax_m: float, ay_m: float, imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float) -> int:
+        """Run every check for step k (state x predicted to k). Returns the isolation mask.
+
+        ``wheel_z``: the raw undriven-axle wheel speed the filter fuses; ``p_vx``: variance of
+        the predicted vx; ``wheel_r2``: the wheel measurement's noise variance.
+        """
+        before = self.isolated
+        kw = x[KW]
+        v = wheel_z * kw if wheels_ok else math.nan
+        ax = ax_m - x[BAX] if imu_ok else math.nan
+        self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
+        self._wheels_return(v, x[VX], p_vx, wheel_r2)
+        self._yaw(rl, rr, wheels_ok, r_m, ay_m, imu_ok, x)
+        iso = 0
+        if self.lon.active:
+            iso |= self.lon_culprit
+        if self.wheels_isolated:
+            iso |= WHEELS
+        if self.gyro.active:
+            iso |= YAW_RATE
+        if self.ay.active:
+            iso |= ACCEL_Y
+        if self.gnss.active:
+            iso |= GNSS
+        self.new_isolation = iso & ~before
+        for name, bit in SOURCE_BITS.items():
+            if self.new_isolation & bit:
+                self.events[name] += 1
+        self.isolated = iso
+        return iso
+
+    def _longitudinal(self, k: int, v: float, ax: float, ax_raw: float) -> None:
+        n = self._n
+        i = k % n
+        if math.isfinite(ax):
+            self._cum_a += ax * self.dt
+        v_old = self._ring_v[i]
+        a_old = self._ring_a[i]
+        self._ring_v[i] = v
+        self._ring_a[i] = self._cum_a
+        if math.isfinite(v) and math.isfinite(self._v_prev) and abs(v - self._v_prev) > WHEEL_JUMP_MPS:
+            self._wheel_jump_k = k
+        if math.isfinite(ax_raw) and (abs(ax_raw) > AX_IMPLAUSIBLE_MPS2 or (
+                math.isfinite(self._ax_prev) and abs(ax_raw - self._ax_prev) > AX_JUMP_MPS2)):
+            self._ax_jump_k = k
+        self._v_prev = v
+        self._ax_prev = ax_raw
+        verdict = None
+        if math.isfinite(v) and math.isfinite(v_old) and math.isfinite(ax):
+            dv = v - v_old
+            self.ax_wheels = dv / (n * self.dt)
+            res = dv - (self._cum_a - a_old)
+            verdict = abs(res) > LON_TOL_MPS + LON_TOL_REL * abs(v)
+        was = self.lon.active
+        if self.lon.update(verdict) and not was:
+            self.lon_onset = k
+            self.lon_culprit = WHEELS | ACCEL_X
+        if self.lon.active:
+            self._attribute(k)
+        else:
+            self.lon_culprit = 0
+
+    def _attribute(self, k: int) -> None:
+        """Which of wheels / accelerometer broke the longitudinal check (both until known)."""
+        g = self._gnss_wheel_verdict
+        if g is not None and g[0] >= self.lon_onset:
+            self.lon_culprit = ACCEL_X if g[1] else WHEELS
+            return
+        if self.lon_culprit != WHEELS | ACCEL_X:
+            return  # decided earlier by a jump; keep it until GNSS says otherwise
+        mem = JUMP_MEMORY_S / self.dt
+        wj = abs(self._wheel_jump_k - self.lon_onset) <= mem
+        aj = abs(self._ax_jump_k - self.lon_onset) <= mem
+        if wj != aj:
+            self.lon_culprit = WHEELS if wj else ACCEL_X
+
+    def _wheels_return(self, v: float, vx: float, p_vx: float, wheel_r2: float) -> None:
+        """Isolated wheels come back only when they agree with the filter's (IMU/GNSS) speed."""
+        if self.lon.active:
+            if self.lon_culprit & WHEELS:
+                self.wheels_isolated = True
+                self.wheels_back.good = 0
+            else:  # the accelerometer broke the check: the wheels are the witness, fused again
+                self.wheels_isolated = False
+            return
+        if not self.wheels_isolated:
+            return
+        if not math.isfinite(v):
+            return
+        tol = max(GNSS_TOL_MPS, 4.0 * math.sqrt(p_vx + wheel_r2))
+        self.wheels_back.active = True
+        self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
+
+    def _yaw(self, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
+             x: np.ndarray) -> None:
+        if not imu_ok:
+            return
+        vx = x[VX]
+        r_g = r_m - x[BR]
+        v_rear = 0.5 * (rl + rr) * x[KW]
+        have_w = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
+        if have_w:
+            self.r_wheels = ((rr - rl) * x[KW] - self.lr * v_rear) / self.track
+            self.e_w += self._a_yaw * (r_g - self.r_wheels - self.e_w)
+        else:
+            self.r_wheels = math.nan
+        ay = ay_m - x[BAY] - x[GAY] * ay_m
+        have_a = vx > 2.0 * YAW_MIN_SPEED
+        if have_a:
+            self.e_a += self._a_yaw * (r_g - ay / vx - self.e_a)
+        ref = abs(self.r_wheels) if have_w else abs(r_g)
+        w_fail = have_w and abs(self.e_w) > YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
+        a_fail = have_a and abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref
+        # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
+        a_witness = have_a and not self.ay.active
+        self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
+        self.ay.update((a_fail and not w_fail) if (have_w and have_a) else None)
+        if have_w and not w_fail and not self.gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
+            mis = ((rr - rl) * x[KW] - self.track * r_g) / v_rear
+            self.lr += self._a_lr * (mis - self.lr)
+            self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    # ------------------------------------------------------------------------------------------
+    def check_gnss(self, s: int, speed: float, sigma: float, wheel_speed_s: float, vx_s: float,
+                   p_vx_s: float) -> bool | None:
+        """Is a GNSS speed (validity step s) consistent with the other sources? None: cannot tell.
+
+        ``wheel_speed_s``: the scaled wheel speed at step s (NaN if none); ``vx_s``, ``p_vx_s``: the
+        filter's vx and its variance there. With the longitudinal check failing, the fix is the
+        witness that tells wheels from accelerometer, and is compared with the filter instead.
+        """
+        tol = GNSS_TOL_MPS + GNSS_TOL_REL * speed + 3.0 * sigma
+        wheels_usable = math.isfinite(wheel_speed_s) and not (self.isolated & WHEELS)
+        if math.isfinite(wheel_speed_s):
+            agree_w = abs(speed - wheel_speed_s) <= tol
+            if self.lon.active or self.wheels_isolated:
+                self._gnss_wheel_verdict = (s, agree_w)
+                wheels_usable = False
+        if wheels_usable:
+            ok = agree_w
+        elif self.isolated & ACCEL_X and not math.isfinite(wheel_speed_s):
+            ok = None
+        else:
+            ok = abs(speed - vx_s) <= max(tol, 5.0 * math.sqrt(max(p_vx_s, 0.0)))
+        self.gnss.update(None if ok is None else not ok)
+        return ok
+
+    @property
+    def gnss_isolated(self) -> bool:
+        return self.gnss.active
+
+    def standstill_plausible(self, vx: float, gnss_speed: float) -> bool:
+        """Wheels say 'stopped': do the IMU-propagated speed (and a fresh GNSS speed) agree?"""
+        if self.isolated & WHEELS:
+            return False
+        if abs(vx) > STANDSTILL_MAX_VX:
+            return False
+        return not (math.isfinite(gnss_speed) and gnss_speed > STANDSTILL_MAX_VX)
