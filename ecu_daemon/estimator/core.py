@@ -239,7 +239,8 @@ class Estimator:
         predict = h.last >= h.first
         ip = h.slot(k - 1) if predict else i
         iso = self.fdi.step(k, wheel_z, rl, rr, wheels_ok, r_m, ax_m, ay_m, imu_ok, h.X[ip],
-                            h.P[ip][VX, VX], self.wheels.noise2)
+                            h.P[ip][VX, VX], self.wheels.noise2,
+                            0.0 if self.fdi.isolated & YAW_RATE else self.rdot)
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, h.X[ip], r_m, ax_m, ay_m)
         if predict:  # predict from the previous step
@@ -288,6 +289,8 @@ class Estimator:
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
+        for j, v in self.fdi.frozen.items():
+            x[j] = v
         clamp_learned(x)
         h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k

@@ -49,11 +49,15 @@ AX_IMPLAUSIBLE_MPS2 = 20.0  # beyond any car's longitudinal grip (2 g)
 AX_JUMP_MPS2 = 12.0  # change between two steps
 JUMP_MEMORY_S = 0.5  # a jump this close to the onset counts as evidence
 # --- yaw: gyro vs rear-wheel difference and vs ay / vx
-YAW_TAU_S = 0.1
+YAW_TAU_S = 0.1  # fast test: large faults, wide tolerance
+YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
+YAW_SLOW_TOL = 0.015  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
+YAW_SLOW_TOL_REL = 0.08
+YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen every yaw tolerance
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
-YAW_TOL_AY = 0.06  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the steady-state relation)
+YAW_TOL_AY = 0.08  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the steady-state relation)
 YAW_TOL_AY_REL = 0.25
 LR_TAU_S = 20.0  # learning of the left/right wheel-radius mismatch
 LR_MAX = 0.01
@@ -67,6 +71,8 @@ ON_STEPS = 3
 OFF_STEPS = 170  # ~1 s of agreement before a source returns
 GNSS_ON = 2  # an inconsistent fix is never fused; GNSS is reported isolated from the second
 GNSS_OFF = 5  # 1 s at 5 Hz
+#: the learned states each source drives: frozen while it is isolated (nothing to learn them from)
+FROZEN_STATES = {WHEELS: (KW,), YAW_RATE: (BR,), ACCEL_X: (BAX,), ACCEL_Y: (BAY, GAY)}
 #: learned states and their bounds (lower, upper)
 LEARNED_BOUNDS = {BR: (-0.1, 0.1), BAX: (-2.0, 2.0), BAY: (-2.0, 2.0), KW: (0.95, 1.05), GAY: (-0.2, 0.2)}
 
@@ -132,6 +138,10 @@ class FaultDetector:
         self.ay = _Latch(ON_STEPS, OFF_STEPS)
         self.gnss = _Latch(GNSS_ON, GNSS_OFF)
         self._a_yaw = dt / (YAW_TAU_S + dt)
+        self._a_slow = dt / (YAW_SLOW_TAU_S + dt)
+        self.e_ws = 0.0  # the same, slow
+        self.e_as = 0.0
+        self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
@@ -142,10 +152,12 @@ class FaultDetector:
         self.isolated = 0
         self.events = {name: 0 for name in SOURCE_BITS}
         self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
+        self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
 
     # ------------------------------------------------------------------------------------------
     def step(self, k: int, wheel_z: float, rl: float, rr: float, wheels_ok: bool, r_m: float,
-             ax_m: float, ay_m: float, imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float) -> int:
+             ax_m: float, ay_m: float, imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float,
+             rdot: float = 0.0) -> int:
         """Run every check for step k (state x predicted to k). Returns the isolation mask.
 
         ``wheel_z``: the raw undriven-axle wheel speed the filter fuses; ``p_vx``: variance of
@@ -157,7 +169,7 @@ class FaultDetector:
         ax = ax_m - x[BAX] if imu_ok else math.nan
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        self._yaw(rl, rr, wheels_ok, r_m, ay_m, imu_ok, x)
+        self._yaw(rl, rr, wheels_ok, r_m, ay_m, imu_ok, x, rdot)
         iso = 0
         if self.lon.active:
             iso |= self.lon_culprit
@@ -170,6 +182,12 @@ class FaultDetector:
         if self.gnss.active:
             iso |= GNSS
         self.new_isolation = iso & ~before
+        for bit, states in FROZEN_STATES.items():
+            if iso & bit and not before & bit:
+                self.frozen.update((j, float(x[j])) for j in states)
+            elif before & bit and not iso & bit:
+                for j in states:
+                    self.frozen.pop(j, None)
         for name, bit in SOURCE_BITS.items():
             if self.new_isolation & bit:
                 self.events[name] += 1
@@ -198,6 +216,9 @@ class FaultDetector:
             self.ax_wheels = dv / (n * self.dt)
             res = dv - (self._cum_a - a_old)
             verdict = abs(res) > LON_TOL_MPS + LON_TOL_REL * abs(v)
+        if math.isfinite(ax_raw) and abs(ax_raw) > AX_IMPLAUSIBLE_MPS2:
+            verdict = True  # beyond any tyre: not fused even for the steps the window needs
+            self.lon.bad = max(self.lon.bad, self.lon.on - 1)
         was = self.lon.active
         if self.lon.update(verdict) and not was:
             self.lon_onset = k
@@ -239,25 +260,34 @@ class FaultDetector:
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
     def _yaw(self, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
-             x: np.ndarray) -> None:
+             x: np.ndarray, rdot: float) -> None:
         if not imu_ok:
             return
+        self.rdot_abs = max(abs(rdot), self.rdot_abs - self._a_slow * self.rdot_abs)
+        wide = YAW_TOL_RDOT * self.rdot_abs
         vx = x[VX]
         r_g = r_m - x[BR]
         v_rear = 0.5 * (rl + rr) * x[KW]
         have_w = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
         if have_w:
             self.r_wheels = ((rr - rl) * x[KW] - self.lr * v_rear) / self.track
-            self.e_w += self._a_yaw * (r_g - self.r_wheels - self.e_w)
+            d = r_g - self.r_wheels
+            self.e_w += self._a_yaw * (d - self.e_w)
+            self.e_ws += self._a_slow * (d - self.e_ws)
         else:
             self.r_wheels = math.nan
         ay = ay_m - x[BAY] - x[GAY] * ay_m
         have_a = vx > 2.0 * YAW_MIN_SPEED
         if have_a:
-            self.e_a += self._a_yaw * (r_g - ay / vx - self.e_a)
+            d = r_g - ay / vx
+            self.e_a += self._a_yaw * (d - self.e_a)
+            self.e_as += self._a_slow * (d - self.e_as)
         ref = abs(self.r_wheels) if have_w else abs(r_g)
-        w_fail = have_w and abs(self.e_w) > YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
-        a_fail = have_a and abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref
+        slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref + wide
+        w_fail = have_w and (abs(self.e_w) > YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref + wide
+                             or abs(self.e_ws) > slow)
+        a_fail = have_a and (abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
+                             or abs(self.e_as) > slow)
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not self.ay.active
         self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
