@@ -178,7 +178,14 @@ class Estimator:
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
 
-    def _initialize(self, k: int, wheel_speed: float) -> None:
+    def _initialize(self, k: int, wheel_speed: float, r_m: float, ay_m: float) -> None:
+        """Start the filter in whatever state the car is in (standstill or moving, straight or
+        cornering): vx from the wheels, vy from the single-track model, heading unknown.
+
+        The standard deviations are what these sources are worth on a flying start: the wheel
+        scale's uncertainty times the speed, the model's sideslip error (~1.5 deg plus a bit),
+        no heading at all until GNSS course gives one (``_align``).
+        """
         L = self._learned0
         h = self.hist
         h.reset(k)
@@ -186,15 +193,18 @@ class Estimator:
         x = h.X[i]
         x[:] = 0.0
         kw = L.get("wheel_scale", 1.0)
-        x[VX] = wheel_speed * kw if math.isfinite(wheel_speed) else 0.0
+        x[VX] = vx = wheel_speed * kw
         x[BR] = L.get("yaw_rate_bias_radps", 0.0)
         x[BAX] = L.get("accel_x_bias_mps2", 0.0)
         x[BAY] = L.get("accel_y_bias_mps2", 0.0)
         x[KW] = kw
-        have = "yaw_rate_bias_radps" in L
         x[GAY] = L.get("accel_y_gain", 0.0)
-        std = np.array([1.0, 0.5, math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3,
-                        0.005 if "wheel_scale" in L else 0.03, 0.02 if "accel_y_gain" in L else 0.05])
+        x[VY] = self.single_track.pseudo_measurement(vx, r_m - x[BR], ay_m - x[BAY], 0.0)[0]
+        have = "yaw_rate_bias_radps" in L
+        kw_std = 0.005 if "wheel_scale" in L else 0.03
+        std = np.array([math.hypot(0.3, kw_std * vx), 0.1 + math.radians(1.5) * abs(vx) + abs(x[VY]) * 0.3,
+                        math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3, kw_std,
+                        0.02 if "accel_y_gain" in L else 0.05])
         h.P[i] = np.diag(std ** 2)
         h.A[i] = np.eye(NX)
         self.initialized = True
@@ -222,9 +232,12 @@ class Estimator:
                      and t - held_t[3] <= tmo[3])
         wheel_z = self.wheels.measured_speed(fl, fr, rl, rr) if wheels_ok else math.nan
         if not self.initialized:
-            if not imu_ok:
+            # velocity comes from the wheels at once, so the filter waits for them: starting at
+            # vx = 0 while the car moves puts every wheel sample outside its gate (the divergence
+            # of issue 7) and a flying start looks like a standstill
+            if not (imu_ok and math.isfinite(wheel_z)):
                 return self._invalid(t)
-            self._initialize(k, wheel_z)
+            self._initialize(k, wheel_z, r_m, ay_m)
             self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]
         h = self.hist
         i = h.slot(k)
