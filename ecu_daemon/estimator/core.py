@@ -28,7 +28,7 @@ from .fusion.gnss_velocity import ALIGN_SPEED, MAX_CONSECUTIVE_REJECTS, GnssVelo
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
-from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, StepHistory
+from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
 from .latency import LatencyEstimator
 
@@ -44,11 +44,17 @@ I_RR_MAX = 3
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
 SIDESLIP_STD_VALID = math.radians(1.0)
-HEADING_STD_VALID = math.radians(2.0)
+HEADING_STD_VALID = math.radians(1.5)  # 3 sigma inside the 5 deg a valid heading promises
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
+# divergence: the wheels and GNSS speed cross-check each other before either re-initialises
+GNSS_WHEEL_TOL_MPS = 1.0  # speed agreement: lever arm, sideslip and wheel slip stay inside this
+GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
+WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
+GNSS_CHECK_FRESH_S = 2.0
+COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
 
 class Estimator:
@@ -94,6 +100,10 @@ class Estimator:
         self.last_gnss_rejected = False
         self.late_inputs = 0
         self.resets = 0
+        self.realignments = 0
+        self.gnss_agrees = True
+        self.gnss_checked_t = -math.inf
+        self.wheel_reject_t = math.inf  # time of the first of the current run of wheel rejections
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
@@ -214,6 +224,9 @@ class Estimator:
         """Re-initialise after divergence / non-finite state, keeping what was learned."""
         self.resets += 1
         self._reset_flag = True
+        self.wheel_reject_t = math.inf
+        self.wheels.consecutive_rejects = 0
+        self.gnss.consecutive_rejects = 0
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -279,7 +292,11 @@ class Estimator:
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new:
-                self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A)
+                if self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
+                    self.wheel_reject_t = math.inf
+                elif self._wheels_diverged(t):
+                    self._reset(k)
+                    return self._invalid(t)
             if imu_ok and k % MODEL_EVERY == 0:
                 self.single_track.fuse(x, P, r, ay, self.rdot, A, MODEL_EVERY)
             if steer_ok and imu_ok and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
@@ -296,6 +313,19 @@ class Estimator:
             self._reset(k)
             return self._invalid(t)
         return self._estimate(t, xl, pd, P[VX, VY], r, status, imu_ok, wheels_ok)
+
+    def _wheels_diverged(self, t: float) -> bool:
+        """A run of wheel rejections: re-initialise from the wheels unless GNSS says they lie.
+
+        The wheels are four independent sensors, the filter's vx an integral of one
+        accelerometer; when they disagree for long the filter is the likelier culprit, except
+        when the latest GNSS speed check sided against the wheels (all wheels stuck or zero).
+        """
+        self.wheel_reject_t = min(self.wheel_reject_t, t)
+        if t - self.wheel_reject_t < WHEEL_DIVERGED_S:
+            return False
+        gnss_recent = t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
+        return self.gnss_agrees or not gnss_recent
 
     def _invalid(self, t: float) -> Estimate:
         """No filter yet (or just reset): finite, neutral values, every validity bit false.
@@ -348,7 +378,8 @@ class Estimator:
             self._reset_flag = False
         sd = [sqrt(v) if v > 0.0 else 0.0 for v in pd]
         psi_std = sd[PSI]
-        vel_valid = imu_ok and (wheels_ok or gnss_fresh)
+        wheels_trusted = wheels_ok and t - self.wheel_reject_t < WHEEL_DIVERGED_S
+        vel_valid = imu_ok and (wheels_trusted or gnss_fresh)
         st = self.single_track
         gn = self.gnss
         return Estimate(
@@ -378,9 +409,20 @@ class Estimator:
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
         if late:
             fus.late += 1
-        if not self.aligned or fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS:
-            ok = fus.fuse_speed(h, s, g)
-            if speed > ALIGN_SPEED:
+        agree = self._gnss_agrees_with_wheels(s, speed)
+        if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
+                and self.wheels.consecutive_rejects == 0:
+            # GNSS and the wheels agree with each other and not with the filter: its heading
+            # (or vy) has diverged. Drop the heading and align again from this fix's course.
+            # A GNSS that disagrees with the wheels stays rejected instead (a glitch).
+            self.aligned = False
+            self.realignments += 1
+        if not self.aligned:
+            ok = agree and fus.fuse_speed(h, s, g)
+            if not agree:
+                fus.rejected += 1
+                fus.last_reason = "speed disagrees with the wheels"
+            if ok and speed >= ALIGN_SPEED:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
@@ -394,25 +436,55 @@ class Estimator:
         if ok:
             self.last_gnss_fused_t = k * self.dt
 
+    def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
+        """GNSS speed against the wheel speed at its time of validity (scaled by the learned
+        wheel scale); remembered for the wheel-divergence check in ``_step``."""
+        i = self.hist.slot(s)
+        ws = abs(self.hist.aux[i, AUX_WHEEL] * self.hist.X[i][KW])
+        agree = not math.isfinite(ws) or abs(speed - ws) <= GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
+        self.gnss_agrees = agree
+        self.gnss_checked_t = s * self.dt
+        return agree
+
     def _align(self, s: int, g: GnssSample) -> None:
-        """Set the heading from the GNSS course at stored step s and carry it to the present."""
+        """Set the heading from the GNSS course at stored step s and carry it to the present.
+
+        psi = course + beta_antenna(x): the new heading is a function of the velocity states, so
+        its covariance row is J P (J = d beta_antenna / dx) and its variance J P J' plus the
+        course's own: speed accuracy / speed, and the yaw rate times the latency's uncertainty
+        (the course is from a slightly different instant than we think). Keeping the
+        correlation with vy is what lets later GNSS fixes correct sideslip and heading together
+        instead of trusting a heading that carries the initial sideslip error.
+        """
         h = self.hist
         i = h.slot(s)
         x = h.X[i]
         r = h.aux[i, AUX_R]
-        vax = x[VX] - r * self.gnss.lever_y
-        vay = x[VY] + r * self.gnss.lever_x
-        beta_ant = math.atan2(vay, vax)
-        psi = (self.gnss.course(g) + beta_ant) % (2.0 * math.pi)
+        lx, ly = self.gnss.lever_x, self.gnss.lever_y
+        vax = x[VX] - r * ly
+        vay = x[VY] + r * lx
+        psi = (self.gnss.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
         dpsi = psi - x[PSI]
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        var = (self.gnss.sigma(g) / speed) ** 2 + h.P[i][VY, VY] / max(vax * vax, 1.0) \
-            + math.radians(0.5) ** 2
+        var_course = (self.gnss.sigma(g) / speed) ** 2 + (r * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
         old = h.oldest()
         idx = np.arange(old, h.last + 1) % h.n
-        h.X[idx, PSI] = (h.X[idx, PSI] + dpsi) % (2.0 * math.pi)
-        h.P[idx, PSI, :] = 0.0
-        h.P[idx, :, PSI] = 0.0
-        h.P[idx, PSI, PSI] = var
+        X = h.X[idx]
+        rr = h.aux[idx, AUX_R]
+        vax = X[:, VX] - rr * ly
+        vay = X[:, VY] + rr * lx
+        sp2 = np.maximum(vax * vax + vay * vay, 1.0)
+        J = np.zeros((len(idx), NX))
+        J[:, VX] = -vay / sp2
+        J[:, VY] = vax / sp2
+        J[:, BR] = (-vay * ly - vax * lx) / sp2
+        P = h.P[idx]
+        JP = np.einsum("ki,kij->kj", J, P)
+        var = np.einsum("kj,kj->k", JP, J) + var_course
+        h.X[idx, PSI] = (X[:, PSI] + dpsi) % (2.0 * math.pi)
+        P[:, PSI, :] = JP
+        P[:, :, PSI] = JP
+        P[:, PSI, PSI] = var
+        h.P[idx] = P
         self.aligned = True
         self.gnss.consecutive_rejects = 0
