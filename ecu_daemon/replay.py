@@ -124,13 +124,17 @@ class _Progress:
 
 
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
-               out_csv: str | None = None, out_can: str | None = None, progress: bool = False) -> dict:
-    """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files."""
+               out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
+               learned: dict | None = None) -> dict:
+    """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files.
+
+    ``learned``: a learned state to start from (as a daemon restores its state file).
+    """
     for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
     decoder = SignalDecoder(cfg)
-    est = Estimator(cfg)
+    est = Estimator(cfg, learned)
     encoder = None
     can_out = None
     if out_can:

@@ -45,7 +45,7 @@ I_RR_MAX = 3
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
 SIDESLIP_STD_VALID = math.radians(1.0)
-HEADING_STD_VALID = math.radians(2.0)
+HEADING_STD_VALID = math.radians(1.5)  # 3 sigma inside the 5 deg a valid heading promises
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
 # while an IMU signal is isolated its substitute is coarse: process noise for what it drives
@@ -54,6 +54,12 @@ ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
 ISO_HEADING_STEP = math.radians(3.0)
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
+# divergence: the wheels and GNSS speed cross-check each other before either re-initialises
+GNSS_WHEEL_TOL_MPS = 1.0  # speed agreement: lever arm, sideslip and wheel slip stay inside this
+GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
+WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
+GNSS_CHECK_FRESH_S = 2.0
+COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
 
 class Estimator:
@@ -98,10 +104,13 @@ class Estimator:
         self.rdot = 0.0
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
-        self.wheel_gated = False
         self.last_gnss_rejected = False
         self.late_inputs = 0
         self.resets = 0
+        self.realignments = 0
+        self.gnss_agrees = True
+        self.gnss_checked_t = -math.inf
+        self.wheel_reject_t = math.inf  # time of the first of the current run of wheel rejections
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
@@ -186,7 +195,14 @@ class Estimator:
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
 
-    def _initialize(self, k: int, wheel_speed: float) -> None:
+    def _initialize(self, k: int, wheel_speed: float, r_m: float, ay_m: float) -> None:
+        """Start the filter in whatever state the car is in (standstill or moving, straight or
+        cornering): vx from the wheels, vy from the single-track model, heading unknown.
+
+        The standard deviations are what these sources are worth on a flying start: the wheel
+        scale's uncertainty times the speed, the model's sideslip error (~1.5 deg plus a bit),
+        no heading at all until GNSS course gives one (``_align``).
+        """
         L = self._learned0
         h = self.hist
         h.reset(k)
@@ -194,15 +210,18 @@ class Estimator:
         x = h.X[i]
         x[:] = 0.0
         kw = L.get("wheel_scale", 1.0)
-        x[VX] = wheel_speed * kw if math.isfinite(wheel_speed) else 0.0
+        x[VX] = vx = wheel_speed * kw
         x[BR] = L.get("yaw_rate_bias_radps", 0.0)
         x[BAX] = L.get("accel_x_bias_mps2", 0.0)
         x[BAY] = L.get("accel_y_bias_mps2", 0.0)
         x[KW] = kw
-        have = "yaw_rate_bias_radps" in L
         x[GAY] = L.get("accel_y_gain", 0.0)
-        std = np.array([1.0, 0.5, math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3,
-                        0.005 if "wheel_scale" in L else 0.03, 0.02 if "accel_y_gain" in L else 0.05])
+        x[VY] = self.single_track.pseudo_measurement(vx, r_m - x[BR], ay_m - x[BAY], 0.0)[0]
+        have = "yaw_rate_bias_radps" in L
+        kw_std = 0.005 if "wheel_scale" in L else 0.03
+        std = np.array([math.hypot(0.3, kw_std * vx), 0.1 + math.radians(1.5) * abs(vx) + abs(x[VY]) * 0.3,
+                        math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3, kw_std,
+                        0.02 if "accel_y_gain" in L else 0.05])
         h.P[i] = np.diag(std ** 2)
         h.A[i] = np.eye(NX)
         self.initialized = True
@@ -212,6 +231,9 @@ class Estimator:
         """Re-initialise after divergence / non-finite state, keeping what was learned."""
         self.resets += 1
         self._reset_flag = True
+        self.wheel_reject_t = math.inf
+        self.wheels.consecutive_rejects = 0
+        self.gnss.consecutive_rejects = 0
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -230,9 +252,12 @@ class Estimator:
                      and t - held_t[3] <= tmo[3])
         wheel_z = self.wheels.measured_speed(fl, fr, rl, rr) if wheels_ok else math.nan
         if not self.initialized:
-            if not imu_ok:
+            # velocity comes from the wheels at once, so the filter waits for them: starting at
+            # vx = 0 while the car moves puts every wheel sample outside its gate (the divergence
+            # of issue 7) and a flying start looks like a standstill
+            if not (imu_ok and math.isfinite(wheel_z)):
                 return self._invalid(t)
-            self._initialize(k, wheel_z)
+            self._initialize(k, wheel_z, r_m, ay_m)
             self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]
         h = self.hist
         i = h.slot(k)
@@ -283,7 +308,11 @@ class Estimator:
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS:
-                self.wheel_gated = not self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A)
+                if self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
+                    self.wheel_reject_t = math.inf
+                elif self._wheels_diverged(t):
+                    self._reset(k)
+                    return self._invalid(t)
             if imu_ok and k % MODEL_EVERY == 0 and not iso & (YAW_RATE | ACCEL_Y):
                 self.single_track.fuse(x, P, r, ay, self.rdot, A, MODEL_EVERY)
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
@@ -330,6 +359,19 @@ class Estimator:
 
     def _fresh_gnss_speed(self, t: float) -> float:
         return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan
+
+    def _wheels_diverged(self, t: float) -> bool:
+        """A run of wheel rejections: re-initialise from the wheels unless GNSS says they lie.
+
+        The wheels are four independent sensors, the filter's vx an integral of one
+        accelerometer; when they disagree for long the filter is the likelier culprit, except
+        when the latest GNSS speed check sided against the wheels (all wheels stuck or zero).
+        """
+        self.wheel_reject_t = min(self.wheel_reject_t, t)
+        if t - self.wheel_reject_t < WHEEL_DIVERGED_S:
+            return False
+        gnss_recent = t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
+        return self.gnss_agrees or not gnss_recent
 
     def _invalid(self, t: float) -> Estimate:
         """No filter yet (or just reset): finite, neutral values, every validity bit false.
@@ -384,8 +426,8 @@ class Estimator:
         psi_std = sd[PSI]
         # valid only from sources that agree: wheels fused and passing their gate, or fresh GNSS
         # (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
-        wheels_fused = wheels_ok and not iso & WHEELS and not self.wheel_gated
-        vel_valid = (imu_ok and (wheels_fused or gnss_fresh)
+        wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
+        vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
         imu_trusted = not iso & (YAW_RATE | ACCEL_Y)
         st = self.single_track
@@ -415,21 +457,34 @@ class Estimator:
         delay = self.latency.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
         js = h.slot(s)
-        agree = self.fdi.check_gnss(s, speed, fus.sigma(g), h.aux[js, AUX_WHEEL] * h.X[js, KW],
-                                    h.X[js, VX], h.P[js][VX, VX])
-        if agree is False or self.fdi.gnss_isolated:  # never fused, never learned from
+        agree = self._gnss_agrees_with_wheels(s, speed)
+        tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
+        verdict = self.fdi.check_gnss(
+            s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,
+            abs(speed - h.X[js, VX]) <= max(tol, 5.0 * math.sqrt(max(h.P[js][VX, VX], 0.0))))
+        if verdict is False or self.fdi.gnss_isolated:  # never fused, never learned from
             fus.rejected += 1
             fus.last_reason = "inconsistent with the wheels / IMU"
             self.last_gnss_rejected = True
             return
-        if agree and not self.fdi.isolated & WHEELS:
+        agree = agree and not self.fdi.isolated & WHEELS
+        if agree:
             self.latency.observe(k, speed, h)
         if late:
             fus.late += 1
-        # a run of gate rejections re-aligns only when the other sources vouch for this GNSS
-        if not self.aligned or (fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree):
-            ok = fus.fuse_speed(h, s, g)
-            if speed > ALIGN_SPEED:
+        if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
+                and self.wheels.consecutive_rejects == 0:
+            # GNSS and the wheels agree with each other and not with the filter: its heading
+            # (or vy) has diverged. Drop the heading and align again from this fix's course.
+            # A GNSS that disagrees with the wheels stays rejected instead (a glitch).
+            self.aligned = False
+            self.realignments += 1
+        if not self.aligned:
+            ok = agree and fus.fuse_speed(h, s, g)
+            if not agree:
+                fus.rejected += 1
+                fus.last_reason = "speed disagrees with the wheels"
+            if ok and speed >= ALIGN_SPEED:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
@@ -444,25 +499,55 @@ class Estimator:
             self.last_gnss_fused_t = k * self.dt
             self.last_gnss_speed = speed
 
+    def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
+        """GNSS speed against the wheel speed at its time of validity (scaled by the learned
+        wheel scale); remembered for the wheel-divergence check in ``_step``."""
+        i = self.hist.slot(s)
+        ws = abs(self.hist.aux[i, AUX_WHEEL] * self.hist.X[i][KW])
+        agree = not math.isfinite(ws) or abs(speed - ws) <= GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
+        self.gnss_agrees = agree
+        self.gnss_checked_t = s * self.dt
+        return agree
+
     def _align(self, s: int, g: GnssSample) -> None:
-        """Set the heading from the GNSS course at stored step s and carry it to the present."""
+        """Set the heading from the GNSS course at stored step s and carry it to the present.
+
+        psi = course + beta_antenna(x): the new heading is a function of the velocity states, so
+        its covariance row is J P (J = d beta_antenna / dx) and its variance J P J' plus the
+        course's own: speed accuracy / speed, and the yaw rate times the latency's uncertainty
+        (the course is from a slightly different instant than we think). Keeping the
+        correlation with vy is what lets later GNSS fixes correct sideslip and heading together
+        instead of trusting a heading that carries the initial sideslip error.
+        """
         h = self.hist
         i = h.slot(s)
         x = h.X[i]
         r = h.aux[i, AUX_R]
-        vax = x[VX] - r * self.gnss.lever_y
-        vay = x[VY] + r * self.gnss.lever_x
-        beta_ant = math.atan2(vay, vax)
-        psi = (self.gnss.course(g) + beta_ant) % (2.0 * math.pi)
+        lx, ly = self.gnss.lever_x, self.gnss.lever_y
+        vax = x[VX] - r * ly
+        vay = x[VY] + r * lx
+        psi = (self.gnss.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
         dpsi = psi - x[PSI]
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        var = (self.gnss.sigma(g) / speed) ** 2 + h.P[i][VY, VY] / max(vax * vax, 1.0) \
-            + math.radians(0.5) ** 2
+        var_course = (self.gnss.sigma(g) / speed) ** 2 + (r * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
         old = h.oldest()
         idx = np.arange(old, h.last + 1) % h.n
-        h.X[idx, PSI] = (h.X[idx, PSI] + dpsi) % (2.0 * math.pi)
-        h.P[idx, PSI, :] = 0.0
-        h.P[idx, :, PSI] = 0.0
-        h.P[idx, PSI, PSI] = var
+        X = h.X[idx]
+        rr = h.aux[idx, AUX_R]
+        vax = X[:, VX] - rr * ly
+        vay = X[:, VY] + rr * lx
+        sp2 = np.maximum(vax * vax + vay * vay, 1.0)
+        J = np.zeros((len(idx), NX))
+        J[:, VX] = -vay / sp2
+        J[:, VY] = vax / sp2
+        J[:, BR] = (-vay * ly - vax * lx) / sp2
+        P = h.P[idx]
+        JP = np.einsum("ki,kij->kj", J, P)
+        var = np.einsum("kj,kj->k", JP, J) + var_course
+        h.X[idx, PSI] = (X[:, PSI] + dpsi) % (2.0 * math.pi)
+        P[:, PSI, :] = JP
+        P[:, :, PSI] = JP
+        P[:, PSI, PSI] = var
+        h.P[idx] = P
         self.aligned = True
         self.gnss.consecutive_rejects = 0

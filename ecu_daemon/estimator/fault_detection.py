@@ -10,7 +10,7 @@ alive, in range and with good CRCs, is caught by physics rather than by its own 
   ``ay / vx`` (the gyro is blamed only when both disagree with it; ``ay`` when only ``ay / vx``
   does);
 * GNSS speed against the wheel speed at its time of validity (or, with the wheels out, against the
-  filter's velocity);
+  filter's velocity; the comparison itself is ``core.Estimator._gnss_agrees_with_wheels``);
 * standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree.
 
 When the longitudinal check fails, wheels and accelerometer are both suspects until the evidence
@@ -61,9 +61,7 @@ YAW_TOL_AY = 0.08  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the ste
 YAW_TOL_AY_REL = 0.25
 LR_TAU_S = 20.0  # learning of the left/right wheel-radius mismatch
 LR_MAX = 0.01
-# --- GNSS speed vs wheels
-GNSS_TOL_MPS = 1.0  # + 5 % of speed (wheel scale bound) + 3 sigma of the fix
-GNSS_TOL_REL = 0.05
+WHEELS_BACK_TOL_MPS = 1.0  # isolated wheels return within this (or 4 sigma) of the filter's vx
 # --- standstill
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
 # --- hysteresis (steps at 6 ms)
@@ -255,7 +253,7 @@ class FaultDetector:
             return
         if not math.isfinite(v):
             return
-        tol = max(GNSS_TOL_MPS, 4.0 * math.sqrt(p_vx + wheel_r2))
+        tol = max(WHEELS_BACK_TOL_MPS, 4.0 * math.sqrt(p_vx + wheel_r2))
         self.wheels_back.active = True
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
@@ -298,27 +296,25 @@ class FaultDetector:
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
 
     # ------------------------------------------------------------------------------------------
-    def check_gnss(self, s: int, speed: float, sigma: float, wheel_speed_s: float, vx_s: float,
-                   p_vx_s: float) -> bool | None:
+    def check_gnss(self, s: int, wheels_agree: bool | None, filter_agree: bool) -> bool | None:
         """Is a GNSS speed (validity step s) consistent with the other sources? None: cannot tell.
 
-        ``wheel_speed_s``: the scaled wheel speed at step s (NaN if none); ``vx_s``, ``p_vx_s``: the
-        filter's vx and its variance there. With the longitudinal check failing, the fix is the
-        witness that tells wheels from accelerometer, and is compared with the filter instead.
+        ``wheels_agree``: its speed against the wheel speed at step s (None: no wheel speed);
+        ``filter_agree``: against the filter's vx there, within its uncertainty. The wheels are
+        the witness while they are trusted; while the longitudinal check fails (or the wheels are
+        isolated) the fix is instead the witness that tells wheels from accelerometer, and is
+        itself checked against the filter.
         """
-        tol = GNSS_TOL_MPS + GNSS_TOL_REL * speed + 3.0 * sigma
-        wheels_usable = math.isfinite(wheel_speed_s) and not (self.isolated & WHEELS)
-        if math.isfinite(wheel_speed_s):
-            agree_w = abs(speed - wheel_speed_s) <= tol
-            if self.lon.active or self.wheels_isolated:
-                self._gnss_wheel_verdict = (s, agree_w)
-                wheels_usable = False
+        wheels_usable = wheels_agree is not None and not (self.isolated & WHEELS)
+        if wheels_agree is not None and (self.lon.active or self.wheels_isolated):
+            self._gnss_wheel_verdict = (s, wheels_agree)
+            wheels_usable = False
         if wheels_usable:
-            ok = agree_w
-        elif self.isolated & ACCEL_X and not math.isfinite(wheel_speed_s):
-            ok = None
+            ok = wheels_agree
+        elif self.isolated & ACCEL_X and wheels_agree is None:
+            ok = None  # neither wheels nor accelerometer to compare with
         else:
-            ok = abs(speed - vx_s) <= max(tol, 5.0 * math.sqrt(max(p_vx_s, 0.0)))
+            ok = filter_agree
         self.gnss.update(None if ok is None else not ok)
         return ok
 

@@ -6,10 +6,13 @@ squared against chi-square), then the update at the stored step and the shift to
 (``history.StepHistory.correct``).
 
 Before the heading is known (after start-up or a reset) the velocity *direction* cannot be
-fused linearly; then only the speed is fused, and the heading is aligned from the GNSS course
-once the car moves fast enough (course = heading - sideslip, clockwise-from-north convention).
-A run of consecutive gate rejections (a real jump, or a diverged filter) re-aligns instead of
-locking the filter out for ever (the NIS lock-out the Yoon thesis warns about).
+fused linearly (through a heading with a variance of pi^2 it drags vx anywhere); then only the
+speed is fused, and the heading is aligned from the GNSS course once the car moves fast enough
+(course = heading - sideslip, clockwise-from-north convention). A run of consecutive gate
+rejections (a real jump, or a diverged filter) is resolved by the core against the wheel
+speeds: GNSS that agrees with the wheels re-aligns the heading, GNSS that does not stays
+rejected (never a blind acceptance; the NIS lock-out the Yoon thesis warns about is avoided
+without trusting a glitch).
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ from ...samples import GnssSample
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
 from ..kinematic import NX, VX, VY, antenna_velocity_ne, gnss_jacobian
 
-ALIGN_SPEED = 4.0  # m/s: course is good to ~ sigma_v / v rad
+ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
 # chi-square, 2 degrees of freedom, for a gate of n sigma: exp(-g/2) = tail(n sigma, 1-D)
 CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
@@ -85,7 +88,7 @@ class GnssVelocityFusion:
         Ph = P @ h
         S = float(h @ Ph) + sig * sig
         y = zs - (sp if sp >= 0.5 else x[VX])
-        if y * y > 25.0 * S and self.consecutive_rejects < MAX_CONSECUTIVE_REJECTS:
+        if y * y > 25.0 * S:
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = "speed innovation gate"
