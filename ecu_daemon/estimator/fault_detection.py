@@ -30,7 +30,7 @@ import math
 import numpy as np
 
 from . import estimate as est_mod
-from .kinematic import BAX, BAY, BR, GAY, KW, VX, VY
+from .kinematic import BAX, BAY, BR, GAY, KW, VX
 
 WHEELS = est_mod.STATUS_WHEELS_ISOLATED
 YAW_RATE = est_mod.STATUS_YAW_RATE_ISOLATED
