@@ -59,8 +59,8 @@ YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius 
 YAW_TOL_WHEELS_REL = 0.15
 YAW_TOL_AY = 0.08  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the steady-state relation)
 YAW_TOL_AY_REL = 0.25
-LR_TAU_S = 20.0  # learning of the left/right wheel-radius mismatch
-LR_MAX = 0.01
+LR_TAU_S = 60.0  # learning of the left/right wheel-radius mismatch (tyre pressure, wear)
+LR_MAX = 0.005
 WHEELS_BACK_TOL_MPS = 1.0  # isolated wheels return within this (or 4 sigma) of the filter's vx
 # --- standstill
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
@@ -229,7 +229,9 @@ class FaultDetector:
     def _attribute(self, k: int) -> None:
         """Which of wheels / accelerometer broke the longitudinal check (both until known)."""
         g = self._gnss_wheel_verdict
-        if g is not None and g[0] >= self.lon_onset:
+        if self.lon.bad and g is not None and g[0] >= self.lon_onset:
+            # a fix taken during a disagreement that still lasts: the one it sides with is right
+            # (not after a step that has already passed the window: a wheel sensor recovering)
             self.lon_culprit = ACCEL_X if g[1] else WHEELS
             return
         if self.lon_culprit != WHEELS | ACCEL_X:
