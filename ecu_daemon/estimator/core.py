@@ -429,7 +429,7 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
-        imu_trusted = not iso & (YAW_RATE | ACCEL_Y)
+        imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
         st = self.single_track
         gn = self.gnss
         return Estimate(

@@ -140,6 +140,7 @@ class FaultDetector:
         self.e_ws = 0.0  # the same, slow
         self.e_as = 0.0
         self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
+        self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
@@ -290,6 +291,8 @@ class FaultDetector:
                              or abs(self.e_as) > slow)
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not self.ay.active
+        # any yaw witness out of line: sideslip is not promised until the vote is clear
+        self.yaw_suspect = w_fail or a_fail
         self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
         self.ay.update((a_fail and not w_fail) if (have_w and have_a) else None)
         if have_w and not w_fail and not self.gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
