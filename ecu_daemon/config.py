@@ -102,6 +102,9 @@ class InputMapping:
     timeout_s: float = 0.0  # 0: ten times the observed cycle time
     counter: str = ""  # name of a rolling-counter signal in the message to check, "" = none
     checksum: str = "none"  # none | e2e_p2 (AUTOSAR E2E profile 2, CRC8H2F) | toyota
+    #: sign-magnitude signals (VW's ESP_Gierrate + ESP_VZ_Gierrate): a signal (or sign bit) in the
+    #: same message whose non-zero value makes the magnitude negative, before ``scale``/``offset``
+    sign_signal: str = ""
 
     def signal_names(self) -> list[str]:
         return list(self.signals) if self.signals else [self.signal]
@@ -317,7 +320,7 @@ def to_dict(cfg: Config) -> dict:
     for name in INPUT_NAMES:
         d = dataclasses.asdict(cfg.inputs[name])
         d = {k: v for k, v in d.items()
-             if not ((k == "signals" and not v) or (k == "signal" and not v)
+             if not ((k in ("signals", "signal", "sign_signal") and not v)
                      or (k in ("min", "max") and math.isinf(v)))}
         inputs[name] = d
     out["inputs"] = inputs

@@ -10,6 +10,15 @@ grade and the body roll the bank causes), which is what a bias state can observe
 Per quantity: RMS, max |error| and mean error over all rows after settling; RMS over the rows
 the estimate flags valid, and the fraction valid. Biases and the GNSS delay also get the final
 value and its (relative) error. Sideslip additionally reports how often |error| <= 2 sigma.
+
+Honest validity (:func:`validity_metrics`, per quantity with a std column): a valid flag is a
+promise, so these look at the WHOLE drive, settling included: coverage (fraction of valid rows
+with |error| <= 1/2/3 reported sigma), the count of valid rows beyond 3 sigma, the worst error
+while valid, the time to the first valid row (from the drive's start and from the first good GNSS
+fix above 5 m/s, i.e. the first row where the truth's ``gnss_good`` column marks a good fix
+received while the car moves faster than 5 m/s; without that column, the first row above 5 m/s
+plus the GNSS delay), and the valid fraction overall and on the rows above 5 m/s from 3 s after
+that fix (the convergence the targets allow).
 """
 from __future__ import annotations
 
@@ -35,6 +44,11 @@ SIGNALS = {
     "vx": ("vx_mps", "vx_mps", "velocity_valid", "m/s", 1.0),
     "vy": ("vy_mps", "vy_mps", "velocity_valid", "m/s", 1.0),
 }
+#: quantity -> the estimate's reported 1-sigma column (validity metrics need it)
+STD_COLUMNS = {"sideslip": "sideslip_std_rad", "heading": "heading_std_rad", "vx": "vx_std_mps",
+               "vy": "vy_std_mps"}
+VALID_SPEED_MPS = 5.0  # rows above this speed are where sideslip and heading must be valid
+CONVERGE_S = 3.0  # time after the first good fix above VALID_SPEED_MPS the targets allow
 #: bias-like quantities: (truth column(s) in order of preference, estimate column, unit, factor)
 BIASES = {
     "yaw_rate_bias": (("yaw_rate_bias_radps",), "yaw_rate_bias_radps", "deg/s", 180 / math.pi),
@@ -126,6 +140,50 @@ def _stats(err: np.ndarray) -> dict:
             "mean": float(np.mean(err))}
 
 
+def validity_metrics(t: np.ndarray, err: np.ndarray, std: np.ndarray, valid: np.ndarray,
+                     speed: np.ndarray, t_start: float, t_fix: float) -> dict:
+    """Honesty of one quantity's valid flag and std (see the module doc); arrays share rows.
+
+    ``t_fix``: time of the first good GNSS fix above 5 m/s (NaN: none). Times to valid are NaN
+    when the flag never comes; coverage is NaN without valid rows.
+    """
+    valid = valid.astype(bool)
+    a = np.abs(err[valid])
+    s = std[valid]
+    n = int(valid.sum())
+    out: dict = {"valid_rows": n}
+    for k in (1, 2, 3):
+        out[f"coverage_{k}sigma"] = float(np.mean(a <= k * s)) if n else math.nan
+    out["valid_beyond_3sigma"] = int(np.sum(~(a <= 3 * s)))
+    out["worst_error_valid"] = float(np.max(a)) if n else math.nan
+    first = t[valid][0] if n else math.nan
+    out["time_to_valid_s"] = float(first - t_start)
+    out["time_to_valid_after_fix_s"] = math.nan
+    if math.isfinite(t_fix):
+        i = int(np.searchsorted(t, t_fix))
+        if i > 0 and valid[i - 1]:
+            out["time_to_valid_after_fix_s"] = 0.0  # already valid when the fix came
+        elif valid[i:].any():
+            out["time_to_valid_after_fix_s"] = float(t[i:][valid[i:]][0] - t_fix)
+    out["valid_fraction"] = float(valid.mean()) if len(valid) else math.nan
+    fast = speed > VALID_SPEED_MPS
+    if math.isfinite(t_fix):
+        fast &= t >= t_fix + CONVERGE_S
+    out["valid_fraction_above_5mps"] = float(valid[fast].mean()) if fast.any() else math.nan
+    return out
+
+
+def first_good_fix(truth: dict) -> float:
+    """Time the first good GNSS fix above 5 m/s reached the receiver's host (NaN: never)."""
+    tt = truth["t"]
+    speed = truth["speed_mps"] if "speed_mps" in truth else np.hypot(truth["vx_mps"], truth["vy_mps"])
+    if "gnss_good" in truth:
+        ok = (truth["gnss_good"] > 0.5) & (speed > VALID_SPEED_MPS)
+        return float(tt[ok][0]) if ok.any() else math.nan
+    ok = speed > VALID_SPEED_MPS
+    return float(tt[ok][0] + truth["gnss_delay_s"][ok][0]) if ok.any() else math.nan
+
+
 def evaluate(truth_csv: str | Path, estimate_csv: str | Path, settle_s: float = 10.0) -> dict:
     """Error statistics of an estimate CSV against a truth CSV (see module doc); SI units."""
     truth = read_csv(truth_csv, TRUTH_REQUIRED, "truth CSV")
@@ -141,15 +199,26 @@ def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
         raise EvaluationError(f"no estimate rows inside the truth time span {tt[0]:.3f}..{tt[-1]:.3f} s"
                               f" after settling ({settle_s:g} s); estimate spans {te[0]:.3f}..{te[-1]:.3f} s")
     t = te[sel]
-    out: dict = {"rows": int(sel.sum()), "t_start": float(t[0]), "t_end": float(t[-1]), "settle_s": settle_s}
+    span = (te >= tt[0]) & (te <= hi)  # the whole drive, for the validity metrics
+    t_all = te[span]
+    t_fix = first_good_fix(truth)
+    speed = np.interp(t_all, tt, truth["speed_mps"] if "speed_mps" in truth
+                      else np.hypot(truth["vx_mps"], truth["vy_mps"]))
+    out: dict = {"rows": int(sel.sum()), "t_start": float(t[0]), "t_end": float(t[-1]), "settle_s": settle_s,
+                 "drive_start": float(t_all[0]), "first_good_fix_above_5mps": t_fix}
     for name, (tc, ec, vc, _, _) in SIGNALS.items():
-        if name == "heading":
-            ref = np.interp(t, tt, np.unwrap(truth[tc]))
-            err = _wrap(est[ec][sel] - ref)
+        if name in ("heading", "sideslip"):  # angles: +-180 deg apart is 0 (heading north, reversing)
+            ref = np.interp(t_all, tt, np.unwrap(truth[tc]))
+            err_all = _wrap(est[ec][span] - ref)
         else:
-            ref = np.interp(t, tt, truth[tc])
-            err = est[ec][sel] - ref
+            ref = np.interp(t_all, tt, truth[tc])
+            err_all = est[ec][span] - ref
+        err = err_all[sel[span]]
         s = _stats(err)
+        sc = STD_COLUMNS.get(name)
+        if vc in est and sc in est:
+            s["validity"] = validity_metrics(t_all, err_all, est[sc][span], est[vc][span] > 0.5, speed,
+                                             float(t_all[0]), t_fix)
         if vc in est:
             valid = est[vc][sel] > 0.5
             s["fraction_valid"] = float(valid.mean())
@@ -179,8 +248,13 @@ def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
 
 
 def public(result: dict) -> dict:
-    """``result`` without the per-row error arrays (for JSON)."""
-    return {k: (public(v) if isinstance(v, dict) else v) for k, v in result.items() if not k.startswith("_")}
+    """``result`` without the per-row error arrays, NaN as None: strict JSON for other programs."""
+    def clean(v):
+        if isinstance(v, dict):
+            return public(v)
+        return None if isinstance(v, float) and not math.isfinite(v) else v
+
+    return {k: clean(v) for k, v in result.items() if not k.startswith("_")}
 
 
 def format_table(result: dict) -> str:
@@ -197,6 +271,22 @@ def format_table(result: dict) -> str:
         fv_s = f"{fv * 100:.0f}%" if fv == fv else "-"
         lines.append(f"{name:<26}{unit:>7}{s['rms'] * k:>10.3f}{s['max_abs'] * k:>10.3f}{s['mean'] * k:>10.3f}"
                      f"{rv_s:>11}{fv_s:>7}" + (f"{w2 * 100:>7.0f}%" if w2 is not None else ""))
+    lines.append(f"validity over the whole drive (first good GNSS fix above {VALID_SPEED_MPS:g} m/s at "
+                 + (f"{result['first_good_fix_above_5mps'] - result['drive_start']:.2f} s)"
+                    if math.isfinite(result["first_good_fix_above_5mps"]) else "none)"))
+    lines.append(f"{'quantity':<12}{'in 1sig':>8}{'in 2sig':>8}{'in 3sig':>8}{'>3sig':>7}{'worst@valid':>12}"
+                 f"{'t valid':>8}{'after fix':>10}{'valid':>7}{'>5m/s':>7}")
+    pct = lambda v: f"{v * 100:.1f}%" if v == v else "-"  # noqa: E731
+    num = lambda v, k=1.0: f"{v * k:.3g}" if v == v else "-"  # noqa: E731
+    for name, (_, _, _, unit, k) in SIGNALS.items():
+        v = result[name].get("validity")
+        if v is None:
+            continue
+        lines.append(f"{name:<12}{pct(v['coverage_1sigma']):>8}{pct(v['coverage_2sigma']):>8}"
+                     f"{pct(v['coverage_3sigma']):>8}{v['valid_beyond_3sigma']:>7}"
+                     f"{num(v['worst_error_valid'], k) + ' ' + unit:>12}{num(v['time_to_valid_s']):>8}"
+                     f"{num(v['time_to_valid_after_fix_s']):>10}{pct(v['valid_fraction']):>7}"
+                     f"{pct(v['valid_fraction_above_5mps']):>7}")
     lines.append(f"{'bias / parameter':<26}{'unit':>7}{'final':>10}{'truth':>10}{'error':>10}{'rel err':>11}"
                  f"{'rms':>8}")
     for name, (_, _, unit, k) in BIASES.items():
@@ -290,8 +380,14 @@ def plot(truth_csv: str | Path, estimate_csv: str | Path, out_dir: str | Path) -
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--truth", required=True, help="truth.csv from 'ecu-daemon simulate'")
-    parser.add_argument("--estimate", required=True, help="estimate CSV from 'ecu-daemon replay'")
+    parser.add_argument("--truth", help="truth.csv from 'ecu-daemon simulate'")
+    parser.add_argument("--estimate", help="estimate CSV from 'ecu-daemon replay'")
+    parser.add_argument("--suite", action="store_true",
+                        help="simulate, replay and score the scenario suite; one table, exit 1 if a target fails")
+    parser.add_argument("--only", metavar="PATTERN",
+                        help="--suite: only scenarios whose name or family matches (globs, comma-separated)")
+    parser.add_argument("--jobs", type=int, default=0, help="--suite: parallel scenarios (default: CPU count)")
+    parser.add_argument("--out", metavar="DIR", help="--suite: folder for every scenario's files (default out/suite)")
     parser.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
     parser.add_argument("--settle-s", type=float, default=10.0,
                         help="seconds at the start of the estimate left out of the statistics (default 10)")
@@ -301,6 +397,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from .cli import UserError
 
+    if args.suite:
+        from .suite import main as suite_main
+
+        if args.truth or args.estimate or args.plots:
+            raise UserError("--suite makes its own drives: give it without --truth, --estimate, --plots")
+        if args.jobs < 0:
+            raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+        return suite_main(args)
+    if not (args.truth and args.estimate):
+        raise UserError("give --truth and --estimate (or --suite)")
     if not (args.settle_s >= 0 and math.isfinite(args.settle_s)):
         raise UserError(f"--settle-s must be >= 0, got {args.settle_s}")
     try:
@@ -311,7 +417,7 @@ def main(args: argparse.Namespace) -> int:
     except OSError as e:
         raise UserError(f"cannot write plots to {args.plots}: {e.strerror or e}") from None
     if args.json:
-        json.dump(public(result), sys.stdout, indent=2, allow_nan=True)
+        json.dump(public(result), sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
     else:
         print(format_table(result))

@@ -38,6 +38,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out-can", help="write the output CAN frames as a candump -L log")
     p.add_argument("--out-csv", help="write one row per 6 ms estimator step")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    p.add_argument("--state", metavar="FILE",
+                   help="learned-state file, as the daemon's [daemon] state_file: restored at the start"
+                        " when it exists, written at the end (a restart mid-drive is two replays)")
 
 
 def csv_header() -> str:
@@ -126,10 +129,8 @@ class _Progress:
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
                learned: dict | None = None) -> dict:
-    """Replay one drive; returns a summary (counts, duration, speed). Raises UserError on bad files.
-
-    ``learned``: a learned state to start from (as a daemon restores its state file).
-    """
+    """Replay one drive, starting from ``learned`` (see :class:`Estimator`); returns a summary
+    (counts, duration, speed, the final learned state). Raises UserError on bad files."""
     for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
@@ -211,9 +212,22 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
 
 
 def main(args: argparse.Namespace) -> int:
+    from .io.state_store import StateFileError, load_state, save_state
+
     cfg = config_mod.load(args.config)
+    learned = None
+    if args.state:
+        try:
+            learned = load_state(args.state)
+        except StateFileError as e:
+            raise UserError(str(e)) from None
     summary = run_replay(cfg, args.can, args.gnss, args.out_csv, args.out_can,
-                         progress=not args.no_progress)
+                         progress=not args.no_progress, learned=learned)
+    if args.state:
+        try:
+            save_state(args.state, summary["learned"])
+        except OSError as e:
+            raise UserError(f"cannot write state file {args.state}: {e.strerror or e}") from None
     print(f"replayed {summary['duration_s']:.1f} s of drive ({summary['frames']} frames, "
           f"{summary['gnss_samples']} GNSS samples) into {summary['steps']} steps in "
           f"{summary['wall_s']:.2f} s (x{summary['realtime_factor']:.0f} real time)", file=sys.stderr)

@@ -1,7 +1,8 @@
 """CAN frames -> :class:`InputSample` s: the DBC plus the ``[inputs.*]`` mapping of the config.
 
 This is the one place where a car's signals become SI / ISO 8855 values:
-``value = scale * (sum of the mapped DBC signals' physical values) + offset``.
+``value = scale * (sum of the mapped DBC signals' physical values) + offset``, the sum negated
+first when the mapping's ``sign_signal`` is non-zero (magnitude + sign bit, as VW's MQB DBC).
 Everything that can be worked out once (which frame ids matter, which message and signals, which
 integrity checks) is bound at construction, so :meth:`SignalDecoder.decode` does a dict lookup
 for an uninteresting frame and one cantools decode for an interesting one.
@@ -115,9 +116,9 @@ class _Binding:
     """One input bound to its message: everything decode needs, precomputed."""
 
     __slots__ = ("name", "index", "health", "signals", "sig1", "scale", "offset", "lo", "hi",
-                 "counter", "e2e", "toyota", "timeout_s", "label")
+                 "counter", "e2e", "toyota", "timeout_s", "label", "sign")
 
-    def __init__(self, name: str, m: InputMapping, signals: tuple[str, ...], label: str):
+    def __init__(self, name: str, m: InputMapping, signals: tuple[str, ...], label: str, sign: str | None = None):
         self.name = name
         self.index = INPUT_INDEX[name]
         self.health = InputHealth(name)
@@ -133,6 +134,7 @@ class _Binding:
         self.toyota = m.checksum == "toyota"
         self.timeout_s = float(m.timeout_s)
         self.label = label
+        self.sign = sign  # sign-magnitude: the sign signal's name, else None
 
 
 class _FramePlan:
@@ -157,7 +159,7 @@ class _FramePlan:
     def bind(self, bindings: list[_Binding]) -> None:
         self.bindings = tuple(bindings)
         self.fast = tuple((b, b.health, b.sig1, b.scale, b.offset, b.lo, b.hi, b.index,
-                           b.e2e or b.toyota or b.counter is not None) for b in bindings)
+                           b.e2e or b.toyota or b.counter is not None, b.sign) for b in bindings)
 
 
 class SignalDecoder:
@@ -183,7 +185,8 @@ class SignalDecoder:
             if plan is None:
                 plan = plans[key] = _FramePlan(msg, label)
             signals = tuple(self._find_signal(name, msg, s, "signal") for s in m.signal_names())
-            b = _Binding(name, m, signals, label)
+            sign = self._find_signal(name, msg, m.sign_signal, "sign_signal") if m.sign_signal else None
+            b = _Binding(name, m, signals, label, sign)
             if m.counter:
                 sig = msg.get_signal_by_name(self._find_signal(name, msg, m.counter, "counter"))
                 if sig.length > 32:
@@ -280,7 +283,7 @@ class SignalDecoder:
                 counter_ok[cname] = None if chk.check(raw) else (
                     f"{plan.label}: {cname} {raw} after {prev}, expected {(prev + 1) & chk.mask}")
         out = []
-        for b, h, sig1, scale, offset, lo, hi, index, checked in plan.fast:
+        for b, h, sig1, scale, offset, lo, hi, index, checked, sign in plan.fast:
             h.frames += 1
             if checked:
                 if b.e2e and not e2e_ok:
@@ -295,7 +298,10 @@ class SignalDecoder:
                     self._fail(b, t, "counter", counter_ok[b.counter])
                     continue
             try:
-                if sig1 is not None:
+                if sign is not None:
+                    mag = sum([values[s] for s in b.signals])
+                    v = (-mag if values[sign] else mag) * scale + offset
+                elif sig1 is not None:
                     v = values[sig1] * scale + offset
                 else:
                     v = sum([values[s] for s in b.signals]) * scale + offset

@@ -148,3 +148,87 @@ def test_cli_table_json_and_plots(tmp_path, capsys):
     pngs = sorted(plots.glob("*.png"))
     assert [p.name for p in pngs] == ["biases.png", "heading.png", "sideslip.png", "velocities.png"]
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
+
+
+# ------------------------------------------------------------------------------ honest validity
+from ecu_daemon.evaluate import first_good_fix, validity_metrics  # noqa: E402
+
+
+def test_validity_metrics_on_a_table_with_known_answers():
+    t = np.arange(10.0)
+    err = np.array([0, 0, 0, 0.5, 1, 2, 3, 4, 0, 0])
+    std = np.ones(10)
+    valid = np.array([0, 0, 1, 1, 1, 1, 1, 1, 1, 0], dtype=bool)
+    speed = np.array([0, 2, 4, 6, 8, 10, 10, 10, 10, 10.0])
+    v = validity_metrics(t, -err, std, valid, speed, t_start=0.0, t_fix=4.5)  # sign must not matter
+    assert v["valid_rows"] == 7
+    assert v["coverage_1sigma"] == pytest.approx(4 / 7)
+    assert v["coverage_2sigma"] == pytest.approx(5 / 7)
+    assert v["coverage_3sigma"] == pytest.approx(6 / 7)
+    assert v["valid_beyond_3sigma"] == 1
+    assert v["worst_error_valid"] == 4.0
+    assert v["time_to_valid_s"] == 2.0
+    assert v["time_to_valid_after_fix_s"] == 0.0  # already valid when the fix came
+    assert v["valid_fraction"] == pytest.approx(0.7)
+    # above 5 m/s and from 3 s after the fix (t >= 7.5): rows 8 (valid) and 9 (not)
+    assert v["valid_fraction_above_5mps"] == pytest.approx(0.5)
+
+
+def test_validity_metrics_never_valid_and_missing_std():
+    t = np.arange(5.0)
+    v = validity_metrics(t, np.zeros(5), np.ones(5), np.zeros(5, bool), np.full(5, 10.0), 0.0, math.nan)
+    assert v["valid_rows"] == 0 and v["valid_beyond_3sigma"] == 0
+    assert all(math.isnan(v[k]) for k in ("coverage_3sigma", "worst_error_valid", "time_to_valid_s",
+                                          "time_to_valid_after_fix_s"))
+    assert v["valid_fraction"] == 0.0 and v["valid_fraction_above_5mps"] == 0.0  # no fix: all fast rows
+    # a valid row whose std is not a number is not covered (a promise without a bound)
+    w = validity_metrics(t, np.zeros(5), np.full(5, np.nan), np.ones(5, bool), np.full(5, 10.0), 0.0, math.nan)
+    assert w["coverage_3sigma"] == 0.0 and w["valid_beyond_3sigma"] == 5
+
+
+def test_first_good_fix_uses_the_gnss_good_column_or_speed_plus_delay():
+    t = 100.0 + np.arange(10.0)
+    vx = np.array([0, 2, 4, 6, 8, 10, 10, 10, 10, 10.0])
+    truth = {"t": t, "vx_mps": vx, "vy_mps": np.zeros(10), "gnss_delay_s": np.full(10, 0.4)}
+    assert first_good_fix(truth) == pytest.approx(103.4)
+    truth["gnss_good"] = np.array([1, 1, 1, 0, 0, 0, 1, 1, 1, 1.0])  # an outage from 103 to 105
+    assert first_good_fix(truth) == 106.0
+    truth["gnss_good"][:] = 0
+    assert math.isnan(first_good_fix(truth))
+
+
+def test_validity_covers_the_settling_time_and_json_is_strict(tmp_path, capsys):
+    """A valid flag is a promise from the first row: a big error while valid in the first seconds
+    shows in worst_error_valid even though the RMS figures leave those seconds out."""
+    tpath, truth = _truth(tmp_path)
+    n = len(truth["t"]) - 1
+    err = np.zeros(n)
+    err[100:200] = math.radians(5.0)  # 0.6-1.2 s: 5 deg off, flagged valid, std 0.34 deg
+    est = _estimate(truth, sideslip_rad=err)
+    est["vx_std_mps"] = np.full(n, 0.1)
+    est["velocity_valid"] = np.ones(n, dtype=int)
+    path = _write(tmp_path / "est.csv", est)
+    r = evaluate(tpath, path, settle_s=5.0)
+    v = r["sideslip"]["validity"]
+    assert r["sideslip"]["max_abs"] < 1e-9  # settled statistics do not see it ...
+    assert v["worst_error_valid"] == pytest.approx(math.radians(5.0))  # ... the validity metrics do
+    assert v["valid_beyond_3sigma"] == 100
+    assert v["coverage_3sigma"] == pytest.approx(1 - 100 / n)
+    assert v["time_to_valid_s"] == 0.0
+    assert "validity" not in r["vy"] and r["vx"]["validity"]["valid_rows"] == n  # no vy_std_mps column here
+    assert cli_main(["evaluate", "--truth", str(tpath), "--estimate", str(path), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"non-JSON {c}"))
+    assert doc["sideslip"]["validity"]["valid_beyond_3sigma"] == 100
+    assert doc["heading"]["validity"]["time_to_valid_after_fix_s"] is not None
+    assert cli_main(["evaluate", "--truth", str(tpath), "--estimate", str(path)]) == 0
+    assert "in 3sig" in capsys.readouterr().out
+
+
+def test_time_to_valid_after_fix_is_zero_when_already_valid():
+    t = np.arange(6.0)
+    v = validity_metrics(t, np.zeros(6), np.ones(6), np.array([0, 1, 1, 1, 0, 1], bool), np.full(6, 9.0),
+                         0.0, 2.5)
+    assert v["time_to_valid_after_fix_s"] == 0.0 and v["time_to_valid_s"] == 1.0
+    v = validity_metrics(t, np.zeros(6), np.ones(6), np.array([0, 1, 1, 1, 0, 1], bool), np.full(6, 9.0),
+                         0.0, 4.5)
+    assert v["time_to_valid_after_fix_s"] == 0.5  # invalid when the fix came, valid at t = 5

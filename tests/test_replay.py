@@ -113,3 +113,34 @@ def test_show_config_round_trips(tmp_path, capsys):
     p = tmp_path / "c.toml"
     p.write_text(text)
     assert config_mod.to_dict(config_mod.load(p)) == tomllib.loads(text)
+
+
+def test_state_file_carries_the_learned_state_into_the_next_replay(drive, tmp_path):
+    """A restart mid-drive is two replays: the second starts from what the first learned."""
+    import csv
+    import json
+
+    state = tmp_path / "state.json"
+    first, second = tmp_path / "first", tmp_path / "second"
+    first.mkdir()
+    second.mkdir()
+    assert _replay(drive, first, "--state", str(state)) == 0
+    learned = json.loads(state.read_text())["learned"]
+    assert learned["yaw_rate_bias_radps"] == pytest.approx(0.00873, abs=0.001)  # the sim's 0.5 deg/s
+    assert _replay(drive, second, "--state", str(state)) == 0
+    with open(second / "o.csv") as f:
+        rows = list(csv.DictReader(f))
+    with open(first / "o.csv") as f:
+        fresh = list(csv.DictReader(f))
+    started = next(r for r in rows if float(r["yaw_rate_bias_std_radps"]) > 0)
+    fresh_start = next(r for r in fresh if float(r["yaw_rate_bias_std_radps"]) > 0)
+    assert float(started["yaw_rate_bias_radps"]) == pytest.approx(learned["yaw_rate_bias_radps"], abs=1e-4)
+    assert float(started["yaw_rate_bias_std_radps"]) < float(fresh_start["yaw_rate_bias_std_radps"])
+
+
+def test_unreadable_state_file_is_one_line(drive, tmp_path, capsys):
+    bad = tmp_path / "state.json"
+    bad.write_text("{not json")
+    assert _replay(drive, tmp_path, "--state", str(bad)) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "corrupt" in err

@@ -228,7 +228,7 @@ def write_revs_can(path: Path, cfg: config_mod.Config, d: dict, rng: np.random.G
     for k, plan in enumerate(enc.plans):
         ts = np.arange(t[0] + 0.001 + 0.004 * k, t[-1], TOYOTA_PERIOD_S)
         rx = ts + rng.uniform(0.0001, 0.0009, len(ts))
-        names = [name for name, _, _ in plan.inputs]
+        names = [name for name, *_ in plan.inputs]
         cols = {n: np.interp(ts, t, values[n]) for n in names}
         for i in range(len(ts)):
             data = enc.encode(plan, {n: cols[n][i] for n in names})

@@ -8,6 +8,10 @@ remainder (``a`` is moved by one step if the remainder would not fit ``b``). Sig
 does not use carry their DBC initial value (GenSigStartValue) or 0. Rolling counters count up by
 one per frame; checksums use the same code the decoder checks them with
 (:mod:`ecu_daemon.integrity`). Quantisation happens here, by the DBC's resolution, as on a car.
+A sign-magnitude mapping (``sign_signal``) gets |value| in its signal(s) and 1 in the sign signal
+when negative. A value the DBC cannot hold (a negative yaw rate in an unsigned signal without a
+sign bit, a speed beyond the signal's range) raises :class:`UnencodableValue`: clipping it would
+hand the estimator a different drive than the truth describes.
 """
 from __future__ import annotations
 
@@ -16,6 +20,10 @@ from dataclasses import dataclass, field
 from ..config import Config, ConfigError
 from ..integrity import data_id_for, e2e_p2_apply, toyota_checksum
 from ..signals import load_dbc
+
+
+class UnencodableValue(ValueError):
+    """A value outside what the DBC signal can carry (message names input, value and range)."""
 
 
 class SignalInfo:
@@ -53,17 +61,24 @@ class SignalInfo:
     def clip(self, phys: float) -> float:
         return self.phys_lo if phys < self.phys_lo else (self.phys_hi if phys > self.phys_hi else phys)
 
+    def checked(self, phys: float) -> float:
+        """``phys`` if the signal can hold it (to within half a step), else :class:`UnencodableValue`."""
+        tol = 0.0 if self.is_float else 0.5 * abs(self.scale)
+        if not (self.phys_lo - tol <= phys <= self.phys_hi + tol):
+            raise UnencodableValue(f"{phys:.6g} does not fit signal {self.name} [{self.phys_lo:g}, {self.phys_hi:g}]")
+        return self.clip(phys)
+
 
 def split_value(sigs: list[SignalInfo], phys: float) -> dict:
     """Raw values of signals whose physical values sum to ``phys`` (the first takes the coarse part)."""
     if len(sigs) == 1:
         s = sigs[0]
-        return {s.name: s.to_raw(s.clip(phys))}
+        return {s.name: s.to_raw(s.checked(phys))}
     out = {}
     rest = phys
     for k, sig in enumerate(sigs):
         if k == len(sigs) - 1:
-            out[sig.name] = sig.to_raw(sig.clip(rest))
+            out[sig.name] = sig.to_raw(sig.checked(rest))
             break
         raw = sig.to_raw(rest)
         if not sig.is_float:
@@ -129,7 +144,8 @@ class FrameEncoder:
                     plan.template[sig.name] = (sig.raw_initial if sig.raw_initial is not None
                                                else info.to_raw(info.clip(0.0)))
             sigs = [SignalInfo(self._signal(name, msg, s)) for s in m.signal_names()]
-            plan.inputs.append((name, m, sigs))
+            sign = SignalInfo(self._signal(name, msg, m.sign_signal)) if m.sign_signal else None
+            plan.inputs.append((name, m, sigs, sign))
             if m.counter:
                 length = self._signal(name, msg, m.counter).length
                 plan.counters.setdefault(m.counter, [0, (1 << length) - 1])
@@ -161,9 +177,16 @@ class FrameEncoder:
     def encode(self, plan: MessagePlan, values: dict) -> bytes:
         """One frame of ``plan`` carrying ``values`` (input name -> SI value); advances counters."""
         raw = dict(plan.template)
-        for name, m, sigs in plan.inputs:
+        for name, m, sigs, sign in plan.inputs:
             phys = (values[name] - m.offset) / m.scale
-            raw.update(split_value(sigs, phys))
+            if sign is not None:
+                raw[sign.name] = 1 if phys < 0 else 0
+                phys = abs(phys)
+            try:
+                raw.update(split_value(sigs, phys))
+            except UnencodableValue as e:
+                raise UnencodableValue(f"[inputs.{name}] {values[name]:.6g} (SI) cannot be encoded in"
+                                       f" {plan.message.name} of {self.dbc_path.name}: {e}") from None
         for cname, state in plan.counters.items():
             raw[cname] = state[0]
             state[0] = (state[0] + 1) & state[1]

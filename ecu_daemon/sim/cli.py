@@ -54,6 +54,7 @@ def _check_positive(name: str, value, upper: float | None = None) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from .can_encoder import UnencodableValue
     from .run import simulate, vehicle_config
     from .writer import write_all
 
@@ -95,7 +96,10 @@ def main(args: argparse.Namespace) -> int:
             _fail(f"--can-dbc: no such file {args.can_dbc}")
     cfg = vehicle_config(sc, base)
     started = time.perf_counter()
-    result = simulate(sc, cfg)
+    try:
+        result = simulate(sc, cfg)
+    except UnencodableValue as e:
+        _fail(str(e))
     out_cfg = vehicle_config(sc, base, wrong=args.wrong_params)
     out = args.out or f"out/{sc.name}"
     try:

@@ -216,7 +216,7 @@ class Driver:
         dt = 0.0 if self.last_t is None else s.t - self.last_t
         self.last_t = s.t
         p = self.p
-        if v_t <= 0.0 and s.vx < 0.5:
+        if v_t == 0.0 and abs(s.vx) < 0.5:
             self.int_v = 0.0
             hold = [1500.0, 1500.0, 800.0, 800.0]
             return Commands(steer, (0.0,) * 4, tuple(hold), True)
@@ -224,24 +224,28 @@ class Driver:
         self.int_v = max(-1.0, min(1.0, self.int_v + 0.15 * err * dt))
         a_max = min(0.55 * self.mu * G, 3.0)
         a_min = -min(0.7 * self.mu * G, 6.0)
+        # reverse gear: the roles of drive and brake swap (a_max / a_min mirror too)
+        gear = -1.0 if v_t < 0.0 or s.vx < -0.5 else 1.0
+        if gear < 0:
+            a_max, a_min = -a_min, -a_max
         a_cmd = max(a_min, min(a_max, a_ff + 0.8 * err + self.int_v))
         f = (p.mass_kg * a_cmd + 0.5 * p.air_density * p.drag_area_m2 * s.vx * abs(s.vx)
-             + p.rolling_resistance * p.mass_kg * G + p.mass_kg * G * math.sin(self.grade))
+             + gear * p.rolling_resistance * p.mass_kg * G + p.mass_kg * G * math.sin(self.grade))
         drive = [0.0] * 4
         brake = [0.0] * 4
         r = p.wheel_radius_m
-        if f > 0.0:
-            f = min(f, p.max_drive_force_n, p.max_drive_power_w / max(s.vx, 1.0))
+        if gear * f > 0.0:
+            f = gear * min(gear * f, p.max_drive_force_n, p.max_drive_power_w / max(abs(s.vx), 1.0))
             wheels = {"front": (0, 1), "rear": (2, 3), "all": (0, 1, 2, 3)}[p.driven_axle]
             for w in wheels:
-                tc = _limiter(s.kappa[w], 0.7 * self.kappa_peak)  # traction control
+                tc = _limiter(gear * s.kappa[w], 0.7 * self.kappa_peak)  # traction control
                 drive[w] = f * r / len(wheels) * tc
         else:
-            tb = -f * r
+            tb = abs(f) * r
             shares = (p.brake_front_share / 2, p.brake_front_share / 2,
                       (1 - p.brake_front_share) / 2, (1 - p.brake_front_share) / 2)
             for w in range(4):
-                brake[w] = tb * shares[w] * _limiter(-s.kappa[w], 0.7 * self.kappa_peak)  # ABS
+                brake[w] = tb * shares[w] * _limiter(-gear * s.kappa[w], 0.7 * self.kappa_peak)  # ABS
         return Commands(steer, tuple(drive), tuple(brake), False)
 
 
@@ -355,7 +359,45 @@ def demo() -> Manoeuvre:
     return Manoeuvre("demo", tuple(knots), phases, 65.0)
 
 
-#: manoeuvre kind -> builder(mu) -> Manoeuvre
+def flying(mu: float = 1.0, v: float = 30.0, radius_m: float = 0.0, left: bool = True,
+           corner_s: float = 12.0, duration_s: float = 45.0) -> Manoeuvre:
+    """A drive that is already under way at t = 0 (a daemon starting while driving).
+
+    ``radius_m`` > 0: mid-corner on that circle for ``corner_s`` seconds (the simulator starts
+    the car in steady cornering there), then straight on; speed changes of +-20 % afterwards so
+    the GNSS latency is observable. No standstill anywhere.
+    """
+    knots = [(0.0, v), (corner_s + 3.0, v), (corner_s + 8.0, 0.8 * v), (corner_s + 14.0, 0.8 * v),
+             (corner_s + 19.0, v)]
+    first = Phase(corner_s, Circle(radius_m, left)) if radius_m > 0 else Phase(corner_s, Wander())
+    return Manoeuvre("flying", tuple(knots), (first, Phase(1e9, Wander())), duration_s)
+
+
+def reversing(mu: float = 1.0, v_back: float = 4.0) -> Manoeuvre:
+    """Forward to 10 m/s, stop, reverse at ``v_back`` with a gentle open-loop curve, stop, forward again (60 s)."""
+    knots = _start(10.0) + [(22.0, 10.0), (27.0, 0.0), (29.0, 0.0), (32.0, -v_back), (40.0, -v_back),
+                            (43.0, 0.0), (45.0, 0.0), (52.0, 10.0)]
+    curve = OpenLoop("sine", math.radians(90.0), freq_hz=1 / 16.0, cycles=0.5)  # left for 8 s, back
+    phases = (Phase(29.0, Line()), Phase(16.0, curve), Phase(1e9, Line()))
+    return Manoeuvre("reversing", tuple(knots), phases, 60.0)
+
+
+def low_speed(mu: float = 1.0, radius_m: float = 15.0, v_max: float = 10.0) -> Manoeuvre:
+    """Low-speed handling (5-13 m/s): a tight circle with the speed ramped 5 -> ``v_max`` -> 5, then a slalom (75 s).
+
+    On a tight circle the kinematic sideslip (rear axle distance / radius) is large at low
+    speed: 8-10 deg on 9-10 m radii, as on real handling tracks.
+    """
+    t_c = STANDSTILL_S + ACCEL_S
+    sl = OpenLoop("slalom", math.radians(90.0), freq_hz=0.4, cycles=5)
+    knots = _start(5.0) + [(t_c + 5.0, 5.0), (t_c + 30.0, v_max), (t_c + 36.0, v_max), (t_c + 42.0, 8.0),
+                           (t_c + 60.0, 8.0)]
+    phases = (Phase(t_c, Line()), Phase(40.0, Circle(radius_m, True)), Phase(5.0, Line()),
+              Phase(sl.cycles / sl.freq_hz, sl), Phase(1e9, Line()))
+    return Manoeuvre("low_speed", tuple(knots), phases, 75.0)
+
+
+#: manoeuvre kind -> builder(mu, **params) -> Manoeuvre
 BUILDERS = {
     "straight": straight,
     "j_turn": j_turn,
@@ -364,4 +406,7 @@ BUILDERS = {
     "sine": sine_steer,
     "steady_circle": steady_circle,
     "demo": lambda mu=1.0: demo(),
+    "flying": flying,
+    "reversing": reversing,
+    "low_speed": low_speed,
 }

@@ -15,9 +15,9 @@ import numpy as np
 from ..config import Config
 from . import sensors as sens
 from .can_encoder import FrameEncoder
-from .manoeuvres import Driver
+from .manoeuvres import Circle, Driver
 from .scenario import T0, Scenario
-from .vehicle import Road, TruthArrays, integrate
+from .vehicle import Road, TruthArrays, integrate, steady_cornering
 
 #: scale factors of the deliberately wrong vehicle parameters (``--wrong-params``)
 WRONG_FACTORS = {"mass": 1.3, "inertia": 0.7, "cf": 0.7, "cr": 1.3}
@@ -32,6 +32,7 @@ class SimResult:
     gnss_messages: list  # (receive time, payload bytes), time-ordered
     config: Config  # the config whose DBC + mapping encoded the frames
     extended_ids: set = field(default_factory=set)  # arbitration ids that are 29-bit
+    gnss_good_rx: list = field(default_factory=list)  # receive times of the fault-free GNSS solutions
 
     @property
     def t0(self) -> float:
@@ -59,6 +60,10 @@ class SimResult:
         psi = c("psi")
         cps, sps = np.cos(psi), np.sin(psi)
         radius = sc.vehicle.wheel_radius_m
+        t = c("t")
+        gnss_good = np.zeros(n)
+        if self.gnss_good_rx:
+            gnss_good[np.minimum(np.searchsorted(t, self.gnss_good_rx), n - 1)] = 1.0
         return {
             "t": c("t"),
             "sideslip_rad": np.arctan2(vy, vx),
@@ -94,6 +99,7 @@ class SimResult:
             **{f"wheel_speed_{w}_mps": c(f"omega_{w}") * radius for w in ("fl", "fr", "rl", "rr")},
             "cornering_stiffness_front_n_per_rad": const(cf),
             "cornering_stiffness_rear_n_per_rad": const(cr),
+            "gnss_good": gnss_good,  # 1 on the row where a fault-free GNSS solution arrived
         }
 
 
@@ -106,7 +112,11 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     cfg = copy.deepcopy(base) if base is not None else Config()
     vp = scenario.vehicle
     cf, cr = vp.axle_cornering_stiffness()
-    f = WRONG_FACTORS if wrong else {"mass": 1.0, "inertia": 1.0, "cf": 1.0, "cr": 1.0}
+    f = dict(WRONG_FACTORS) if wrong else {"mass": 1.0, "inertia": 1.0, "cf": 1.0, "cr": 1.0}
+    for key, factor in scenario.config_errors:
+        if key not in f:
+            raise ValueError(f"config error on unknown parameter {key!r}; known: {', '.join(f)}")
+        f[key] *= factor
     v = cfg.vehicle
     v.mass_kg = round(vp.mass_kg * f["mass"], 3)
     v.yaw_inertia_kgm2 = round(vp.yaw_inertia_kgm2 * f["inertia"], 3)
@@ -123,7 +133,9 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
     lat = scenario.gnss.latency_s
-    prior = lat if not wrong else (lat - 0.2 if lat >= 0.3 else lat + 0.2)
+    prior = lat if scenario.latency_prior_s is None else scenario.latency_prior_s
+    if wrong:
+        prior = lat - 0.2 if lat >= 0.3 else lat + 0.2
     g.delay_s = round(prior, 3)
     g.max_delay_s = max(g.max_delay_s, round(lat + 0.3, 3))
     return cfg
@@ -136,7 +148,13 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
     duration = scenario.duration()
     road = Road(scenario.mu, scenario.bank_rad, scenario.grade_rad)
     driver = Driver(man, scenario.vehicle, scenario.mu, T0, scenario.grade_rad)
-    truth = integrate(scenario.vehicle, road, driver, T0, duration, psi0=scenario.heading0_rad)
+    v0 = man.speed(0.0)[0]
+    vy0 = r0 = steer0 = 0.0
+    first = man.phases[0].steer
+    if v0 > 0 and isinstance(first, Circle):  # flying start mid-corner: steady cornering
+        vy0, r0, steer0 = steady_cornering(scenario.vehicle, v0, first.radius_m, first.left)
+    truth = integrate(scenario.vehicle, road, driver, T0, duration, psi0=scenario.heading0_rad,
+                      v0=v0, vy0=vy0, r0=r0, steer0=steer0)
     seq = np.random.SeedSequence(scenario.seed)
     rng_values, rng_timing, rng_gnss = (np.random.default_rng(s) for s in seq.spawn(3))
     sensors = sens.CanSensors(truth, scenario.sensors, rng_values)
@@ -148,7 +166,7 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
         t_rx = sens.receive_times(t_send, scenario.sensors, rng_timing)
         keep = t_rx <= truth.t[-1]
         t_send, t_rx = t_send[keep], t_rx[keep]
-        values = {name: sensors.measure(name, t_send) for name, _, _ in plan.inputs}
+        values = {name: sensors.measure(name, t_send) for name, *_ in plan.inputs}
         fid = plan.frame_id
         if plan.is_extended:
             extended.add(fid)
@@ -158,7 +176,10 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
     frames.sort(key=lambda f: (f[0], f[1], f[2]))
     can_frames = [(f[0], f[3], f[4]) for f in frames]
     gnss = []
+    good_rx = []
     for ep in sens.gnss_epochs(truth, scenario.gnss, rng_gnss):
         gnss.extend(m for m in sens.encode_epoch(ep, scenario.gnss) if m[0] <= truth.t[-1])
+        if ep.good:
+            good_rx.append(ep.t_rx)
     gnss.sort(key=lambda m: m[0])
-    return SimResult(scenario, truth, can_frames, gnss, cfg, extended)
+    return SimResult(scenario, truth, can_frames, gnss, cfg, extended, good_rx)

@@ -37,9 +37,14 @@ class Scenario:
     duration_s: float | None = None  # None: the manoeuvre's own length
     heading0_rad: float = math.radians(35.0)  # initial heading, clockwise from north
     description: str = ""
+    params: tuple = ()  # (keyword, value) pairs for the manoeuvre builder
+    #: (parameter, factor) pairs: the config handed to the estimator has these wrong (mass,
+    #: inertia, cf, cr), the simulated car does not
+    config_errors: tuple = ()
+    latency_prior_s: float | None = None  # the config's GNSS latency prior (None: the true latency)
 
     def build_manoeuvre(self) -> Manoeuvre:
-        return BUILDERS[self.manoeuvre](self.mu)
+        return BUILDERS[self.manoeuvre](self.mu, **dict(self.params))
 
     def duration(self) -> float:
         return self.duration_s if self.duration_s is not None else self.build_manoeuvre().duration_s

@@ -41,6 +41,58 @@ EARTH_RADIUS_M = 6378137.0
 
 
 @dataclass(frozen=True)
+class Fault:
+    """A sensor fault during ``[t_rel, t_rel + duration_s)`` seconds after the drive's start.
+
+    CAN inputs (``input`` = an input name, or ``wheels`` for all four wheel speeds), ``kind``:
+    ``stuck`` (holds the reading at the fault's start, or ``value`` when it is non-zero),
+    ``zero``, ``offset`` (+ ``value``, SI),
+    ``scaled`` (x ``value``), ``noisy`` (+ white noise of 1-sigma ``value``), ``intermittent``
+    (reads 0 for 0.1 s out of every 0.3 s: a loose connector). GNSS (``input`` = ``gnss``):
+    ``scaled`` (velocity x ``value``, a glitch), ``constant`` (north and east velocity both
+    ``value``), ``dropout`` (no solutions). Every value stays what the receiver or the DBC can
+    carry: these are the implausible-but-in-range inputs only cross-checks can catch.
+    """
+
+    input: str
+    kind: str
+    t_rel: float
+    duration_s: float
+    value: float = 0.0
+
+    def active(self, t: np.ndarray, t0: float) -> np.ndarray:
+        return (t >= t0 + self.t_rel) & (t < t0 + self.t_rel + self.duration_s)
+
+
+CAN_FAULT_KINDS = ("stuck", "zero", "offset", "scaled", "noisy", "intermittent")
+GNSS_FAULT_KINDS = ("scaled", "constant", "dropout")
+
+
+def apply_fault(fault: Fault, t: np.ndarray, v: np.ndarray, t0: float, rng: np.random.Generator) -> np.ndarray:
+    """``v`` (readings at times ``t``) with ``fault`` applied; a copy."""
+    on = fault.active(t, t0)
+    v = v.copy()
+    if not on.any():
+        return v
+    k = fault.kind
+    if k == "stuck":
+        v[on] = fault.value if fault.value else v[on][0]
+    elif k == "zero":
+        v[on] = 0.0
+    elif k == "offset":
+        v[on] += fault.value
+    elif k == "scaled":
+        v[on] *= fault.value
+    elif k == "noisy":
+        v[on] += fault.value * rng.standard_normal(int(on.sum()))
+    elif k == "intermittent":
+        v[on & ((t - t0 - fault.t_rel) % 0.3 >= 0.2)] = 0.0
+    else:
+        raise ValueError(f"unknown sensor fault kind {k!r}; known: {', '.join(CAN_FAULT_KINDS)}")
+    return v
+
+
+@dataclass(frozen=True)
 class SensorParams:
     can_rate_hz: float | None = None  # None: the DBC's GenMsgCycleTime, else 100 Hz
     jitter_s: float = 0.0003  # 1-sigma of the half-normal arrival delay of a frame
@@ -55,6 +107,7 @@ class SensorParams:
     wheel_speed_noise_mps: float = 0.02
     steering_noise_rad: float = math.radians(0.1)
     wheel_speed_min_mps: float = 0.15
+    faults: tuple = ()  # Fault s on the CAN inputs
 
 
 @dataclass(frozen=True)
@@ -73,6 +126,7 @@ class GnssParams:
     lat0_deg: float = 48.137  # position of the simulation origin
     lon0_deg: float = 11.575
     height_m: float = 520.0
+    faults: tuple = ()  # Fault s with input "gnss"
 
 
 def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
@@ -89,6 +143,13 @@ class CanSensors:
         self.rng = rng
 
     def measure(self, name: str, t: np.ndarray) -> np.ndarray:
+        v = self._healthy(name, t)
+        for f in self.p.faults:
+            if f.input == name or (f.input == "wheels" and name.startswith("wheel_speed_")):
+                v = apply_fault(f, t, v, float(self.truth.t[0]), self.rng)
+        return v
+
+    def _healthy(self, name: str, t: np.ndarray) -> np.ndarray:
         p, tr, n = self.p, self.truth, len(t)
         noise = self.rng.standard_normal(n)
         if name.startswith("wheel_speed_"):
@@ -137,6 +198,7 @@ class GnssEpoch:
     vel_e: float
     lat_deg: float
     lon_deg: float
+    good: bool = True  # False while a fault corrupts it (the truth's gnss_good column)
 
 
 def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator) -> list[GnssEpoch]:
@@ -171,12 +233,28 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     lon = params.lon0_deg + np.degrees(pe_ / (EARTH_RADIUS_M * math.cos(math.radians(params.lat0_deg))))
     t_rx = tv + params.latency_s + jitter
     t_rx = np.maximum.accumulate(t_rx)  # a receiver never reorders its output
+    vn, ve = vn_true + noise[:, 0], ve_true + noise[:, 1]
+    good = np.ones(n, dtype=bool)
+    sent = np.ones(n, dtype=bool)
+    for f in params.faults:
+        on = f.active(tv, float(t[0]))
+        if f.kind == "scaled":
+            vn[on] *= f.value
+            ve[on] *= f.value
+        elif f.kind == "constant":
+            vn[on] = ve[on] = f.value
+        elif f.kind == "dropout":
+            sent &= ~on
+        else:
+            raise ValueError(f"unknown GNSS fault kind {f.kind!r}; known: {', '.join(GNSS_FAULT_KINDS)}")
+        good &= ~on
     out = []
     for i in range(n):
         if t_rx[i] > t[-1]:
             break
-        out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn_true[i] + noise[i, 0]),
-                             float(ve_true[i] + noise[i, 1]), float(lat[i]), float(lon[i])))
+        if sent[i]:
+            out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn[i]), float(ve[i]), float(lat[i]),
+                                 float(lon[i]), bool(good[i])))
     return out
 
 

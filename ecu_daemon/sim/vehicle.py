@@ -128,7 +128,7 @@ class Commands(NamedTuple):
     """Driver outputs, held between driver updates."""
 
     steer_sw: float  # steering-wheel angle command (rad, positive left)
-    drive_torque: tuple  # per wheel (fl, fr, rl, rr), N m, >= 0
+    drive_torque: tuple  # per wheel (fl, fr, rl, rr), N m, < 0 in reverse gear
     brake_torque: tuple  # per wheel, N m, >= 0 (opposes rotation)
     hold: bool  # brake hold at standstill requested
 
@@ -168,10 +168,26 @@ class TruthArrays:
 SPIN_SIDESLIP_RAD = math.radians(25.0)  # |beta| above this at speed = spun out (not controllable)
 
 
+def steady_cornering(params: VehicleParams, v: float, radius_m: float, left: bool = True) -> tuple[float, float, float]:
+    """(vy, yaw rate, steering-wheel angle) of steady cornering at ``v`` on ``radius_m``, linear model.
+
+    The start state of a flying start mid-corner: close enough to equilibrium that the model
+    settles within a second (load transfer and tyre saturation are not in the linear model).
+    """
+    sign = 1.0 if left else -1.0
+    cf, cr = params.axle_cornering_stiffness()
+    L = params.wheelbase_m
+    ay = v * v / radius_m
+    alpha_r = params.mass_kg * params.lf_m / L * ay / cr
+    beta = params.lr_m / radius_m - alpha_r
+    delta = L / radius_m + params.understeer_gradient() * ay
+    return sign * v * math.tan(beta), sign * v / radius_m, sign * delta * params.steering_ratio
+
+
 def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: float, *,
               dt: float = 1e-3, psi0: float = 0.0, driver_every: int = 10,
-              v0: float = 0.0) -> TruthArrays:
-    """Run the model from rest (or ``v0`` straight ahead) for ``duration`` seconds.
+              v0: float = 0.0, vy0: float = 0.0, r0: float = 0.0, steer0: float = 0.0) -> TruthArrays:
+    """Run the model from rest (or a flying start: ``v0``, ``vy0``, ``r0``, ``steer0``) for ``duration`` s.
 
     ``driver.update(state: VehicleState) -> Commands`` is called every ``driver_every`` steps
     (100 Hz at the default 1 kHz), like a real driver / controller sampling its senses.
@@ -199,11 +215,11 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
     xs = (lf, lf, -lr, -lr)
     ys = (half_t, -half_t, half_t, -half_t)
 
-    vx, vy, r = v0, 0.0, 0.0
+    vx, vy, r = v0, vy0, r0
     psi, north, east = psi0, 0.0, 0.0
     om = [v0 / R] * 4
     kap = [0.0] * 4
-    steer = 0.0
+    steer = steer0
     fxf, fyf = -gx, -gy  # filtered specific force (load transfer, roll); at rest = -gravity
     latched = v0 == 0.0
     n = int(round(duration / dt)) + 1

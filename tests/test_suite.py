@@ -1,0 +1,126 @@
+"""``ecu-daemon evaluate --suite``: the runner's pieces, and a short subset scored against issue 7's targets.
+
+The subset runs the real pipeline (simulate -> files -> ``run_replay`` -> evaluate). Each target
+of each case is its own test; the ones the current estimator misses are ``xfail(strict=True)``
+with the measured figure, so whoever fixes one sees an XPASS and flips it here.
+"""
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from ecu_daemon.cli import main as cli_main
+from ecu_daemon.sim.suite import SUITE, SuiteCase
+from ecu_daemon.suite import COLUMNS, failed_targets, format_table, run_case, select
+
+
+def _row(**changes):
+    row = {key: 0.0 for _, key, _ in COLUMNS}
+    row.update(scenario="x", family="f", sideslip_coverage_3sigma=1.0, heading_coverage_3sigma=1.0,
+               vx_coverage_3sigma=1.0,
+               sideslip_valid_above_5mps=1.0, heading_valid_above_5mps=1.0, has_fix=True, ratio_to_baseline=0.5,
+               sideslip_rms_deg=0.2)
+    row.update(changes)
+    return row
+
+
+def test_targets_are_the_issues_limits():
+    case = SuiteCase("x", "f", SUITE[0].scenario)
+    low = SuiteCase("x", "f", SUITE[0].scenario, low_speed=True)
+    assert failed_targets(_row(), case) == []
+    assert failed_targets(_row(sideslip_coverage_3sigma=0.989), case) == ["cov-b"]
+    assert failed_targets(_row(heading_coverage_3sigma=0.99), case) == []
+    assert failed_targets(_row(sideslip_worst_valid_deg=2.01, heading_worst_valid_deg=5.0), case) == ["worst-b"]
+    assert failed_targets(_row(heading_worst_valid_deg=5.01), case) == ["worst-h"]
+    assert failed_targets(_row(vx_coverage_3sigma=0.98), case) == ["cov-v"]
+    assert failed_targets(_row(vx_coverage_3sigma=math.nan), case) == []  # never valid: no promise made
+    assert failed_targets(_row(sideslip_valid_above_5mps=0.89), case) == ["avail-b"]
+    assert failed_targets(_row(sideslip_valid_above_5mps=math.nan), case) == ["avail-b"]  # never a silent pass
+    assert failed_targets(_row(heading_time_to_valid_after_fix_s=3.1), case) == ["ttv-h"]
+    assert failed_targets(_row(sideslip_time_to_valid_after_fix_s=math.nan), case) == ["ttv-b"]  # never valid
+    assert failed_targets(_row(sideslip_time_to_valid_after_fix_s=math.nan, has_fix=False), case) == []
+    assert failed_targets(_row(latency_error_s=-0.031), case) == ["lat"]
+    assert failed_targets(_row(ratio_to_baseline=0.7), case) == []
+    assert failed_targets(_row(ratio_to_baseline=0.7), low) == ["rms-b"]
+    assert failed_targets(_row(sideslip_rms_deg=0.31), low) == ["rms-b"]
+
+
+def test_select_by_glob_substring_family_and_lists():
+    names = lambda p: [c.name for c in select(p)]  # noqa: E731
+    assert names(None) == [c.name for c in SUITE]
+    assert names("flying_30_straight_h0") == ["flying_30_straight_h0"]
+    assert set(names("latency")) == {"latency_0.1", "latency_0.25", "latency_0.6", "latency_0.8"}
+    assert len(names("fault")) == 9 * 6 + 2  # every CAN input (and all wheels) x every kind, 2 stuck-at
+    assert names("gnss_1hz,reversing") == ["reversing", "gnss_1hz"]  # suite order
+    assert names("nothing-like-this") == []
+
+
+def test_table_has_one_row_per_case_with_dashes_and_failed_codes():
+    rows = [_row(scenario="good"), _row(scenario="bad", sideslip_time_to_valid_after_fix_s=math.nan,
+                                        failed=["ttv-b"])]
+    rows[0]["failed"] = []
+    text = format_table(rows)
+    lines = text.splitlines()
+    assert lines[0].split()[0] == "scenario" and lines[0].split()[-1] == "result"
+    assert lines[1].startswith("good") and lines[1].endswith("pass")
+    assert lines[2].startswith("bad") and lines[2].endswith("FAIL ttv-b") and " - " in lines[2]
+    assert "1 of 2 scenarios meet every target" in lines[3]
+
+
+def test_a_case_that_cannot_run_is_a_row_not_a_crash(tmp_path):
+    broken = SuiteCase("broken", "f", SUITE[0].scenario, encoding="no-such-car")
+    row = run_case(broken, tmp_path)
+    assert row["scenario"] == "broken" and row["failed"] == ["error: ValueError: unknown suite encoding 'no-such-car'"]
+    assert "FAIL error" in format_table([row])
+
+
+def test_cli_options_are_checked_in_one_line(capsys):
+    assert cli_main(["evaluate", "--suite", "--only", "nothing-like-this"]) == 2
+    assert cli_main(["evaluate", "--suite", "--truth", "t.csv"]) == 2
+    assert cli_main(["evaluate"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3 and "matches no scenario" in err[0] and "--suite makes its own drives" in err[1]
+    assert "give --truth and --estimate" in err[2]
+
+
+# ----------------------------------------------------------------------------- the subset
+TARGETS = ("cov-b", "cov-h", "cov-v", "worst-b", "worst-h", "avail-b", "ttv-b", "ttv-h", "lat")
+#: the subset and what the estimator on this branch misses (measured; see README "Scenario suite")
+SUBSET = {
+    "flying_30_straight_h0": {},
+    "restart_dlc_24s": {},
+}
+
+
+@pytest.fixture(scope="module")
+def subset_rows(tmp_path_factory):
+    out = tmp_path_factory.mktemp("suite")
+    cases = {c.name: c for c in SUITE}
+    return {name: run_case(cases[name], out) for name in SUBSET}, out
+
+
+def _params():
+    for name, misses in SUBSET.items():
+        for target in TARGETS:
+            marks = ()
+            if target in misses:
+                marks = pytest.mark.xfail(strict=True, reason=f"estimator misses it: {misses[target]}")
+            yield pytest.param(name, target, marks=marks, id=f"{name}-{target}")
+
+
+@pytest.mark.parametrize("name, target", list(_params()))
+def test_subset_meets_target(subset_rows, name, target):
+    rows, _ = subset_rows
+    row = rows[name]
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert target not in row["failed"], {k: row[k] for k in row if k not in ("failed",)}
+
+
+def test_subset_rows_are_on_disk_as_strict_json(subset_rows):
+    rows, out = subset_rows
+    for name in rows:
+        doc = json.loads((out / name / "evaluation.json").read_text(),
+                         parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+        assert doc["row"]["scenario"] == name and "validity" in doc["evaluation"]["sideslip"]
