@@ -378,7 +378,7 @@ class Estimator:
             self._reset_flag = False
         sd = [sqrt(v) if v > 0.0 else 0.0 for v in pd]
         psi_std = sd[PSI]
-        wheels_trusted = wheels_ok and t - self.wheel_reject_t < WHEEL_DIVERGED_S
+        wheels_trusted = wheels_ok and self.wheel_reject_t == math.inf  # no run of rejections
         vel_valid = imu_ok and (wheels_trusted or gnss_fresh)
         st = self.single_track
         gn = self.gnss
