@@ -89,7 +89,7 @@ _DIAG_INPUT_SUFFIX = {"AGE": ("age_ms", _UNKNOWN_HI), "RATE": ("rate_hz", _CLAMP
                       "COUNTER_ERRORS": ("counter_errors", _WRAP), "CHECKSUM_ERRORS": ("checksum_errors", _WRAP)}
 #: EST_DIAG signal prefix -> fault-isolation source (Diagnostics.sources)
 _DIAG_SOURCE_PREFIX = {"ISO_WHEELS": "wheels", "ISO_YAW_RATE": "yaw_rate", "ISO_ACCEL_X": "accel_x",
-                       "ISO_ACCEL_Y": "accel_y", "ISO_GNSS": "gnss"}
+                       "ISO_ACCEL_Y": "accel_y", "ISO_GNSS": "gnss", "ISO_WHEEL_SPEED": "wheel_speed"}
 _DIAG_SOURCE_SUFFIX = {"ACTIVE": ("isolated", _CLAMP), "EVENTS": ("events", _WRAP)}
 _DIAG_FIELDS = {
     "GNSS_FIX_TYPE": ("gnss_fix_type", _CLAMP), "GNSS_SERIAL_CONNECTED": ("gnss_serial_connected", _CLAMP),

@@ -47,7 +47,7 @@ def _run(det: fd.FaultDetector, n: int, k0: int = 0, *, v=22.0, rl=None, rr=None
         left = vv - rr_ * TRACK / 2 if rl is None else val(rl)
         right = vv + rr_ * TRACK / 2 if rr is None else val(rr)
         ay_ = rr_ * x[VX] if ay is None else val(ay)
-        out.append(det.step(j, 0.5 * (left + right), left, right, True, val(r), val(ax), ay_, True, x, 1e-4, 4e-4))
+        out.append(det.step(j, (left, right, left, right), True, val(r), val(ax), ay_, True, x, 1e-4, 4e-4))
     return out
 
 
@@ -83,7 +83,7 @@ def test_accelerometer_stuck_high_is_isolated_and_returns_when_it_agrees_again()
     assert masks[1] == fd.ACCEL_X and masks[-1] == fd.ACCEL_X  # implausible: caught at once
     back = _run(det, 400, 500)
     assert back[0] == fd.ACCEL_X and back[-1] == 0  # agreement for ~1 s before it returns
-    assert det.events == {"wheels": 0, "yaw_rate": 0, "accel_x": 1, "accel_y": 0, "gnss": 0}
+    assert det.events == {"wheels": 0, "yaw_rate": 0, "accel_x": 1, "accel_y": 0, "gnss": 0, "wheel_speed": 0}
 
 
 def test_accelerometer_offset_the_wheels_do_not_see_is_caught_by_the_window():
@@ -100,7 +100,7 @@ def test_gyro_stuck_is_isolated_by_the_wheels_and_ay():
     x = _state()
     masks = []
     for j in range(300, 900):
-        masks.append(det.step(j, 22.0, 22.0, 22.0, True, 0.05, 0.0, 0.0, True, x, 1e-4, 4e-4))
+        masks.append(det.step(j, (22.0,) * 4, True, 0.05, 0.0, 0.0, True, x, 1e-4, 4e-4))
     assert masks[-1] == fd.YAW_RATE and det.events["yaw_rate"] == 1
     assert det.r_wheels == pytest.approx(0.0, abs=1e-3)  # the substitute the core predicts with
 
@@ -109,7 +109,7 @@ def test_gyro_bias_is_not_a_fault():
     det = fd.FaultDetector(DT, TRACK)
     x = _state()
     x[BR] = 0.05  # the filter knows the bias: bias-corrected rates agree
-    masks = [det.step(j, 22.0, 22.0, 22.0, True, 0.05, 0.0, 0.0, True, x, 1e-4, 4e-4) for j in range(600)]
+    masks = [det.step(j, (22.0,) * 4, True, 0.05, 0.0, 0.0, True, x, 1e-4, 4e-4) for j in range(600)]
     assert not any(masks)
 
 
@@ -126,7 +126,7 @@ def test_gnss_disagreeing_with_trusted_wheels_is_isolated_then_returns():
     assert det.check_gnss(100, False, False) is False  # never fused
     assert not det.gnss_isolated
     assert det.check_gnss(133, False, False) is False
-    assert det.gnss_isolated and det.step(201, 22.0, 22.0, 22.0, True, 0.0, 0.0, 0.0, True, _state(), 1e-4,
+    assert det.gnss_isolated and det.step(201, (22.0,) * 4, True, 0.0, 0.0, 0.0, True, _state(), 1e-4,
                                           4e-4) == fd.GNSS
     for s in range(166, 166 + 33 * 4, 33):
         assert det.check_gnss(s, True, True) is True

@@ -88,7 +88,8 @@ class Estimator:
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.adapt_cornering_stiffness, learned)
-        self.fdi = FaultDetector(dt, veh.track_m)
+        self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
+                                 self.wheels.measured_speed)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned
@@ -271,9 +272,13 @@ class Estimator:
         i = h.slot(k)
         predict = h.last >= h.first
         ip = h.slot(k - 1) if predict else i
-        iso = self.fdi.step(k, wheel_z, rl, rr, wheels_ok, r_m, ax_m, ay_m, imu_ok, h.X[ip],
-                            h.P[ip][VX, VX], self.wheels.noise2,
+        steer_sw = held[I_STEER]
+        steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
+        delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
+        iso = self.fdi.step(k, (fl, fr, rl, rr), wheels_ok, r_m, ax_m, ay_m, imu_ok, h.X[ip],
+                            h.P[ip][VX, VX], self.wheels.noise2, delta,
                             0.0 if self.fdi.isolated & YAW_RATE else self.rdot)
+        wheel_z = self.fdi.wheel_z
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, h.X[ip], r_m, ax_m, ay_m)
         if predict:  # predict from the previous step
@@ -303,9 +308,6 @@ class Estimator:
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
-        steer_sw = held[I_STEER]
-        steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
-        delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0

@@ -18,6 +18,7 @@ STATUS_YAW_RATE_ISOLATED = 1 << 9
 STATUS_ACCEL_X_ISOLATED = 1 << 10
 STATUS_ACCEL_Y_ISOLATED = 1 << 11
 STATUS_GNSS_ISOLATED = 1 << 12
+STATUS_WHEEL_SPEED_ISOLATED = 1 << 13  # one fused wheel disagrees with the others: its axle partner stands in
 
 
 class Estimate(NamedTuple):

@@ -4,6 +4,9 @@ One place decides which source may be fused (PX4 EKF2's shape; openpilot's input
 check compares two *independent* views of one physical quantity, so a sensor that is wrong but
 alive, in range and with good CRCs, is caught by physics rather than by its own plausibility:
 
+* each wheel against the others: its speed, corrected for yaw rate and steering to the CG's vx,
+  against the median of the fused pair and the other axle (a single wheel-speed sensor that is
+  wrong is replaced by its axle partner, corrected by r * track);
 * longitudinal: the change of the wheel speed over a short window against the integrated
   accelerometer (``ax`` vs d(wheel speed)/dt);
 * yaw: the gyro against the rear-wheel speed difference ``(v_rr - v_rl) / track`` and against
@@ -30,15 +33,20 @@ import math
 import numpy as np
 
 from . import estimate as est_mod
-from .kinematic import BAX, BAY, BR, GAY, KW, VX
+from .kinematic import BAX, BAY, BR, GAY, KW, VX, VY
 
 WHEELS = est_mod.STATUS_WHEELS_ISOLATED
+WHEEL_SPEED = est_mod.STATUS_WHEEL_SPEED_ISOLATED
 YAW_RATE = est_mod.STATUS_YAW_RATE_ISOLATED
 ACCEL_X = est_mod.STATUS_ACCEL_X_ISOLATED
 ACCEL_Y = est_mod.STATUS_ACCEL_Y_ISOLATED
 GNSS = est_mod.STATUS_GNSS_ISOLATED
 #: source name -> isolation bit
-SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "accel_y": ACCEL_Y, "gnss": GNSS}
+SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "accel_y": ACCEL_Y, "gnss": GNSS,
+               "wheel_speed": WHEEL_SPEED}
+# --- each wheel against the others (fl, fr, rl, rr)
+WHEEL_TOL_MPS = 0.5  # + WHEEL_TOL_REL * speed: driven-wheel slip stays out of the median
+WHEEL_TOL_REL = 0.03
 
 # --- longitudinal: wheel speed change vs integrated ax over LON_WINDOW_S
 LON_WINDOW_S = 0.15
@@ -115,9 +123,17 @@ class _Latch:
 class FaultDetector:
     """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
 
-    def __init__(self, dt: float, track_m: float):
+    def __init__(self, dt: float, track_m: float, lf_m: float = 1.2, driven_axle: str = "front",
+                 measured_speed=None):
+        """``measured_speed(fl, fr, rl, rr)``: the wheel speed the filter fuses (``WheelSpeedFusion``)."""
         self.dt = dt
         self.track = track_m
+        self.lf = lf_m
+        self.fused_wheels = {"all": (0, 1, 2, 3), "rear": (0, 1)}.get(driven_axle, (2, 3))
+        self._measured = measured_speed or (lambda fl, fr, rl, rr: 0.5 * (rl + rr))
+        self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
+        self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
+        self.wheel_z = math.nan  # the wheel speed to fuse, isolated wheels replaced
         n = max(2, int(round(LON_WINDOW_S / dt)))
         self._ring_v = [math.nan] * n  # wheel speed (scaled) per step
         self._ring_a = [0.0] * n  # cumulative integral of ax per step
@@ -154,22 +170,31 @@ class FaultDetector:
         self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
 
     # ------------------------------------------------------------------------------------------
-    def step(self, k: int, wheel_z: float, rl: float, rr: float, wheels_ok: bool, r_m: float,
-             ax_m: float, ay_m: float, imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float,
+    def step(self, k: int, wheels: tuple, wheels_ok: bool, r_m: float, ax_m: float, ay_m: float,
+             imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float, delta: float = 0.0,
              rdot: float = 0.0) -> int:
-        """Run every check for step k (state x predicted to k). Returns the isolation mask.
+        """Run every check for step k (x: the latest state). Returns the isolation mask.
 
-        ``wheel_z``: the raw undriven-axle wheel speed the filter fuses; ``p_vx``: variance of
-        the predicted vx; ``wheel_r2``: the wheel measurement's noise variance.
+        ``wheels``: (fl, fr, rl, rr) raw readings; ``p_vx``: variance of vx; ``wheel_r2``: the
+        wheel measurement's noise variance; ``delta``: road-wheel angle (NaN: unknown).
         """
         before = self.isolated
         kw = x[KW]
-        v = wheel_z * kw if wheels_ok else math.nan
+        fl, fr, rl, rr = wheels
+        if wheels_ok:
+            r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
+            fl, fr, rl, rr = self._each_wheel(wheels, r, delta, x[VY])
+            self.wheel_z = self._measured(fl, fr, rl, rr)
+        else:
+            self.wheel_z = math.nan
+        v = self.wheel_z * kw if wheels_ok else math.nan
         ax = ax_m - x[BAX] if imu_ok else math.nan
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        self._yaw(rl, rr, wheels_ok, r_m, ay_m, imu_ok, x, rdot)
+        self._yaw(rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
         iso = 0
+        if self.wheel_mask:
+            iso |= WHEEL_SPEED
         if self.lon.active:
             iso |= self.lon_culprit
         if self.wheels_isolated:
@@ -192,6 +217,39 @@ class FaultDetector:
                 self.events[name] += 1
         self.isolated = iso
         return iso
+
+    def _each_wheel(self, w: tuple, r: float, delta: float, vy: float) -> tuple:
+        """Each fused wheel against the others; returns the readings with a wrong one replaced."""
+        h = 0.5 * self.track * r
+        c, s = (math.cos(delta), math.sin(delta)) if math.isfinite(delta) else (1.0, 0.0)
+        lat = (vy + self.lf * r) * s
+        cv = ((w[0] - lat) / c + h, (w[1] - lat) / c - h, w[2] + h, w[3] - h)  # each as the CG's vx
+        fused = self.fused_wheels
+        if len(fused) == 4:
+            srt = sorted(cv)
+            med = 0.5 * (srt[1] + srt[2])
+        else:  # the fused pair and the other axle's mean (driven wheels slip: one vote, not two)
+            a, b = fused
+            o = [j for j in range(4) if j not in fused]
+            med = sorted((cv[a], cv[b], 0.5 * (cv[o[0]] + cv[o[1]])))[1]
+        tol = WHEEL_TOL_MPS + WHEEL_TOL_REL * abs(med)
+        mask = 0
+        for j in fused:
+            if self.wheel_latches[j].update(abs(cv[j] - med) > tol):
+                mask |= 1 << j
+        self.wheel_mask = mask
+        if not mask:
+            return w
+        out = list(w)
+        for j in fused:
+            if mask & 1 << j:
+                p = j ^ 1  # axle partner: fl<->fr, rl<->rr
+                if mask & 1 << p:
+                    self.wheels_isolated = True  # both of an axle: nothing left to fuse
+                    return w
+                d = 2.0 * h * (c if j < 2 else 1.0)  # right wheel minus left wheel
+                out[j] = w[p] - d if j % 2 == 0 else w[p] + d
+        return tuple(out)
 
     def _longitudinal(self, k: int, v: float, ax: float, ax_raw: float) -> None:
         n = self._n
