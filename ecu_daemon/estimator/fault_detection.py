@@ -59,9 +59,11 @@ JUMP_MEMORY_S = 0.5  # a jump this close to the onset counts as evidence
 # --- yaw: gyro vs rear-wheel difference and vs ay / vx
 YAW_TAU_S = 0.1  # fast test: large faults, wide tolerance
 YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
-YAW_SLOW_TOL = 0.015  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
-YAW_SLOW_TOL_REL = 0.08
-YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen every yaw tolerance
+YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
+YAW_SLOW_TOL_REL = 0.12
+YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
+YAW_STRONG = 2.0  # gyro vs wheels this many tolerances apart: blamed without waiting for ay / vx
+GYRO_JUMP_RADPS = 0.5  # change between two steps (> 80 rad/s^2) the wheels do not show: a fault
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
@@ -156,6 +158,8 @@ class FaultDetector:
         self.e_ws = 0.0  # the same, slow
         self.e_as = 0.0
         self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
+        self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
+        self._rw_prev = math.nan
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
@@ -342,17 +346,28 @@ class FaultDetector:
             self.e_a += self._a_yaw * (d - self.e_a)
             self.e_as += self._a_slow * (d - self.e_as)
         ref = abs(self.r_wheels) if have_w else abs(r_g)
-        slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref + wide
-        w_fail = have_w and (abs(self.e_w) > YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref + wide
-                             or abs(self.e_ws) > slow)
+        # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
+        tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
+        slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
+        w_fail = have_w and (abs(self.e_w) > tol_w or abs(self.e_ws) > slow)
+        w_strong = have_w and abs(self.e_w) > YAW_STRONG * tol_w
         a_fail = have_a and (abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
-                             or abs(self.e_as) > slow)
+                             or abs(self.e_as) > slow + wide)
+        jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
+                and not abs(self.r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
+        self._r_prev = r_m
+        self._rw_prev = self.r_wheels
+        if jump:  # no car turns that fast: not integrated even for the steps the vote needs
+            w_fail = w_strong = True
+            self.gyro.bad = max(self.gyro.bad, self.gyro.on - 1)
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not self.ay.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
         self.yaw_suspect = w_fail or a_fail
-        self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
-        self.ay.update((a_fail and not w_fail) if (have_w and have_a) else None)
+        self.gyro.update((w_fail and (a_fail or not a_witness or w_strong)) if have_w else None)
+        # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
+        # high for as long as they decay; that is not ay's fault)
+        self.ay.update((a_fail and not w_fail) if (have_w and have_a and not self.gyro.active) else None)
         if have_w and not w_fail and not self.gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
             mis = ((rr - rl) * x[KW] - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
