@@ -264,7 +264,7 @@ class Estimator:
             # velocity comes from the wheels at once, so the filter waits for them: starting at
             # vx = 0 while the car moves puts every wheel sample outside its gate (the divergence
             # of issue 7) and a flying start looks like a standstill
-            if not (imu_ok and math.isfinite(wheel_z)):
+            if not (imu_ok and math.isfinite(wheel_z)) or self.fdi.isolated & WHEELS:
                 return self._invalid(t)
             self._initialize(k, wheel_z, r_m, ay_m)
             self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]

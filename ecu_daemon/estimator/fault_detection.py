@@ -290,16 +290,25 @@ class FaultDetector:
             self.lon_culprit = 0
 
     def _attribute(self, k: int) -> None:
-        """Which of wheels / accelerometer broke the longitudinal check (both until known)."""
+        """Which of wheels / accelerometer broke the longitudinal check (both until known).
+
+        Evidence, strongest first: one of them keeps jumping (an intermittent sensor: a GNSS fix
+        that happens to fall between its drop-outs must not bring it back); a GNSS fix taken
+        while the disagreement lasts (the one it sides with is right; not after a step that
+        has passed the window: a wheel sensor recovering); an impossible jump at the onset.
+        """
+        mem = JUMP_MEMORY_S / self.dt
+        wj_now = k - self._wheel_jump_k <= mem
+        aj_now = k - self._ax_jump_k <= mem
+        if wj_now != aj_now:
+            self.lon_culprit = WHEELS if wj_now else ACCEL_X
+            return
         g = self._gnss_wheel_verdict
         if self.lon.bad and g is not None and g[0] >= self.lon_onset:
-            # a fix taken during a disagreement that still lasts: the one it sides with is right
-            # (not after a step that has already passed the window: a wheel sensor recovering)
             self.lon_culprit = ACCEL_X if g[1] else WHEELS
             return
         if self.lon_culprit != WHEELS | ACCEL_X:
-            return  # decided earlier by a jump; keep it until GNSS says otherwise
-        mem = JUMP_MEMORY_S / self.dt
+            return  # decided earlier; kept until new evidence
         wj = abs(self._wheel_jump_k - self.lon_onset) <= mem
         aj = abs(self._ax_jump_k - self.lon_onset) <= mem
         if wj != aj:
