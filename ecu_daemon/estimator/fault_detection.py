@@ -62,8 +62,7 @@ YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
 YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
 YAW_SLOW_TOL_REL = 0.12
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
-YAW_STRONG = 2.0  # gyro vs wheels this many tolerances apart: blamed without waiting for ay / vx
-GYRO_JUMP_RADPS = 0.5  # change between two steps (> 80 rad/s^2) the wheels do not show: a fault
+GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
@@ -359,7 +358,6 @@ class FaultDetector:
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
         slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
         w_fail = have_w and (abs(self.e_w) > tol_w or abs(self.e_ws) > slow)
-        w_strong = have_w and abs(self.e_w) > YAW_STRONG * tol_w
         a_fail = have_a and (abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
                              or abs(self.e_as) > slow + wide)
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
@@ -367,13 +365,13 @@ class FaultDetector:
         self._r_prev = r_m
         self._rw_prev = self.r_wheels
         if jump:  # no car turns that fast: not integrated even for the steps the vote needs
-            w_fail = w_strong = True
+            w_fail = a_fail = True
             self.gyro.bad = max(self.gyro.bad, self.gyro.on - 1)
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not self.ay.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
         self.yaw_suspect = w_fail or a_fail
-        self.gyro.update((w_fail and (a_fail or not a_witness or w_strong)) if have_w else None)
+        self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         self.ay.update((a_fail and not w_fail) if (have_w and have_a and not self.gyro.active) else None)
