@@ -38,7 +38,7 @@ from .history import AUX_AX, AUX_WHEEL, StepHistory
 
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
-LR_REJECT = 25.0  # likelihood ratio (5 sigma: GNSS and wheel errors are correlated over fixes)
+LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
