@@ -43,6 +43,7 @@ MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
 MIN_STD_S = 0.005  # the 6 ms candidate grid, refined by a parabola
+STD_FALL = 0.98  # per informative fix: the std shrinks by e in ~10 s at 5 Hz
 MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its memory
 SLIP_RIDGE = 1.0  # (m/s * m/s^2)^2 per fix: a braking fix brings ~1e3, so only a prior
 
@@ -133,4 +134,7 @@ class LatencyEstimator:
             self.delay_s += max(-slew, min(slew, 0.3 * (est - self.delay_s)))
             prior_std = math.inf
         data_std = max(width_std, abs(est - self.delay_s))
-        self.std_s = min(PRIOR_STD_S, max(MIN_STD_S, 1.0 / math.sqrt(prior_std ** -2 + data_std ** -2)))
+        std = min(PRIOR_STD_S, max(MIN_STD_S, 1.0 / math.sqrt(prior_std ** -2 + data_std ** -2)))
+        # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
+        # and goes from one fix to the next, and a std that followed it would promise too much
+        self.std_s = max(std, STD_FALL * self.std_s)
