@@ -56,7 +56,6 @@ WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or th
 GNSS_CHECK_FRESH_S = 2.0
 NIS_AVG_GAIN = 0.05  # ~20 fixes (4 s at 5 Hz)
 NIS_CAP = 40.0  # one wild fix moves the mean by at most 2
-RESTORED_STD_INFLATION = 2.0  # a latency identified before a restart, trusted a little less
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
@@ -76,7 +75,7 @@ class Estimator:
         self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
                                         gn.max_delay_s, gn.estimate_delay,
                                         slip_under_traction=veh.driven_axle == "all",
-                                        prior_std_s=RESTORED_STD_INFLATION * learned.get("gnss_delay_std_s", math.inf))
+                                        prior_std_s=learned.get("gnss_delay_std_s", math.inf))
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
@@ -409,7 +408,7 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
-            imu_ok and self.aligned and psi_std < HEADING_STD_VALID,
+            imu_ok and self.aligned and psi_std < HEADING_STD_VALID and gn.consecutive_rejects == 0,
             vel_valid,
             imu_ok and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
