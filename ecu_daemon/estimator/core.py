@@ -10,6 +10,12 @@ Design (one filter, several aiding sources, see the package docstring for the co
 * ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
   history (``history.py``), and ``latency.py`` identifies the latency online.
 
+Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
+the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
+confirm, and re-initialises when the wheels and GNSS together say it has diverged; the validity
+bits follow the published stds (which include what the filter cannot see: latency error while
+turning, inconsistent GNSS innovations).
+
 Steps sit on the absolute grid t_k = k * dt, so live and replay runs of the same samples produce
 the same steps. Everything here is deterministic floating-point arithmetic on the inputs.
 """
