@@ -80,7 +80,6 @@ class Estimator:
         learned = self._check_learned(learned)
         self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
                                         gn.max_delay_s, gn.estimate_delay,
-                                        slip_under_traction=veh.driven_axle == "all",
                                         prior_std_s=learned.get("gnss_delay_std_s", math.inf))
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
