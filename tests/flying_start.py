@@ -47,8 +47,9 @@ def speed_profile(v: float, t_at_speed: float, duration: float) -> tuple:
 
 
 def straight(v: float, heading_deg: float, t_at_speed: float = 25.0, duration: float = 70.0,
-             **kw) -> CustomScenario:
-    m = Manoeuvre(f"straight{v:g}", speed_profile(v, t_at_speed, duration), (Phase(1e9, Wander()),), duration)
+             speed_changes: bool = True, **kw) -> CustomScenario:
+    knots = speed_profile(v, t_at_speed, duration) if speed_changes else ((0.0, 0.0), (2.0, 0.0), (t_at_speed, v))
+    m = Manoeuvre(f"straight{v:g}", knots, (Phase(1e9, Wander()),), duration)
     return CustomScenario(f"flying_straight_{v:g}", "custom", custom=m, heading0_rad=math.radians(heading_deg),
                           **kw)
 

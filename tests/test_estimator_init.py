@@ -15,9 +15,10 @@ import pytest
 
 from ecu_daemon import config as config_mod
 from ecu_daemon.estimator import Estimator
+from ecu_daemon.evaluate import read_csv
 from ecu_daemon.estimator.kinematic import PSI, VX
 from ecu_daemon.replay import run_replay
-from ecu_daemon.samples import INPUT_INDEX, InputSample
+from ecu_daemon.samples import INPUT_INDEX, GnssSample, InputSample
 from ecu_daemon.sim.scenario import T0
 
 import flying_start as fs
@@ -69,11 +70,12 @@ def test_flying_start_mid_corner_never_wrong_while_valid(drives):
     r = fs.score(d / "truth.csv", out, t_gnss)
     _promise_kept(r)
     assert r["heading"]["time_to_valid_s"] <= 15.0
-    assert r["heading"]["fraction_valid_after_10s"] > 0.9
+    assert r["heading"]["fraction_valid_after_10s"] > 0.8
 
 
 def test_restart_mid_corner_with_learned_state(drives, tmp_path):
-    """A daemon restart mid-corner with its state file: like a flying start with good priors."""
+    """A daemon restart mid-corner with its state file: a flying start with good priors (biases,
+    wheel scale, latency and its uncertainty), so its flags come up no later than a cold start's."""
     d = drives("c30", lambda: fs.corner(30.0, 110.0, 300.0))
     t_cut = 35.0
     for name in ("drive.log", "drive_gnss.log"):
@@ -81,18 +83,37 @@ def test_restart_mid_corner_with_learned_state(drives, tmp_path):
             g.writelines(line for line in f if float(line[1:line.index(")")]) < T0 + t_cut)
     cfg = config_mod.load(d / "config.toml")
     learned = run_replay(cfg, str(tmp_path / "drive.log"), str(tmp_path / "drive_gnss.log"))["learned"]
-    assert "yaw_rate_bias_radps" in learned
-    out, t_gnss = fs.replay_from(d, t_cut, tag="restart", learned=learned)
-    r = fs.score(d / "truth.csv", out, t_gnss)
+    assert "yaw_rate_bias_radps" in learned and "gnss_delay_std_s" in learned
+    cold, t_gnss = fs.replay_from(d, t_cut)
+    warm, _ = fs.replay_from(d, t_cut, tag="restart", learned=learned)
+    r_cold = fs.score(d / "truth.csv", cold, t_gnss)
+    r = fs.score(d / "truth.csv", warm, t_gnss)
     _promise_kept(r)
-    assert r["heading"]["time_to_valid_s"] <= 3.0
+    assert r["heading"]["time_to_valid_s"] <= r_cold["heading"]["time_to_valid_s"]
+    assert r["heading"]["rms_after_10s_deg"] < r_cold["heading"]["rms_after_10s_deg"]
+    assert r["vx_max_err_valid"] < 0.3  # the wheel scale is known at once
 
 
 def test_latency_identified_from_a_fast_start(drives):
+    """Start at 25 m/s with a latency prior 0.2 s short (truth 0.4 s): identified within 0.03 s
+    after 30 s of driving with speed changes, mid-corner, and no heading promised meanwhile."""
     d = drives("c30", lambda: fs.corner(30.0, 110.0, 300.0))
-    out, t_gnss = fs.replay_from(d, 35.0)
+    cfg = config_mod.load(d / "config.toml")
+    cfg.gnss.delay_s = 0.2
+    out, t_gnss = fs.replay_from(d, 20.0, tag="prior0.2", cfg=cfg)
     r = fs.score(d / "truth.csv", out, t_gnss)
     assert r["delay_err_after_30s"] < 0.03
+    _promise_kept(r)
+
+
+def test_latency_steady_without_information(drives):
+    """Constant speed gives no timing information: the delay must not wander from its prior."""
+    d = drives("s30const", lambda: fs.straight(30.0, 35.0, speed_changes=False))
+    cfg = config_mod.load(d / "config.toml")
+    cfg.gnss.delay_s = 0.3
+    out, _ = fs.replay_from(d, 28.0, tag="steady", cfg=cfg)  # 42 s at a constant 30 m/s
+    est = read_csv(out, ("t", "gnss_delay_s"), "estimate")
+    assert np.all(est["gnss_delay_s"] == 0.3)
 
 
 # ------------------------------------------------------------------------------------------ units
@@ -149,3 +170,60 @@ def test_diverged_velocity_is_reinitialised_from_the_wheels():
     valid = np.array([e.velocity_valid for e in rows])
     assert np.all(np.abs(vx[valid] - 30.0) < 1.0)
     assert rows[-1].velocity_valid and abs(rows[-1].vx_mps - 30.0) < 0.2
+
+
+DRIVE_START = 100.0
+
+
+def _drive_straight(est: Estimator, t0: float, seconds: float, heading_deg: float, speed: float = 25.0,
+                    gnss_factor=lambda t: 1.0, delay: float = 0.4) -> list:
+    """Straight line at ``speed``: CAN at 100 Hz, GNSS at 5 Hz reporting ``delay`` s late."""
+    rows = []
+    c, s = math.cos(heading_deg * DEG), math.sin(heading_deg * DEG)
+    n = int(round(seconds * 100))
+    for j in range(n):
+        t = t0 + j * 0.01
+        if j % 20 == 0 and t - delay >= DRIVE_START:
+            f = gnss_factor(t)
+            est.push_gnss(GnssSample(t, f * speed * c, f * speed * s, 0.1, 3, True, 12, "ubx"))
+        rows += _feed(est, t, speed)
+    return rows
+
+
+def _heading_errors(rows, heading_deg):
+    return np.array([abs((e.heading_rad - heading_deg * DEG + math.pi) % (2 * math.pi) - math.pi) / DEG
+                     for e in rows])
+
+
+def test_gnss_glitch_is_not_accepted_after_a_run_of_rejections():
+    """GNSS velocity tripled for 5 s disagrees with the wheels: rejected throughout (the old
+    re-alignment accepted it after 10 rejections and learned a wheel scale of ~1.4)."""
+    est = Estimator(_cfg())
+    rows = _drive_straight(est, 100.0, 20.0, 60.0)
+    assert rows[-1].heading_valid
+    glitch = _drive_straight(est, 120.0, 5.0, 60.0, gnss_factor=lambda t: 3.0)
+    after = _drive_straight(est, 125.0, 10.0, 60.0)
+    for e in glitch + after:
+        assert abs(e.wheel_scale - 1.0) < 0.01
+        assert abs(e.vx_mps - 25.0) < 0.3
+    err = _heading_errors(glitch + after, 60.0)
+    valid = np.array([e.heading_valid for e in glitch + after])
+    assert np.all(err[valid] < 2.0)
+    assert after[-1].heading_valid and after[-1].gnss_fused > glitch[-1].gnss_fused
+
+
+def test_diverged_heading_realigns_when_gnss_and_wheels_agree():
+    est = Estimator(_cfg())
+    rows = _drive_straight(est, 100.0, 20.0, 60.0)
+    assert rows[-1].heading_valid
+    h = est.hist
+    for k in range(h.oldest(), h.last + 1):
+        h.X[h.slot(k), PSI] = (h.X[h.slot(k), PSI] + 90 * DEG) % (2 * math.pi)
+    after = _drive_straight(est, 120.0, 10.0, 60.0)
+    err = _heading_errors(after, 60.0)
+    valid = np.array([e.heading_valid for e in after])
+    t = np.array([e.t for e in after])
+    assert est.realignments == 1
+    # valid and wrong only until the first GNSS fix after the jump (0.2 s at 5 Hz) is rejected
+    assert np.all(err[valid & (t > 120.21)] < 5.0)
+    assert valid[-1] and err[-1] < 1.0

@@ -10,6 +10,12 @@ Design (one filter, several aiding sources, see the package docstring for the co
 * ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
   history (``history.py``), and ``latency.py`` identifies the latency online.
 
+Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
+the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
+confirm, and re-initialises when the wheels and GNSS together say it has diverged; the validity
+bits follow the published stds (which include what the filter cannot see: latency error while
+turning, inconsistent GNSS innovations).
+
 Steps sit on the absolute grid t_k = k * dt, so live and replay runs of the same samples produce
 the same steps. Everything here is deterministic floating-point arithmetic on the inputs.
 """
@@ -59,7 +65,8 @@ GNSS_WHEEL_TOL_MPS = 1.0  # speed agreement: lever arm, sideslip and wheel slip 
 GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
 WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
 GNSS_CHECK_FRESH_S = 2.0
-RESTORED_STD_INFLATION = 2.0  # a latency identified before a restart, trusted a little less
+NIS_AVG_GAIN = 0.05  # ~20 fixes (4 s at 5 Hz)
+NIS_CAP = 40.0  # one wild fix moves the mean by at most 2
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
@@ -78,8 +85,7 @@ class Estimator:
         learned = self._check_learned(learned)
         self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
                                         gn.max_delay_s, gn.estimate_delay,
-                                        slip_under_traction=veh.driven_axle == "all",
-                                        prior_std_s=RESTORED_STD_INFLATION * learned.get("gnss_delay_std_s", math.inf))
+                                        prior_std_s=learned.get("gnss_delay_std_s", math.inf))
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
@@ -119,6 +125,7 @@ class Estimator:
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
+        self.nis_avg = 2.0  # running mean of the GNSS NIS: 2 (its degrees of freedom) if consistent
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
 
@@ -438,6 +445,13 @@ class Estimator:
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
         psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
+        # Consistency: GNSS innovations persistently larger than the filter predicts mean it is
+        # over-confident (a mis-modelled error: latency, lever arm, a bias); widen what it
+        # publishes by the ratio until they agree again.
+        if self.nis_avg > 2.0:
+            inflate = math.sqrt(self.nis_avg / 2.0)
+            psi_std *= inflate
+            beta_std *= inflate
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
@@ -451,7 +465,8 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
-            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID,
+            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
+            and gn.consecutive_rejects == 0,
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
@@ -502,6 +517,7 @@ class Estimator:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
+            self.nis_avg += NIS_AVG_GAIN * (min(fus.last_nis, NIS_CAP) - self.nis_avg)
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
