@@ -47,7 +47,8 @@ def _base(name: str, kind: str, **changes) -> Scenario:
     return SCENARIOS[kind].with_(name=name, **changes)
 
 
-def _gnss_and_road() -> list[SuiteCase]:
+def _conditions() -> list[SuiteCase]:
+    """Restart, reversing, GNSS, latency, road, wrong config and the sign-magnitude DBC."""
     out = [SuiteCase("restart_dlc_24s", "restart", _base("restart_dlc_24s", "dlc_dry"), restart_at_s=24.0),
            SuiteCase("restart_flying_30_r150", "restart",
                      Scenario("restart_flying_30_r150", "flying",
@@ -121,7 +122,7 @@ def _low_speed() -> list[SuiteCase]:
 
 
 def build_suite() -> list[SuiteCase]:
-    return _flying() + _gnss_and_road() + _sensor_faults() + _low_speed()
+    return _flying() + _conditions() + _sensor_faults() + _low_speed()
 
 
 SUITE: list[SuiteCase] = build_suite()
