@@ -93,6 +93,18 @@ def test_accelerometer_offset_the_wheels_do_not_see_is_caught_by_the_window():
     assert masks[-1] == fd.ACCEL_X  # the accelerometer stepped, the wheels did not
 
 
+def test_one_wrong_rear_wheel_is_replaced_by_its_partner():
+    det = fd.FaultDetector(DT, TRACK, 1.2, "front", lambda fl, fr, rl, rr: 0.5 * (rl + rr))
+    x = _state()
+    r = 0.2  # turning left: the right wheels run faster by r * track
+    w = (22.0 - r * TRACK / 2, 22.0 + r * TRACK / 2, 22.0 - r * TRACK / 2, 22.0 + r * TRACK / 2)
+    bad = (w[0], w[1], w[2] + 2.0, w[3])  # rear-left reads 2 m/s high
+    masks = [det.step(j, bad, True, r, 0.0, r * 22.0, True, x, 1e-4, 4e-4) for j in range(10)]
+    assert masks[-1] == fd.WHEEL_SPEED and det.wheel_mask == 0b0100
+    assert det.wheel_z == pytest.approx(22.0)  # the partner, corrected by r * track
+    assert not det.isolated & fd.WHEELS and det.events["wheel_speed"] == 1
+
+
 def test_gyro_stuck_is_isolated_by_the_wheels_and_ay():
     det = fd.FaultDetector(DT, TRACK)
     _run(det, 300)
