@@ -497,7 +497,7 @@ class Estimator:
             self.last_gnss_rejected = True
             return
         agree = agree and not self.fdi.isolated & WHEELS
-        if agree:
+        if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
             self.latency.observe(k, speed, h)
         if late:
             fus.late += 1
