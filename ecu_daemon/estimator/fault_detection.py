@@ -182,6 +182,7 @@ class FaultDetector:
         wheel measurement's noise variance; ``delta``: road-wheel angle (NaN: unknown).
         """
         before = self.isolated
+        x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
         fl, fr, rl, rr = wheels
         if wheels_ok:
@@ -211,7 +212,7 @@ class FaultDetector:
         self.new_isolation = iso & ~before
         for bit, states in FROZEN_STATES.items():
             if iso & bit and not before & bit:
-                self.frozen.update((j, float(x[j])) for j in states)
+                self.frozen.update((j, x[j]) for j in states)
             elif before & bit and not iso & bit:
                 for j in states:
                     self.frozen.pop(j, None)
@@ -331,7 +332,7 @@ class FaultDetector:
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
     def _yaw(self, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
-             x: np.ndarray, rdot: float) -> None:
+             x: list, rdot: float) -> None:
         if not imu_ok:
             return
         self.rdot_abs = max(abs(rdot), self.rdot_abs - self._a_slow * self.rdot_abs)
