@@ -68,8 +68,9 @@ class GnssVelocityFusion:
             return False
         return True
 
-    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample) -> bool:
-        """Speed-only update (heading unknown)."""
+    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample, delay_std_s: float = 0.0) -> bool:
+        """Speed-only update (heading unknown); ``delay_std_s`` as in :meth:`fuse` (a start-up
+        acceleration with the latency still unknown must not be read as a wheel-scale error)."""
         i = hist.slot(s)
         x = hist.X[i]
         P = hist.P[i]
@@ -85,9 +86,10 @@ class GnssVelocityFusion:
             h = np.zeros(NX)
             h[VX] = vax / sp
             h[VY] = vay / sp
-        sig = self.sigma(g)
+        a = hist.aux[i]
+        sig2 = self.sigma(g) ** 2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * delay_std_s * delay_std_s
         Ph = P @ h
-        S = float(h @ Ph) + sig * sig
+        S = float(h @ Ph) + sig2
         y = zs - (sp if sp >= 0.5 else x[VX])
         if y * y > 25.0 * S:
             self.consecutive_rejects += 1
