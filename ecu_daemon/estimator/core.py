@@ -509,7 +509,7 @@ class Estimator:
             self.aligned = False
             self.realignments += 1
         if not self.aligned:
-            ok = agree and fus.fuse_speed(h, s, g)
+            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=self.latency.std_s)
             if not agree:
                 fus.rejected += 1
                 fus.last_reason = "speed disagrees with the wheels"
