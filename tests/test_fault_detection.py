@@ -233,7 +233,9 @@ def test_fault_never_wrong_while_valid_and_recovers(tmp_path, drive, name):
         assert valid[k][after].mean() > 0.95, k
     assert not np.any(status[after] & isolated)
     assert e_beta[after].max() < 1 * DEG and e_psi[after].max() < 1 * DEG and e_vx[after].max() < 0.2
-    assert np.max(np.abs(est["wheel_scale"][run] - tr["wheel_scale"][run])) < 0.01
+    # the wheel scale, learned in the first seconds of driving, is not dragged by the fault
+    learned = t > T0 + 15.0
+    assert np.max(np.abs(est["wheel_scale"][learned] - tr["wheel_scale"][learned])) < 0.01
 
 
 def test_clean_drive_isolates_nothing(tmp_path, drive):
