@@ -13,8 +13,8 @@ Design (one filter, several aiding sources, see the package docstring for the co
 Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
 the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
 confirm, and re-initialises when the wheels and GNSS together say it has diverged; the validity
-bits follow the published stds (which include what the filter cannot see: latency error while
-turning, inconsistent GNSS innovations).
+bits follow the published stds (which include what the filter cannot average away: the heading
+error a latency error causes while turning).
 
 Steps sit on the absolute grid t_k = k * dt, so live and replay runs of the same samples produce
 the same steps. Everything here is deterministic floating-point arithmetic on the inputs.
@@ -65,8 +65,6 @@ GNSS_WHEEL_TOL_MPS = 1.0  # speed agreement: lever arm, sideslip and wheel slip 
 GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
 WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
 GNSS_CHECK_FRESH_S = 2.0
-NIS_AVG_GAIN = 0.05  # ~20 fixes (4 s at 5 Hz)
-NIS_CAP = 40.0  # one wild fix moves the mean by at most 2
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
@@ -125,7 +123,6 @@ class Estimator:
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
-        self.nis_avg = 2.0  # running mean of the GNSS NIS: 2 (its degrees of freedom) if consistent
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
 
@@ -445,13 +442,6 @@ class Estimator:
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
         psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
-        # Consistency: GNSS innovations persistently larger than the filter predicts mean it is
-        # over-confident (a mis-modelled error: latency, lever arm, a bias); widen what it
-        # publishes by the ratio until they agree again.
-        if self.nis_avg > 2.0:
-            inflate = math.sqrt(self.nis_avg / 2.0)
-            psi_std *= inflate
-            beta_std *= inflate
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
@@ -517,7 +507,6 @@ class Estimator:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
-            self.nis_avg += NIS_AVG_GAIN * (min(fus.last_nis, NIS_CAP) - self.nis_avg)
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]

@@ -48,7 +48,6 @@ class GnssVelocityFusion:
         self.rejected = 0
         self.late = 0
         self.consecutive_rejects = 0
-        self.last_nis = 0.0  # normalised innovation squared of the last 2-D update (2 on average)
         self.last_reason = ""
 
     def sigma(self, g: GnssSample) -> float:
@@ -140,7 +139,6 @@ class GnssVelocityFusion:
         S[1, 0] = S[0, 1]
         Sinv = np.linalg.inv(S)
         nis = float(y @ Sinv @ y)
-        self.last_nis = nis
         if gate and nis > self.gate:
             self.consecutive_rejects += 1
             self.rejected += 1
