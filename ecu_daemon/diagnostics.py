@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from .estimator.fault_detection import SOURCE_BITS
 from .samples import INPUT_NAMES
 
 # CAN controller state (EST_DIAG.CAN_BUS_STATE); same numbering as io/can_bus.py (ordinal = severity)
@@ -38,8 +39,20 @@ class InputDiagnostics:
     stale_count: int = 0  # times the input went stale
 
 
+@dataclass(slots=True)
+class SourceDiagnostics:
+    """Fault isolation of one source (``estimator/fault_detection.py``: wheels, yaw_rate, ...)."""
+
+    isolated: bool = False  # disagrees with the others now: not fused, dependent outputs invalid
+    events: int = 0  # times it was isolated since start (wraps on the wire)
+
+
 def _all_inputs() -> dict[str, InputDiagnostics]:
     return {name: InputDiagnostics() for name in INPUT_NAMES}
+
+
+def _all_sources() -> dict[str, SourceDiagnostics]:
+    return {name: SourceDiagnostics() for name in SOURCE_BITS}
 
 
 @dataclass(slots=True)
@@ -47,6 +60,7 @@ class Diagnostics:
     """One health snapshot of the whole daemon."""
 
     inputs: dict[str, InputDiagnostics] = field(default_factory=_all_inputs)  # keyed by INPUT_NAMES
+    sources: dict[str, SourceDiagnostics] = field(default_factory=_all_sources)  # keyed as SOURCE_BITS
     gnss_fix_type: int = 0  # samples.FIX_* numbering
     gnss_num_sv: int = 0
     gnss_speed_acc_mps: float = math.nan  # receiver's 1-sigma speed accuracy; nan = unknown
@@ -70,8 +84,10 @@ class Diagnostics:
         errs = sum(d.dlc_errors + d.decode_errors + d.range_errors + d.counter_errors + d.checksum_errors
                    for d in self.inputs.values())
         gnss_age = "never" if math.isinf(self.gnss_receive_age_ms) else f"{self.gnss_receive_age_ms:.0f} ms"
+        isolated = [n for n, s in self.sources.items() if s.isolated]
         return (f"inputs {len(self.inputs) - len(stale)}/{len(self.inputs)} fresh"
                 + (f" (stale: {', '.join(stale)})" if stale else "")
+                + (f", isolated: {', '.join(isolated)}" if isolated else "")
                 + f", input errors {errs}; gnss fix {self.gnss_fix_type} sv {self.gnss_num_sv} age {gnss_age}"
                 + f"{'' if self.gnss_serial_connected else ' (port closed)'}"
                 + f"; can {BUS_STATE_NAMES.get(self.can_bus_state, '?')} err {self.can_error_frames}"

@@ -88,6 +88,10 @@ _DIAG_INPUT_SUFFIX = {"AGE": ("age_ms", _UNKNOWN_HI), "RATE": ("rate_hz", _CLAMP
                       "STALE_COUNT": ("stale_count", _WRAP), "DLC_ERRORS": ("dlc_errors", _WRAP),
                       "DECODE_ERRORS": ("decode_errors", _WRAP), "RANGE_ERRORS": ("range_errors", _WRAP),
                       "COUNTER_ERRORS": ("counter_errors", _WRAP), "CHECKSUM_ERRORS": ("checksum_errors", _WRAP)}
+#: EST_DIAG signal prefix -> fault-isolation source (Diagnostics.sources)
+_DIAG_SOURCE_PREFIX = {"ISO_WHEELS": "wheels", "ISO_YAW_RATE": "yaw_rate", "ISO_ACCEL_X": "accel_x",
+                       "ISO_ACCEL_Y": "accel_y", "ISO_GNSS": "gnss", "ISO_WHEEL_SPEED": "wheel_speed"}
+_DIAG_SOURCE_SUFFIX = {"ACTIVE": ("isolated", _CLAMP), "EVENTS": ("events", _WRAP)}
 _DIAG_FIELDS = {
     "GNSS_FIX_TYPE": ("gnss_fix_type", _CLAMP), "GNSS_SERIAL_CONNECTED": ("gnss_serial_connected", _CLAMP),
     "GNSS_NUM_SV": ("gnss_num_sv", _CLAMP), "GNSS_SPEED_ACC": ("gnss_speed_acc_mps", _UNKNOWN_HI),
@@ -126,6 +130,10 @@ def _diag_source(name: str):
         if name.startswith(prefix + "_") and name[len(prefix) + 1:] in _DIAG_INPUT_SUFFIX:
             attr, mode = _DIAG_INPUT_SUFFIX[name[len(prefix) + 1:]]
             return (lambda d, n=input_name, a=attr: getattr(d.inputs[n], a)), mode
+    for prefix, source in _DIAG_SOURCE_PREFIX.items():
+        if name.startswith(prefix + "_") and name[len(prefix) + 1:] in _DIAG_SOURCE_SUFFIX:
+            attr, mode = _DIAG_SOURCE_SUFFIX[name[len(prefix) + 1:]]
+            return (lambda d, n=source, a=attr: getattr(d.sources[n], a)), mode
     return None
 
 

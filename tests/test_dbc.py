@@ -13,11 +13,12 @@ import pytest
 
 from ecu_daemon import config
 from ecu_daemon.canlog import CandumpWriter
-from ecu_daemon.diagnostics import Diagnostics, InputDiagnostics
+from ecu_daemon.diagnostics import Diagnostics, InputDiagnostics, SourceDiagnostics
 from ecu_daemon.estimator import estimate as estimate_module
 from ecu_daemon.estimator.estimate import ESTIMATE_FIELDS, Estimate
 from ecu_daemon.integrity import data_id_for
-from ecu_daemon.outputs import OutputEncoder, _DIAG_FIELDS, _DIAG_INPUT_PREFIX, _DIAG_INPUT_SUFFIX, _ESTIMATE_SOURCES
+from ecu_daemon.outputs import (OutputEncoder, _DIAG_FIELDS, _DIAG_INPUT_PREFIX, _DIAG_INPUT_SUFFIX,
+                                _DIAG_SOURCE_PREFIX, _DIAG_SOURCE_SUFFIX, _ESTIMATE_SOURCES)
 
 ROOT = Path(__file__).resolve().parents[1]
 INPUTS_DBC = ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc"
@@ -120,11 +121,16 @@ def test_every_estimate_and_diagnostics_field_has_an_output_signal(outputs_db):
     assert all(name in signals for name in _ESTIMATE_SOURCES)
     status_bits = [n for n in dir(estimate_module) if n.startswith("STATUS_")]
     assert status_bits and all(n in signals for n in status_bits)
-    diag_fields = {f.name for f in dataclasses.fields(Diagnostics)} - {"inputs"}
+    diag_fields = {f.name for f in dataclasses.fields(Diagnostics)} - {"inputs", "sources"}
     assert diag_fields == {attr for attr, _ in _DIAG_FIELDS.values()}
     assert {f.name for f in dataclasses.fields(InputDiagnostics)} == {a for a, _ in _DIAG_INPUT_SUFFIX.values()}
     for prefix in _DIAG_INPUT_PREFIX:
         for suffix in _DIAG_INPUT_SUFFIX:
+            assert f"{prefix}_{suffix}" in signals
+    assert {f.name for f in dataclasses.fields(SourceDiagnostics)} == {a for a, _ in _DIAG_SOURCE_SUFFIX.values()}
+    assert set(_DIAG_SOURCE_PREFIX.values()) == set(Diagnostics().sources)
+    for prefix in _DIAG_SOURCE_PREFIX:
+        for suffix in _DIAG_SOURCE_SUFFIX:
             assert f"{prefix}_{suffix}" in signals
 
 
@@ -142,7 +148,7 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     log = tmp_path / "out.log"
     with CandumpWriter(log) as w:
         period = max(p for _, _, p, _ in enc.schedule)
-        for k in range(max(period, 2 * 21)):  # every message, and all 21 EST_DIAG pages
+        for k in range(max(period, 2 * 23)):  # every message, and all 23 EST_DIAG pages
             for msg in enc.frames(k, est, Diagnostics()):
                 w.write(msg)
     r = subprocess.run([sys.executable, "-m", "cantools", "decode", str(OUTPUTS_DBC)],

@@ -84,8 +84,13 @@ def test_delay_compensation_matters(root):
     d = _drive(root, "slalom_dry")
     on = _score(d)
     off = _score(d, delay_compensation=False)
-    assert off["sideslip"]["rms"] > 1.5 * on["sideslip"]["rms"]
-    assert off["heading"]["rms"] > 1.5 * on["heading"]["rms"]
+    # Uncompensated, the course is 0.4 s old: in the slalom that is several degrees of course
+    # error, which the filter puts into sideslip (2.2 deg RMS against 0.09) more than into heading
+    # (course = heading - sideslip; both ~0.06 deg RMS), so sideslip is where it must show.
+    assert off["sideslip"]["rms"] > 5.0 * on["sideslip"]["rms"]
+    # GNSS speed is also compared with the wheels 0.4 s too late and drags the wheel scale off
+    # (held by its +-5 % bound, fault_detection.LEARNED_BOUNDS)
+    assert off["wheel_scale"]["rms"] > 5 * on["wheel_scale"]["rms"]
 
 
 def test_wrong_vehicle_parameters_and_delay_prior(root):

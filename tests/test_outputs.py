@@ -181,11 +181,14 @@ def test_diagnostics_pages_cover_everything(enc):
     d.inputs["yaw_rate"].rate_hz = 99.87
     d.inputs["yaw_rate"].counter_errors = 257
     d.inputs["accel_y"].checksum_errors = 5
+    d.sources["yaw_rate"].isolated = True
+    d.sources["yaw_rate"].events = 3
+    d.sources["gnss"].events = 258
     period = next(p for n, _, p, _ in enc.schedule if n == "EST_DIAG")
     pages = {}
-    for f in collect(enc, range(period * 21 * 2), diag=d)["EST_DIAG"]:
+    for f in collect(enc, range(period * 23 * 2), diag=d)["EST_DIAG"]:
         pages.setdefault(f["DIAG_PAGE"], f)
-    assert len(pages) == 21
+    assert len(pages) == 23
     assert pages[5]["YAW_RATE_AGE"] == 7 and pages[5]["YAW_RATE_RATE"] == pytest.approx(99.87)
     assert pages[0]["WS_FL_AGE"] == 65535  # never received
     assert pages[21]["YAW_RATE_COUNTER_ERRORS"] == 1 and pages[23]["ACCEL_Y_CHECKSUM_ERRORS"] == 5  # modulo 256
@@ -193,6 +196,8 @@ def test_diagnostics_pages_cover_everything(enc):
     assert (g["GNSS_FIX_TYPE"], g["GNSS_NUM_SV"], g["GNSS_SERIAL_CONNECTED"]) == (3, 17, 1)
     assert g["GNSS_SPEED_ACC"] == pytest.approx(65.535) and g["GNSS_CHECKSUM_ERRORS"] == 300 % 256  # unknown
     assert pages[33]["GNSS_RX_AGE"] == 45 and pages[33]["GNSS_LATENCY"] == pytest.approx(201.3)
+    assert (pages[34]["ISO_YAW_RATE_ACTIVE"], pages[34]["ISO_WHEELS_ACTIVE"]) == (1, 0)
+    assert pages[35]["ISO_YAW_RATE_EVENTS"] == 3 and pages[35]["ISO_GNSS_EVENTS"] == 258 % 256
     assert pages[48]["CAN_BUS_STATE"] == 3 and pages[48]["CAN_TX_FAILURES"] == 70000 % 65536
     assert pages[49]["TICK_LATE_P99"] == 65535 and pages[49]["CPU_LOAD"] == pytest.approx(12.5)
     assert pages[50]["TICK_LATE_MAX"] == 2_500_000 and pages[50]["TICK_OVERRUNS"] == 4

@@ -10,6 +10,12 @@ Design (one filter, several aiding sources, see the package docstring for the co
 * ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
   history (``history.py``), and ``latency.py`` identifies the latency online.
 
+Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
+the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
+confirm, and re-initialises when the wheels and GNSS together say it has diverged; the validity
+bits follow the published stds (which include what the filter cannot average away: the heading
+error a latency error causes while turning).
+
 Steps sit on the absolute grid t_k = k * dt, so live and replay runs of the same samples produce
 the same steps. Everything here is deterministic floating-point arithmetic on the inputs.
 """
@@ -24,11 +30,12 @@ from ..config import Config
 from ..samples import INPUT_INDEX, GnssSample, InputSample
 from . import estimate as est_mod
 from .estimate import Estimate
+from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
 from .fusion.gnss_velocity import ALIGN_SPEED, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
-from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, StepHistory
+from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
 from .latency import LatencyEstimator
 
@@ -38,17 +45,28 @@ I_STEER = INPUT_INDEX["steering_wheel_angle"]
 I_YAW = INPUT_INDEX["yaw_rate"]
 I_AX = INPUT_INDEX["accel_x"]
 I_AY = INPUT_INDEX["accel_y"]
-WHEELS = (I_FL, I_FR, I_RL, I_RR)
-assert sorted(WHEELS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
+WHEEL_INPUTS = (I_FL, I_FR, I_RL, I_RR)
+assert sorted(WHEEL_INPUTS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
 I_RR_MAX = 3
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
 SIDESLIP_STD_VALID = math.radians(1.0)
-HEADING_STD_VALID = math.radians(2.0)
+HEADING_STD_VALID = math.radians(1.5)  # 3 sigma inside the 5 deg a valid heading promises
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
+# while an IMU signal is isolated its substitute is coarse: process noise for what it drives
+ISO_ACCEL_NOISE = 2.0  # m/s^2/sqrt(Hz)
+ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
+ISO_HEADING_STEP = math.radians(3.0)
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
+# divergence: the wheels and GNSS speed cross-check each other before either re-initialises
+GNSS_WHEEL_TOL_MPS = 1.0  # speed agreement: lever arm, sideslip and wheel slip stay inside this
+GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
+WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
+GNSS_CHECK_FRESH_S = 2.0
+TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
+COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
 
 class Estimator:
@@ -64,7 +82,8 @@ class Estimator:
         self.delay_compensation = es.delay_compensation
         learned = self._check_learned(learned)
         self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
-                                        gn.max_delay_s, gn.estimate_delay)
+                                        gn.max_delay_s, gn.estimate_delay,
+                                        prior_std_s=learned.get("gnss_delay_std_s", math.inf))
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
@@ -73,6 +92,8 @@ class Estimator:
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.adapt_cornering_stiffness, learned)
+        self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
+                                 self.wheels.measured_speed)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned
@@ -95,12 +116,19 @@ class Estimator:
         self.r_lp = 0.0
         self.rdot = 0.0
         self.last_gnss_fused_t = -math.inf
+        self.last_gnss_speed = math.nan
         self.last_gnss_rejected = False
         self.late_inputs = 0
         self.resets = 0
+        self.realignments = 0
+        self.gnss_agrees = True
+        self.gnss_checked_t = -math.inf
+        self.wheel_reject_t = math.inf  # time of the first of the current run of wheel rejections
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
+        self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
+        self._lp_turn = dt / (TURN_MEMORY_S + dt)
 
     # ----------------------------------------------------------------------------------------
     # public contract
@@ -152,6 +180,7 @@ class Estimator:
             **self.single_track.learned(),
             "steering_offset_rad": float(self.steer_offset),
             "gnss_delay_s": float(self.latency.delay_s),
+            "gnss_delay_std_s": float(self.latency.std_s),
         }
 
     # ----------------------------------------------------------------------------------------
@@ -163,7 +192,8 @@ class Estimator:
         limits = {"yaw_rate_bias_radps": 0.1, "accel_x_bias_mps2": 2.0, "accel_y_bias_mps2": 2.0,
                   "wheel_scale": (0.8, 1.2), "accel_y_gain": 0.2, "kappa_r": (1e-4, 1.0), "kappa_f": (1e-4, 1.0),
                   "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
-                  "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0)}
+                  "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0),
+                  "gnss_delay_std_s": (0.0, 1.0)}
         out = {"version": LEARNED_VERSION}
         for key, lim in limits.items():
             v = learned.get(key)
@@ -199,7 +229,14 @@ class Estimator:
             self._reset(k)
         return math.ceil(t_next / self.dt - 1e-9) if to_sample else math.floor(t_next / self.dt + 1e-9)
 
-    def _initialize(self, k: int, wheel_speed: float) -> None:
+    def _initialize(self, k: int, wheel_speed: float, r_m: float, ay_m: float) -> None:
+        """Start the filter in whatever state the car is in (standstill or moving, straight or
+        cornering): vx from the wheels, vy from the single-track model, heading unknown.
+
+        The standard deviations are what these sources are worth on a flying start: the wheel
+        scale's uncertainty times the speed, the model's sideslip error (~1.5 deg plus a bit),
+        no heading at all until GNSS course gives one (``_align``).
+        """
         L = self._learned0
         h = self.hist
         h.reset(k)
@@ -207,15 +244,18 @@ class Estimator:
         x = h.X[i]
         x[:] = 0.0
         kw = L.get("wheel_scale", 1.0)
-        x[VX] = wheel_speed * kw if math.isfinite(wheel_speed) else 0.0
+        x[VX] = vx = wheel_speed * kw
         x[BR] = L.get("yaw_rate_bias_radps", 0.0)
         x[BAX] = L.get("accel_x_bias_mps2", 0.0)
         x[BAY] = L.get("accel_y_bias_mps2", 0.0)
         x[KW] = kw
-        have = "yaw_rate_bias_radps" in L
         x[GAY] = L.get("accel_y_gain", 0.0)
-        std = np.array([1.0, 0.5, math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3,
-                        0.005 if "wheel_scale" in L else 0.03, 0.02 if "accel_y_gain" in L else 0.05])
+        x[VY] = self.single_track.pseudo_measurement(vx, r_m - x[BR], ay_m - x[BAY], 0.0)[0]
+        have = "yaw_rate_bias_radps" in L
+        kw_std = 0.005 if "wheel_scale" in L else 0.03
+        std = np.array([math.hypot(0.3, kw_std * vx), 0.1 + math.radians(1.5) * abs(vx) + abs(x[VY]) * 0.3,
+                        math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3, kw_std,
+                        0.02 if "accel_y_gain" in L else 0.05])
         h.P[i] = np.diag(std ** 2)
         h.A[i] = np.eye(NX)
         self.initialized = True
@@ -225,6 +265,9 @@ class Estimator:
         """Re-initialise after divergence / non-finite state, keeping what was learned."""
         self.resets += 1
         self._reset_flag = True
+        self.wheel_reject_t = math.inf
+        self.wheels.consecutive_rejects = 0
+        self.gnss.consecutive_rejects = 0
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -243,14 +286,27 @@ class Estimator:
                      and t - held_t[3] <= tmo[3])
         wheel_z = self.wheels.measured_speed(fl, fr, rl, rr) if wheels_ok else math.nan
         if not self.initialized:
-            if not imu_ok:
+            # velocity comes from the wheels at once, so the filter waits for them: starting at
+            # vx = 0 while the car moves puts every wheel sample outside its gate (the divergence
+            # of issue 7) and a flying start looks like a standstill
+            if not (imu_ok and math.isfinite(wheel_z)) or self.fdi.isolated & WHEELS:
                 return self._invalid(t)
-            self._initialize(k, wheel_z)
+            self._initialize(k, wheel_z, r_m, ay_m)
             self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]
         h = self.hist
         i = h.slot(k)
-        if h.last >= h.first:  # predict from the previous step
-            ip = h.slot(k - 1)
+        predict = h.last >= h.first
+        ip = h.slot(k - 1) if predict else i
+        steer_sw = held[I_STEER]
+        steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
+        delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
+        iso = self.fdi.step(k, (fl, fr, rl, rr), wheels_ok, r_m, ax_m, ay_m, imu_ok, h.X[ip],
+                            h.P[ip][VX, VX], self.wheels.noise2, delta,
+                            0.0 if self.fdi.isolated & YAW_RATE else self.rdot)
+        wheel_z = self.fdi.wheel_z
+        if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
+            r_m, ax_m, ay_m = self._substitute(iso, h.X[ip], r_m, ax_m, ay_m)
+        if predict:  # predict from the previous step
             x = h.X[i]
             np.copyto(x, h.X[ip])
             if imu_ok:
@@ -263,6 +319,8 @@ class Estimator:
             x = h.X[i]
             A = h.A[i]
         P = h.P[i]
+        if iso:
+            self._widen(iso, P)
         if imu_ok:
             _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
             r = r_m - b_r
@@ -274,25 +332,31 @@ class Estimator:
         r_lp_prev = self.r_lp
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
-        steer_sw = held[I_STEER]
-        steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
-        delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
+        self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
-        if self.standstill.detect(wheels_max) and imu_ok:
+        if (self.standstill.detect(wheels_max) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
+                and self.fdi.standstill_plausible(x[VX], self._fresh_gnss_speed(t))):
             status |= est_mod.STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
             r = r_m - x[BR]
         else:
-            if wheels_ok and self.wheel_new:
-                self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A)
-            if imu_ok and k % MODEL_EVERY == 0:
+            if wheels_ok and self.wheel_new and not iso & WHEELS:
+                if self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
+                    self.wheel_reject_t = math.inf
+                elif self._wheels_diverged(t):
+                    self._reset(k)
+                    return self._invalid(t)
+            if imu_ok and k % MODEL_EVERY == 0 and not iso & (YAW_RATE | ACCEL_Y):
                 self.single_track.fuse(x, P, r, ay, self.rdot, A, MODEL_EVERY)
-            if steer_ok and imu_ok and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
+            if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
+        for j, v in self.fdi.frozen.items():
+            x[j] = v
+        clamp_learned(x)
         h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k
         if k % 64 == 0:
@@ -303,7 +367,47 @@ class Estimator:
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
             return self._invalid(t)
-        return self._estimate(t, xl, pd, P[VX, VY], r, status, imu_ok, wheels_ok)
+        return self._estimate(t, xl, pd, P[VX, VY], r, status | iso, imu_ok, wheels_ok, iso)
+
+    def _substitute(self, iso: int, x, r_m: float, ax_m: float, ay_m: float) -> tuple[float, float, float]:
+        """Stand-ins for isolated IMU signals (as raw readings): yaw rate from the rear wheels,
+        ax from d(wheel speed)/dt, ay from r * vx; zero rate / acceleration when none is left."""
+        fdi = self.fdi
+        if iso & YAW_RATE:
+            r_m = (fdi.r_wheels if math.isfinite(fdi.r_wheels) else 0.0) + x[BR]
+        if iso & ACCEL_X:
+            ax_m = (0.0 if iso & WHEELS else fdi.ax_wheels) + x[BAX]
+        if iso & ACCEL_Y:
+            ay_m = (r_m - x[BR]) * x[VX] + x[BAY]
+        return r_m, ax_m, ay_m
+
+    def _widen(self, iso: int, P: np.ndarray) -> None:
+        """Covariance for the states a substitute (or nothing) now drives; a step on isolation
+        (the fault acted before it was caught), a random walk while it lasts."""
+        new = self.fdi.new_isolation
+        dt = self.dt
+        if iso & (ACCEL_X | WHEELS):
+            P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+        if iso & (YAW_RATE | ACCEL_Y):
+            P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+        if iso & YAW_RATE:
+            P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
+
+    def _fresh_gnss_speed(self, t: float) -> float:
+        return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan
+
+    def _wheels_diverged(self, t: float) -> bool:
+        """A run of wheel rejections: re-initialise from the wheels unless GNSS says they lie.
+
+        The wheels are four independent sensors, the filter's vx an integral of one
+        accelerometer; when they disagree for long the filter is the likelier culprit, except
+        when the latest GNSS speed check sided against the wheels (all wheels stuck or zero).
+        """
+        self.wheel_reject_t = min(self.wheel_reject_t, t)
+        if t - self.wheel_reject_t < WHEEL_DIVERGED_S:
+            return False
+        gnss_recent = t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
+        return self.gnss_agrees or not gnss_recent
 
     def _invalid(self, t: float) -> Estimate:
         """No filter yet (or just reset): finite, neutral values, every validity bit false.
@@ -325,7 +429,7 @@ class Estimator:
                         self.single_track.cornering_stiffness_rear, False, False, False, False, status,
                         self.gnss.fused, self.gnss.rejected, self.gnss.late)
 
-    def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok) -> Estimate:
+    def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok, iso) -> Estimate:
         """x: state as a list, pd: covariance diagonal as a list (Python floats are cheaper)."""
         sqrt = math.sqrt
         vx = x[VX]
@@ -355,18 +459,27 @@ class Estimator:
             status |= est_mod.STATUS_RESET
             self._reset_flag = False
         sd = [sqrt(v) if v > 0.0 else 0.0 for v in pd]
-        psi_std = sd[PSI]
-        vel_valid = imu_ok and (wheels_ok or gnss_fresh)
+        # A latency error dd turns every GNSS velocity by r * dd while turning: a bias, not noise,
+        # so the filter averages it into the heading however many fixes it fuses. Its size is
+        # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
+        psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
+        # valid only from sources that agree: wheels fused with no run of rejections, or fresh
+        # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
+        wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
+        vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
+                     and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
+        imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
         st = self.single_track
         gn = self.gnss
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, sd[VX], sd[VY],
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
-            vel_valid and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
-            imu_ok and self.aligned and psi_std < HEADING_STD_VALID,
+            vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
+            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
+            and gn.consecutive_rejects == 0,
             vel_valid,
-            imu_ok and sd[BR] < BIAS_STD_VALID,
+            imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
 
     # ----------------------------------------------------------------------------------------
@@ -380,19 +493,42 @@ class Estimator:
             fus.rejected += 1
             self.last_gnss_rejected = True
             return
-        speed = g.speed_mps
-        self.latency.observe(k, speed, h)
+        speed = g.speed_mps  # NaN course: speed only (GnssSample.course_known)
         delay = self.latency.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
+        js = h.slot(s)
+        agree = self._gnss_agrees_with_wheels(s, speed)
+        tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
+        verdict = self.fdi.check_gnss(
+            s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,
+            abs(speed - h.X[js, VX]) <= max(tol, 5.0 * math.sqrt(max(h.P[js][VX, VX], 0.0))))
+        if verdict is False or self.fdi.gnss_isolated:  # never fused, never learned from
+            fus.rejected += 1
+            fus.last_reason = "inconsistent with the wheels / IMU"
+            self.last_gnss_rejected = True
+            return
+        agree = agree and not self.fdi.isolated & WHEELS
+        if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
+            self.latency.observe(k, speed, h)
         if late:
             fus.late += 1
-        if not self.aligned or fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS or not g.course_known:
-            ok = fus.fuse_speed(h, s, g)
-            if speed > ALIGN_SPEED and g.course_known:
+        if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
+                and self.wheels.consecutive_rejects == 0 and g.course_known:
+            # GNSS and the wheels agree with each other and not with the filter: its heading
+            # (or vy) has diverged. Drop the heading and align again from this fix's course.
+            # A GNSS that disagrees with the wheels stays rejected instead (a glitch).
+            self.aligned = False
+            self.realignments += 1
+        if not self.aligned or not g.course_known:  # heading unknown, or no course: |v| only
+            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=self.latency.std_s)
+            if not agree:
+                fus.rejected += 1
+                fus.last_reason = "speed disagrees with the wheels"
+            if ok and speed >= ALIGN_SPEED and g.course_known:
                 self._align(s, g)
         else:
             ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
-            if ok:
+            if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
                 xs = h.X[i]
@@ -401,26 +537,57 @@ class Estimator:
         self.last_gnss_rejected = not ok
         if ok:
             self.last_gnss_fused_t = k * self.dt
+            self.last_gnss_speed = speed
+
+    def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
+        """GNSS speed against the wheel speed at its time of validity (scaled by the learned
+        wheel scale); remembered for the wheel-divergence check in ``_step``."""
+        i = self.hist.slot(s)
+        ws = abs(self.hist.aux[i, AUX_WHEEL] * self.hist.X[i][KW])
+        agree = not math.isfinite(ws) or abs(speed - ws) <= GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
+        self.gnss_agrees = agree
+        self.gnss_checked_t = s * self.dt
+        return agree
 
     def _align(self, s: int, g: GnssSample) -> None:
-        """Set the heading from the GNSS course at stored step s and carry it to the present."""
+        """Set the heading from the GNSS course at stored step s and carry it to the present.
+
+        psi = course + beta_antenna(x): the new heading is a function of the velocity states, so
+        its covariance row is J P (J = d beta_antenna / dx) and its variance J P J' plus the
+        course's own: speed accuracy / speed, and the yaw rate times the latency's uncertainty
+        (the course is from a slightly different instant than we think). Keeping the
+        correlation with vy is what lets later GNSS fixes correct sideslip and heading together
+        instead of trusting a heading that carries the initial sideslip error.
+        """
         h = self.hist
         i = h.slot(s)
         x = h.X[i]
         r = h.aux[i, AUX_R]
-        vax = x[VX] - r * self.gnss.lever_y
-        vay = x[VY] + r * self.gnss.lever_x
-        beta_ant = math.atan2(vay, vax)
-        psi = (self.gnss.course(g) + beta_ant) % (2.0 * math.pi)
+        lx, ly = self.gnss.lever_x, self.gnss.lever_y
+        vax = x[VX] - r * ly
+        vay = x[VY] + r * lx
+        psi = (self.gnss.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
         dpsi = psi - x[PSI]
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        var = (self.gnss.sigma(g) / speed) ** 2 + h.P[i][VY, VY] / max(vax * vax, 1.0) \
-            + math.radians(0.5) ** 2
+        var_course = (self.gnss.sigma(g) / speed) ** 2 + (r * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
         old = h.oldest()
         idx = np.arange(old, h.last + 1) % h.n
-        h.X[idx, PSI] = (h.X[idx, PSI] + dpsi) % (2.0 * math.pi)
-        h.P[idx, PSI, :] = 0.0
-        h.P[idx, :, PSI] = 0.0
-        h.P[idx, PSI, PSI] = var
+        X = h.X[idx]
+        rr = h.aux[idx, AUX_R]
+        vax = X[:, VX] - rr * ly
+        vay = X[:, VY] + rr * lx
+        sp2 = np.maximum(vax * vax + vay * vay, 1.0)
+        J = np.zeros((len(idx), NX))
+        J[:, VX] = -vay / sp2
+        J[:, VY] = vax / sp2
+        J[:, BR] = (-vay * ly - vax * lx) / sp2
+        P = h.P[idx]
+        JP = np.einsum("ki,kij->kj", J, P)
+        var = np.einsum("kj,kj->k", JP, J) + var_course
+        h.X[idx, PSI] = (X[:, PSI] + dpsi) % (2.0 * math.pi)
+        P[:, PSI, :] = JP
+        P[:, :, PSI] = JP
+        P[:, PSI, PSI] = var
+        h.P[idx] = P
         self.aligned = True
         self.gnss.consecutive_rejects = 0

@@ -12,6 +12,13 @@ STATUS_INPUT_STALE = 1 << 4  # at least one required CAN input is stale
 STATUS_RESET = 1 << 5  # the filter was re-initialised at this step (divergence / non-finite)
 STATUS_HEADING_ALIGNED = 1 << 6  # heading initialised from GNSS course
 STATUS_GNSS_REJECTED = 1 << 7  # the last GNSS sample failed its quality check or innovation gate
+# fault isolation (estimator/fault_detection.py): the source disagrees with the others, is not fused
+STATUS_WHEELS_ISOLATED = 1 << 8
+STATUS_YAW_RATE_ISOLATED = 1 << 9
+STATUS_ACCEL_X_ISOLATED = 1 << 10
+STATUS_ACCEL_Y_ISOLATED = 1 << 11
+STATUS_GNSS_ISOLATED = 1 << 12
+STATUS_WHEEL_SPEED_ISOLATED = 1 << 13  # one fused wheel disagrees with the others: its axle partner stands in
 
 
 class Estimate(NamedTuple):

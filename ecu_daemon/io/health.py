@@ -11,6 +11,7 @@ import os
 import time
 
 from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics
+from ..estimator.fault_detection import SOURCE_BITS
 from ..samples import GnssSample
 from . import can_bus
 from .tick import TickSnapshot
@@ -49,12 +50,18 @@ def thread_cpu_s(native_id: int | None) -> float:
 
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
                       gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth | None,
-                      tick: TickSnapshot | None, cpu_pct: float, error_frames: int = 0) -> Diagnostics:
+                      tick: TickSnapshot | None, cpu_pct: float, error_frames: int = 0, status: int = 0,
+                      isolation_events: dict | None = None) -> Diagnostics:
     """The snapshot at time ``t``. Offline (replay) there is no bus, tick or CPU to speak of:
     ``bus``/``tick`` None and ``cpu_pct`` NaN give the "not available" values, and the log's
-    own ``error_frames`` are counted."""
+    own ``error_frames`` are counted. ``status``: the latest Estimate.status (its isolation
+    bits); ``isolation_events``: the estimator's per-source isolation counts
+    (``FaultDetector.events``)."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
+    for name, src in d.sources.items():
+        src.isolated = bool(status & SOURCE_BITS[name])
+        src.events = (isolation_events or {}).get(name, 0)
     if gnss_last is not None:
         d.gnss_fix_type = gnss_last.fix_type if gnss_last.fix_ok else 0
         d.gnss_num_sv = gnss_last.num_sv

@@ -6,10 +6,13 @@ squared against chi-square), then the update at the stored step and the shift to
 (``history.StepHistory.correct``).
 
 Before the heading is known (after start-up or a reset) the velocity *direction* cannot be
-fused linearly; then only the speed is fused, and the heading is aligned from the GNSS course
-once the car moves fast enough (course = heading - sideslip, clockwise-from-north convention).
-A run of consecutive gate rejections (a real jump, or a diverged filter) re-aligns instead of
-locking the filter out for ever (the NIS lock-out the Yoon thesis warns about).
+fused linearly (through a heading with a variance of pi^2 it drags vx anywhere); then only the
+speed is fused, and the heading is aligned from the GNSS course once the car moves fast enough
+(course = heading - sideslip, clockwise-from-north convention). A run of consecutive gate
+rejections (a real jump, or a diverged filter) is resolved by the core against the wheel
+speeds: GNSS that agrees with the wheels re-aligns the heading, GNSS that does not stays
+rejected (never a blind acceptance; the NIS lock-out the Yoon thesis warns about is avoided
+without trusting a glitch).
 """
 from __future__ import annotations
 
@@ -21,8 +24,13 @@ from ...samples import GnssSample
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
 from ..kinematic import NX, VX, VY, antenna_velocity_ne, gnss_jacobian
 
-ALIGN_SPEED = 4.0  # m/s: course is good to ~ sigma_v / v rad
+ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
+# A latency error is the same for every fix of a manoeuvre (~5 s of acceleration at 5 Hz), so its
+# speed error ax * dd is a bias over that many fixes, not noise: weighted as one measurement per
+# manoeuvre instead of one per fix (else a start-up acceleration with the latency 0.3 s off taught
+# a wheel scale of 1.15 and vx 0.9 m/s off, valid).
+TIMING_FIXES = 25.0
 # chi-square, 2 degrees of freedom, for a gate of n sigma: exp(-g/2) = tail(n sigma, 1-D)
 CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
 
@@ -64,8 +72,9 @@ class GnssVelocityFusion:
             return False
         return True
 
-    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample) -> bool:
-        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only."""
+    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample, delay_std_s: float = 0.0) -> bool:
+        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only; ``delay_std_s`` as in :meth:`fuse` (a start-up
+        acceleration with the latency still unknown must not be read as a wheel-scale error)."""
         i = hist.slot(s)
         x = hist.X[i]
         P = hist.P[i]
@@ -81,11 +90,12 @@ class GnssVelocityFusion:
             h = np.zeros(NX)
             h[VX] = vax / sp
             h[VY] = vay / sp
-        sig = self.sigma(g)
+        a = hist.aux[i]
+        sig2 = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
         Ph = P @ h
-        S = float(h @ Ph) + sig * sig
+        S = float(h @ Ph) + sig2
         y = zs - (sp if sp >= 0.5 else x[VX])
-        if y * y > 25.0 * S and self.consecutive_rejects < MAX_CONSECUTIVE_REJECTS:
+        if y * y > 25.0 * S:
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = "speed innovation gate"
@@ -101,9 +111,11 @@ class GnssVelocityFusion:
         """Full 2-D velocity update at stored step s. Returns False if gated out.
 
         ``delay_std_s``: uncertainty of the time of validity. A timing error dt looks like a
-        velocity error of |a| dt (a = horizontal acceleration), so it is added to the noise:
+        velocity error of a dt (a = horizontal acceleration), so it is added to the noise:
         until the latency is identified, hard cornering de-weights GNSS instead of tearing the
-        heading away (and the gate does not lock GNSS out).
+        heading away (and the gate does not lock GNSS out). Along the track (speed, wheel
+        scale) it is also weighted as the bias it is (``TIMING_FIXES``); across the track its
+        effect on heading is published in the heading std by the core.
         """
         i = hist.slot(s)
         x = hist.X[i]
@@ -112,13 +124,19 @@ class GnssVelocityFusion:
         vn, ve = antenna_velocity_ne(x, r, self.lever_x, self.lever_y)
         H = gnss_jacobian(x, r, self.lever_x, self.lever_y)
         a = hist.aux[i]
-        acc2 = a[AUX_AX] ** 2 + a[AUX_AY] ** 2
-        sig2 = self.sigma(g) ** 2 + acc2 * delay_std_s * delay_std_s
+        d2 = delay_std_s * delay_std_s
+        sig2 = self.sigma(g) ** 2
         y = np.array([g.vel_n_mps - vn, g.vel_e_mps - ve])
         PHt = P @ H.T
         S = H @ PHt
-        S[0, 0] += sig2
-        S[1, 1] += sig2
+        sp = math.hypot(vn, ve)
+        u = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
+        iso = sig2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
+        along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
+        S[0, 0] += iso + along * u[0] * u[0]
+        S[1, 1] += iso + along * u[1] * u[1]
+        S[0, 1] += along * u[0] * u[1]
+        S[1, 0] = S[0, 1]
         Sinv = np.linalg.inv(S)
         nis = float(y @ Sinv @ y)
         if gate and nis > self.gate:

@@ -26,6 +26,7 @@ class WheelSpeedFusion:
         self.noise2 = noise_mps * noise_mps
         self.h = np.zeros(NX)
         self.rejected = 0
+        self.consecutive_rejects = 0  # a long run means the filter and the wheels disagree
 
     def measured_speed(self, fl: float, fr: float, rl: float, rr: float) -> float:
         """The raw wheel-derived speed this source fuses (configured radius, no scale)."""
@@ -53,6 +54,9 @@ class WheelSpeedFusion:
         h[KW] = -pred / kw
         R = self.noise2 + (0.02 * ax) ** 2 + (0.002 * pred) ** 2
         ok = scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA, A)
-        if not ok:
+        if ok:
+            self.consecutive_rejects = 0
+        else:
             self.rejected += 1
+            self.consecutive_rejects += 1
         return ok

@@ -1,0 +1,417 @@
+"""Fault detection and isolation (FDI): the sources checked against each other every step.
+
+One place decides which source may be fused (PX4 EKF2's shape; openpilot's input checks). Every
+check compares two *independent* views of one physical quantity, so a sensor that is wrong but
+alive, in range and with good CRCs, is caught by physics rather than by its own plausibility:
+
+* each wheel against the others: its speed, corrected for yaw rate and steering to the CG's vx,
+  against the median of the fused pair and the other axle (a single wheel-speed sensor that is
+  wrong is replaced by its axle partner, corrected by r * track);
+* longitudinal: the change of the wheel speed over a short window against the integrated
+  accelerometer (``ax`` vs d(wheel speed)/dt);
+* yaw: the gyro against the rear-wheel speed difference ``(v_rr - v_rl) / track`` and against
+  ``ay / vx`` (the gyro is blamed only when both disagree with it; ``ay`` when only ``ay / vx``
+  does);
+* GNSS speed against the wheel speed at its time of validity (or, with the wheels out, against the
+  filter's velocity; the comparison itself is ``core.Estimator._gnss_agrees_with_wheels``);
+* standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree.
+
+When the longitudinal check fails, wheels and accelerometer are both suspects until the evidence
+says which: a GNSS fix taken after the onset (which one it agrees with), else an impossible jump
+of one of them at the onset. A suspect or isolated source is not fused, learned quantities that
+depend on it are not learned, and the outputs that depend on it are not valid. It returns when it
+has agreed with the others for a while (hysteresis, ``_Latch``). Learned states are also bounded
+(:func:`clamp_learned`): a fault that slips through cannot drive them somewhere unphysical.
+
+Isolation is reported as bits of ``Estimate.status`` (``STATUS_*_ISOLATED``, the same values as
+:data:`SOURCE_BITS`) and counted per source in :attr:`FaultDetector.events`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import estimate as est_mod
+from .kinematic import BAX, BAY, BR, GAY, KW, VX, VY
+
+WHEELS = est_mod.STATUS_WHEELS_ISOLATED
+WHEEL_SPEED = est_mod.STATUS_WHEEL_SPEED_ISOLATED
+YAW_RATE = est_mod.STATUS_YAW_RATE_ISOLATED
+ACCEL_X = est_mod.STATUS_ACCEL_X_ISOLATED
+ACCEL_Y = est_mod.STATUS_ACCEL_Y_ISOLATED
+GNSS = est_mod.STATUS_GNSS_ISOLATED
+#: source name -> isolation bit
+SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "accel_y": ACCEL_Y, "gnss": GNSS,
+               "wheel_speed": WHEEL_SPEED}
+# --- each wheel against the others (fl, fr, rl, rr)
+WHEEL_TOL_MPS = 0.5  # + WHEEL_TOL_REL * speed: driven-wheel slip stays out of the median
+WHEEL_TOL_REL = 0.03
+
+# --- longitudinal: wheel speed change vs integrated ax over LON_WINDOW_S
+LON_WINDOW_S = 0.15
+LON_TOL_MPS = 1.0  # + LON_TOL_REL * speed (wheel slip while braking, grade not yet in the bias)
+LON_TOL_REL = 0.03
+WHEEL_JUMP_MPS = 3.0  # wheel-speed change between two steps no tyre can make (> 500 m/s^2)
+AX_IMPLAUSIBLE_MPS2 = 20.0  # beyond any car's longitudinal grip (2 g)
+AX_JUMP_MPS2 = 12.0  # change between two steps
+JUMP_MEMORY_S = 0.5  # a jump this close to the onset counts as evidence
+# --- yaw: gyro vs rear-wheel difference and vs ay / vx
+YAW_TAU_S = 0.1  # fast test: large faults, wide tolerance
+YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
+YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
+YAW_SLOW_TOL_REL = 0.12
+YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
+GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
+YAW_MIN_SPEED = 3.0
+YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
+YAW_TOL_WHEELS_REL = 0.15
+YAW_TOL_AY = 0.08  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the steady-state relation)
+YAW_TOL_AY_REL = 0.25
+LR_TAU_S = 60.0  # learning of the left/right wheel-radius mismatch (tyre pressure, wear)
+LR_MAX = 0.005
+WHEELS_BACK_TOL_MPS = 1.0  # isolated wheels return within this (or 4 sigma) of the filter's vx
+# --- standstill
+STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
+# --- hysteresis (steps at 6 ms)
+ON_STEPS = 3
+OFF_STEPS = 170  # ~1 s of agreement before a source returns
+GNSS_ON = 2  # an inconsistent fix is never fused; GNSS is reported isolated from the second
+GNSS_OFF = 5  # 1 s at 5 Hz
+#: the learned states each source drives: frozen while it is isolated (nothing to learn them from)
+FROZEN_STATES = {WHEELS: (KW,), YAW_RATE: (BR,), ACCEL_X: (BAX,), ACCEL_Y: (BAY, GAY)}
+#: learned states and their bounds (lower, upper)
+LEARNED_BOUNDS = {BR: (-0.1, 0.1), BAX: (-2.0, 2.0), BAY: (-2.0, 2.0), KW: (0.95, 1.05), GAY: (-0.2, 0.2)}
+
+
+def clamp_learned(x: np.ndarray) -> None:
+    """Keep every learned state in its physical range (wheel scale +-5 %, biases, ay gain)."""
+    for i, (lo, hi) in LEARNED_BOUNDS.items():
+        v = x[i]
+        if v < lo:
+            x[i] = lo
+        elif v > hi:
+            x[i] = hi
+
+
+class _Latch:
+    """A failing check isolates after ``on`` verdicts in a row; ``off`` passing ones release it."""
+
+    __slots__ = ("on", "off", "bad", "good", "active", "events")
+
+    def __init__(self, on: int, off: int):
+        self.on, self.off = on, off
+        self.bad = self.good = self.events = 0
+        self.active = False
+
+    def update(self, failing: bool | None) -> bool:
+        if failing is None:  # no verdict possible now
+            return self.active
+        if failing:
+            self.good = 0
+            self.bad += 1
+            if not self.active and self.bad >= self.on:
+                self.active = True
+                self.events += 1
+        else:
+            self.bad = 0
+            self.good += 1
+            if self.active and self.good >= self.off:
+                self.active = False
+        return self.active
+
+
+class FaultDetector:
+    """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
+
+    def __init__(self, dt: float, track_m: float, lf_m: float = 1.2, driven_axle: str = "front",
+                 measured_speed=None):
+        """``measured_speed(fl, fr, rl, rr)``: the wheel speed the filter fuses (``WheelSpeedFusion``)."""
+        self.dt = dt
+        self.track = track_m
+        self.lf = lf_m
+        self.fused_wheels = {"all": (0, 1, 2, 3), "rear": (0, 1)}.get(driven_axle, (2, 3))
+        self._measured = measured_speed or (lambda fl, fr, rl, rr: 0.5 * (rl + rr))
+        self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
+        self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
+        self.wheel_z = math.nan  # the wheel speed to fuse, isolated wheels replaced
+        n = max(2, int(round(LON_WINDOW_S / dt)))
+        self._ring_v = [math.nan] * n  # wheel speed (scaled) per step
+        self._ring_a = [0.0] * n  # cumulative integral of ax per step
+        self._n = n
+        self._cum_a = 0.0
+        self._v_prev = math.nan
+        self._ax_prev = math.nan
+        self.lon = _Latch(ON_STEPS, OFF_STEPS)
+        self.lon_onset = -1  # step at which the present longitudinal disagreement started
+        self.lon_culprit = 0  # WHEELS | ACCEL_X while the longitudinal check fails
+        self._wheel_jump_k = -10 ** 9
+        self._ax_jump_k = -10 ** 9
+        self._gnss_wheel_verdict: tuple[int, bool] | None = None  # (validity step, wheels agree)
+        self.wheels_back = _Latch(1, OFF_STEPS)  # isolated wheels: agree with the filter again
+        self.gyro = _Latch(ON_STEPS, OFF_STEPS)
+        self.ay = _Latch(ON_STEPS, OFF_STEPS)
+        self.gnss = _Latch(GNSS_ON, GNSS_OFF)
+        self._a_yaw = dt / (YAW_TAU_S + dt)
+        self._a_slow = dt / (YAW_SLOW_TAU_S + dt)
+        self.e_ws = 0.0  # the same, slow
+        self.e_as = 0.0
+        self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
+        self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
+        self._rw_prev = math.nan
+        self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
+        self._a_lr = dt / (LR_TAU_S + dt)
+        self.e_w = 0.0  # low-passed gyro - wheel yaw rate
+        self.e_a = 0.0  # low-passed gyro - ay / vx
+        self.lr = 0.0  # learned (v_rr - v_rl) / v at zero yaw rate
+        self.r_wheels = math.nan  # yaw rate from the rear wheels (substitute for a faulty gyro)
+        self.ax_wheels = 0.0  # d(wheel speed)/dt over the window (substitute for a faulty ax)
+        self.wheels_isolated = False
+        self.isolated = 0
+        self.events = {name: 0 for name in SOURCE_BITS}
+        self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
+        self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
+
+    # ------------------------------------------------------------------------------------------
+    def step(self, k: int, wheels: tuple, wheels_ok: bool, r_m: float, ax_m: float, ay_m: float,
+             imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float, delta: float = 0.0,
+             rdot: float = 0.0) -> int:
+        """Run every check for step k (x: the latest state). Returns the isolation mask.
+
+        ``wheels``: (fl, fr, rl, rr) raw readings; ``p_vx``: variance of vx; ``wheel_r2``: the
+        wheel measurement's noise variance; ``delta``: road-wheel angle (NaN: unknown).
+        """
+        before = self.isolated
+        x = x.tolist()  # Python floats: every check below is scalar arithmetic
+        kw = x[KW]
+        fl, fr, rl, rr = wheels
+        if wheels_ok:
+            r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
+            fl, fr, rl, rr = self._each_wheel(wheels, r, delta, x[VY])
+            self.wheel_z = self._measured(fl, fr, rl, rr)
+        else:
+            self.wheel_z = math.nan
+        v = self.wheel_z * kw if wheels_ok else math.nan
+        ax = ax_m - x[BAX] if imu_ok else math.nan
+        self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
+        self._wheels_return(v, x[VX], p_vx, wheel_r2)
+        self._yaw(rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
+        iso = 0
+        if self.wheel_mask:
+            iso |= WHEEL_SPEED
+        if self.lon.active:
+            iso |= self.lon_culprit
+        if self.wheels_isolated:
+            iso |= WHEELS
+        if self.gyro.active:
+            iso |= YAW_RATE
+        if self.ay.active:
+            iso |= ACCEL_Y
+        if self.gnss.active:
+            iso |= GNSS
+        self.new_isolation = iso & ~before
+        for bit, states in FROZEN_STATES.items():
+            if iso & bit and not before & bit:
+                self.frozen.update((j, x[j]) for j in states)
+            elif before & bit and not iso & bit:
+                for j in states:
+                    self.frozen.pop(j, None)
+        for name, bit in SOURCE_BITS.items():
+            if self.new_isolation & bit:
+                self.events[name] += 1
+        self.isolated = iso
+        return iso
+
+    def _each_wheel(self, w: tuple, r: float, delta: float, vy: float) -> tuple:
+        """Each fused wheel against the others; returns the readings with a wrong one replaced."""
+        h = 0.5 * self.track * r
+        c, s = (math.cos(delta), math.sin(delta)) if math.isfinite(delta) else (1.0, 0.0)
+        lat = (vy + self.lf * r) * s
+        cv = ((w[0] - lat) / c + h, (w[1] - lat) / c - h, w[2] + h, w[3] - h)  # each as the CG's vx
+        fused = self.fused_wheels
+        if len(fused) == 4:
+            srt = sorted(cv)
+            med = 0.5 * (srt[1] + srt[2])
+        else:  # the fused pair and the other axle's mean (driven wheels slip: one vote, not two)
+            a, b = fused
+            o = [j for j in range(4) if j not in fused]
+            med = sorted((cv[a], cv[b], 0.5 * (cv[o[0]] + cv[o[1]])))[1]
+        tol = WHEEL_TOL_MPS + WHEEL_TOL_REL * abs(med)
+        mask = 0
+        for j in fused:
+            if self.wheel_latches[j].update(abs(cv[j] - med) > tol):
+                mask |= 1 << j
+        self.wheel_mask = mask
+        if not mask:
+            return w
+        out = list(w)
+        for j in fused:
+            if mask & 1 << j:
+                p = j ^ 1  # axle partner: fl<->fr, rl<->rr
+                if mask & 1 << p:
+                    self.wheels_isolated = True  # both of an axle: nothing left to fuse
+                    return w
+                d = 2.0 * h * (c if j < 2 else 1.0)  # right wheel minus left wheel
+                out[j] = w[p] - d if j % 2 == 0 else w[p] + d
+        return tuple(out)
+
+    def _longitudinal(self, k: int, v: float, ax: float, ax_raw: float) -> None:
+        n = self._n
+        i = k % n
+        if math.isfinite(ax):
+            self._cum_a += ax * self.dt
+        v_old = self._ring_v[i]
+        a_old = self._ring_a[i]
+        self._ring_v[i] = v
+        self._ring_a[i] = self._cum_a
+        if math.isfinite(v) and math.isfinite(self._v_prev) and abs(v - self._v_prev) > WHEEL_JUMP_MPS:
+            self._wheel_jump_k = k
+        if math.isfinite(ax_raw) and (abs(ax_raw) > AX_IMPLAUSIBLE_MPS2 or (
+                math.isfinite(self._ax_prev) and abs(ax_raw - self._ax_prev) > AX_JUMP_MPS2)):
+            self._ax_jump_k = k
+        self._v_prev = v
+        self._ax_prev = ax_raw
+        verdict = None
+        if math.isfinite(v) and math.isfinite(v_old) and math.isfinite(ax):
+            dv = v - v_old
+            self.ax_wheels = dv / (n * self.dt)
+            res = dv - (self._cum_a - a_old)
+            verdict = abs(res) > LON_TOL_MPS + LON_TOL_REL * abs(v)
+        if math.isfinite(ax_raw) and abs(ax_raw) > AX_IMPLAUSIBLE_MPS2:
+            verdict = True  # beyond any tyre: not fused even for the steps the window needs
+            self.lon.bad = max(self.lon.bad, self.lon.on - 1)
+        was = self.lon.active
+        if self.lon.update(verdict) and not was:
+            self.lon_onset = k
+            self.lon_culprit = WHEELS | ACCEL_X
+        if self.lon.active:
+            self._attribute(k)
+        else:
+            self.lon_culprit = 0
+
+    def _attribute(self, k: int) -> None:
+        """Which of wheels / accelerometer broke the longitudinal check (both until known).
+
+        Evidence, strongest first: one of them keeps jumping (an intermittent sensor: a GNSS fix
+        that happens to fall between its drop-outs must not bring it back); a GNSS fix taken
+        while the disagreement lasts (the one it sides with is right; not after a step that
+        has passed the window: a wheel sensor recovering); an impossible jump at the onset.
+        """
+        mem = JUMP_MEMORY_S / self.dt
+        wj_now = k - self._wheel_jump_k <= mem
+        aj_now = k - self._ax_jump_k <= mem
+        if wj_now != aj_now:
+            self.lon_culprit = WHEELS if wj_now else ACCEL_X
+            return
+        g = self._gnss_wheel_verdict
+        if self.lon.bad and g is not None and g[0] >= self.lon_onset:
+            self.lon_culprit = ACCEL_X if g[1] else WHEELS
+            return
+        if self.lon_culprit != WHEELS | ACCEL_X:
+            return  # decided earlier; kept until new evidence
+        wj = abs(self._wheel_jump_k - self.lon_onset) <= mem
+        aj = abs(self._ax_jump_k - self.lon_onset) <= mem
+        if wj != aj:
+            self.lon_culprit = WHEELS if wj else ACCEL_X
+
+    def _wheels_return(self, v: float, vx: float, p_vx: float, wheel_r2: float) -> None:
+        """Isolated wheels come back only when they agree with the filter's (IMU/GNSS) speed."""
+        if self.lon.active:
+            if self.lon_culprit & WHEELS:
+                self.wheels_isolated = True
+                self.wheels_back.good = 0
+            else:  # the accelerometer broke the check: the wheels are the witness, fused again
+                self.wheels_isolated = False
+            return
+        if not self.wheels_isolated:
+            return
+        if not math.isfinite(v):
+            return
+        tol = max(WHEELS_BACK_TOL_MPS, 4.0 * math.sqrt(p_vx + wheel_r2))
+        self.wheels_back.active = True
+        self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
+
+    def _yaw(self, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
+             x: list, rdot: float) -> None:
+        if not imu_ok:
+            return
+        self.rdot_abs = max(abs(rdot), self.rdot_abs - self._a_slow * self.rdot_abs)
+        wide = YAW_TOL_RDOT * self.rdot_abs
+        vx = x[VX]
+        r_g = r_m - x[BR]
+        v_rear = 0.5 * (rl + rr) * x[KW]
+        have_w = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
+        if have_w:
+            self.r_wheels = ((rr - rl) * x[KW] - self.lr * v_rear) / self.track
+            d = r_g - self.r_wheels
+            self.e_w += self._a_yaw * (d - self.e_w)
+            self.e_ws += self._a_slow * (d - self.e_ws)
+        else:
+            self.r_wheels = math.nan
+        ay = ay_m - x[BAY] - x[GAY] * ay_m
+        have_a = vx > 2.0 * YAW_MIN_SPEED
+        if have_a:
+            d = r_g - ay / vx
+            self.e_a += self._a_yaw * (d - self.e_a)
+            self.e_as += self._a_slow * (d - self.e_as)
+        ref = abs(self.r_wheels) if have_w else abs(r_g)
+        # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
+        tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
+        slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
+        w_fail = have_w and (abs(self.e_w) > tol_w or abs(self.e_ws) > slow)
+        a_fail = have_a and (abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
+                             or abs(self.e_as) > slow + wide)
+        jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
+                and not abs(self.r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
+        self._r_prev = r_m
+        self._rw_prev = self.r_wheels
+        if jump:  # no car turns that fast: not integrated even for the steps the vote needs
+            w_fail = a_fail = True
+            self.gyro.bad = max(self.gyro.bad, self.gyro.on - 1)
+        # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
+        a_witness = have_a and not self.ay.active
+        # any yaw witness out of line: sideslip is not promised until the vote is clear
+        self.yaw_suspect = w_fail or a_fail
+        self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
+        # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
+        # high for as long as they decay; that is not ay's fault)
+        self.ay.update((a_fail and not w_fail) if (have_w and have_a and not self.gyro.active) else None)
+        if have_w and not w_fail and not self.gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
+            mis = ((rr - rl) * x[KW] - self.track * r_g) / v_rear
+            self.lr += self._a_lr * (mis - self.lr)
+            self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    # ------------------------------------------------------------------------------------------
+    def check_gnss(self, s: int, wheels_agree: bool | None, filter_agree: bool) -> bool | None:
+        """Is a GNSS speed (validity step s) consistent with the other sources? None: cannot tell.
+
+        ``wheels_agree``: its speed against the wheel speed at step s (None: no wheel speed);
+        ``filter_agree``: against the filter's vx there, within its uncertainty. The wheels are
+        the witness while they are trusted; while the longitudinal check fails (or the wheels are
+        isolated) the fix is instead the witness that tells wheels from accelerometer, and is
+        itself checked against the filter.
+        """
+        wheels_usable = wheels_agree is not None and not (self.isolated & WHEELS)
+        if wheels_agree is not None and (self.lon.active or self.wheels_isolated):
+            self._gnss_wheel_verdict = (s, wheels_agree)
+            wheels_usable = False
+        if wheels_usable:
+            ok = wheels_agree
+        elif self.isolated & ACCEL_X and wheels_agree is None:
+            ok = None  # neither wheels nor accelerometer to compare with
+        else:
+            ok = filter_agree
+        self.gnss.update(None if ok is None else not ok)
+        return ok
+
+    @property
+    def gnss_isolated(self) -> bool:
+        return self.gnss.active
+
+    def standstill_plausible(self, vx: float, gnss_speed: float) -> bool:
+        """Wheels say 'stopped': do the IMU-propagated speed (and a fresh GNSS speed) agree?"""
+        if self.isolated & WHEELS:
+            return False
+        if abs(vx) > STANDSTILL_MAX_VX:
+            return False
+        return not (math.isfinite(gnss_speed) and gnss_speed > STANDSTILL_MAX_VX)
