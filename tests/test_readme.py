@@ -35,7 +35,7 @@ def readme_examples() -> list[tuple[str, str]]:
             while j < len(lines) and lines[j].startswith("    "):
                 j += 1
             block = "\n".join(ln[4:] for ln in lines[i:j])
-            if re.match(r"(ecu-daemon|python3) ", block):
+            if re.match(r"(ecu-daemon|python3) ", block) and not _installs_system_wide(block):
                 out += [(f"README.md:{i + 1 + k}", cmd) for k, cmd in enumerate(_split_setup(block))]
             i = j
         else:
@@ -46,6 +46,13 @@ def readme_examples() -> list[tuple[str, str]]:
             if m:
                 out.append((f"{toml.relative_to(REPO)}:{n}", m[1]))
     return out
+
+
+def _installs_system_wide(block: str) -> bool:
+    """The "Running under systemd" install steps write to /opt, /usr/local and /etc as root: run on
+    the test machine they would change it for every later test (and CI). The unit they install is
+    exercised under a real systemd in ``tests/kernel/test_systemd.py`` instead."""
+    return bool(re.search(r"(^|\s)/(opt|etc|usr/local)/", block))
 
 
 def _split_setup(block: str) -> list[str]:

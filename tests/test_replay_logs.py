@@ -179,7 +179,7 @@ def test_replay_sends_est_diag_pages_with_live_only_fields_not_available(drive, 
             pages[values["DIAG_PAGE"]] = (t, values)
     expected = {m.name: m for m in db.messages}
     assert {m.frame_id for m in expected.values()} == set(prev)  # every frame of the output DBC
-    assert set(pages) == {0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 32, 33, 48, 49, 50}
+    assert set(pages) == {0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 32, 33, 34, 35, 48, 49, 50}
     assert pages[48][1]["CAN_BUS_STATE"] == BUS_NOT_AVAILABLE
     assert pages[49][1]["TICK_LATE_P50"] == 65535 and pages[49][1]["TICK_LATE_P99"] == 65535
     assert pages[49][1]["CPU_LOAD"] == 127.5 and pages[50][1]["TICK_LATE_MAX"] == 16777215

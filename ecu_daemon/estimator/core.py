@@ -31,7 +31,7 @@ from ..samples import INPUT_INDEX, GnssSample, InputSample
 from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
-from .fusion.gnss_velocity import ALIGN_SPEED, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
+from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
@@ -492,6 +492,8 @@ class Estimator:
         if not fus.usable(g):
             fus.rejected += 1
             self.last_gnss_rejected = True
+            if fus.last_reason == IMPLAUSIBLE:
+                self.fdi.gnss_implausible()
             return
         speed = g.speed_mps  # NaN course: speed only (GnssSample.course_known)
         delay = self.latency.delay_s if self.delay_compensation else 0.0

@@ -404,6 +404,10 @@ class FaultDetector:
         self.gnss.update(None if ok is None else not ok)
         return ok
 
+    def gnss_implausible(self) -> None:
+        """A GNSS speed no car can have: a GNSS fault without needing a witness."""
+        self.gnss.update(True)
+
     @property
     def gnss_isolated(self) -> bool:
         return self.gnss.active

@@ -35,6 +35,10 @@ TIMING_FIXES = 25.0
 CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
 
 
+#: a GNSS speed above this (m/s) is a receiver fault, not a car: rejected and reported to the FDI
+MAX_PLAUSIBLE_SPEED = 150.0
+IMPLAUSIBLE = "implausible velocity"
+
 class GnssVelocityFusion:
     def __init__(self, lever_x: float, lever_y: float, min_fix_type: int, max_speed_acc: float,
                  nmea_speed_acc: float, gate_sigma: float):
@@ -63,8 +67,8 @@ class GnssVelocityFusion:
         if not math.isfinite(g.speed_mps):  # speed only when the course is unknown (course_known)
             self.last_reason = "non-finite velocity"
             return False
-        if g.speed_mps > 150:
-            self.last_reason = "implausible velocity"
+        if g.speed_mps > MAX_PLAUSIBLE_SPEED:
+            self.last_reason = IMPLAUSIBLE
             return False
         acc = g.speed_acc_mps
         if math.isfinite(acc) and acc > self.max_speed_acc:
