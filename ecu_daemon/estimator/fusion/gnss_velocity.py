@@ -39,6 +39,7 @@ CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
 MAX_PLAUSIBLE_SPEED = 150.0
 IMPLAUSIBLE = "implausible velocity"
 
+
 class GnssVelocityFusion:
     def __init__(self, lever_x: float, lever_y: float, min_fix_type: int, max_speed_acc: float,
                  nmea_speed_acc: float, gate_sigma: float):
