@@ -17,6 +17,7 @@ import pytest
 from pyubx2 import UBX_PROTOCOL, UBXReader
 
 from ecu_daemon.gnss import GnssStreamParser
+from ecu_daemon.gnss.logfile import raw_capture_bytes as capture_bytes
 from ecu_daemon.samples import FIX_NONE
 
 DATA = Path(__file__).parent / "data" / "gnss"
@@ -26,15 +27,6 @@ SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "gnss-capture
 
 
 # ------------------------------------------------------------------------------------ helpers
-
-def capture_bytes(path: Path) -> bytes:
-    """The receiver byte stream of a capture (gpsd logs start with '#' comment lines)."""
-    lines = path.read_bytes().splitlines(keepends=True)
-    i = 0
-    while i < len(lines) and lines[i].startswith(b"#"):
-        i += 1
-    return b"".join(lines[i:])
-
 
 def parse_all(data: bytes, t: float = 0.0, **kwargs):
     parser = GnssStreamParser(**kwargs)

@@ -23,17 +23,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from ecu_daemon.gnss import GnssStreamParser  # noqa: E402
+from ecu_daemon.gnss.logfile import raw_capture_bytes as capture_bytes  # noqa: E402
 
 DEFAULT_DIR = ROOT.parent / "shared" / "data" / "gnss-captures" / "gpsd"
-
-
-def capture_bytes(path: Path) -> bytes:
-    """The receiver byte stream of a gpsd capture (without its leading '#' comment lines)."""
-    lines = path.read_bytes().splitlines(keepends=True)
-    i = 0
-    while i < len(lines) and lines[i].startswith(b"#"):
-        i += 1
-    return b"".join(lines[i:])
 
 
 #: gpsd moves receiver dates it believes are pre-rollover forward by 1024 GPS weeks (neo-m8n's

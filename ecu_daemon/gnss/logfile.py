@@ -37,6 +37,16 @@ class GnssLogError(ValueError):
     """A GNSS capture log that cannot be read; the message is ``file:line: what is wrong``."""
 
 
+def raw_capture_bytes(path: str | os.PathLike) -> bytes:
+    """The receiver byte stream of a raw capture file (gpsd's test logs start with '#' comment lines)."""
+    with open(path, "rb") as f:
+        lines = f.read().splitlines(keepends=True)
+    i = 0
+    while i < len(lines) and lines[i].startswith(b"#"):
+        i += 1
+    return b"".join(lines[i:])
+
+
 def read_gnss_log(path: str | os.PathLike) -> Iterator[tuple[float, str, bytes]]:
     """Yield ``(t, port, payload_bytes)`` per line; raises GnssLogError on the first bad line."""
     try:
