@@ -19,6 +19,10 @@ Schemes (``[inputs.NAME] checksum``), as opendbc checks them:
   8 bytes' nibbles, 4 bits, the checksum nibble excluded. It sits in byte 7's low nibble (EMS16
   0x260 and by default), byte 6's low nibble with byte 7 not summed (TCS13 0x394), or byte 7's high
   nibble (SCC12 0x421), as opendbc's safety code places it per message.
+* ``hyundai_bytesum`` (Hyundai/Kia classic CAN, ESP12 0x220: yaw rate and accelerations): the 8
+  bytes' sum (the checksum nibble zeroed), xor 9, 4 bits, in byte 7's low nibble (the counter is
+  the high one). opendbc does not check ESP12; this rule matches every frame of a Kona EV capture
+  that the tests carry.
 * ``fca_giorgio`` (Alfa Romeo Giorgio platform): CRC-8 with SAE J1850's polynomial from 0 over all
   bytes but the last, xored with 0x10 (EPS_1 0xDE), 0xF6 (EPS_2 0x106), 0xF1 (EPS_3 0x122), else
   0x0A; in the last byte.
@@ -120,6 +124,11 @@ def hyundai_nibble_stored(frame_id: int, payload: bytes | bytearray) -> int:
     return payload[at] & 0x0F if keep == 0xF0 else payload[at] >> 4
 
 
+def hyundai_bytesum_checksum(payload: bytes | bytearray) -> int:
+    """ESP12's checksum: byte sum with byte 7's low nibble (the checksum) left out, xor 9."""
+    return ((sum(payload[:7]) + (payload[7] & 0xF0)) ^ 9) & 0xF
+
+
 def _crc8_j1850_table() -> tuple[int, ...]:
     """T[x] = one byte x pushed through the CRC-8 (poly 0x1D) register from 0; crccheck's SAE J1850
     class xors its output with 0xFF, undone here."""
@@ -155,6 +164,9 @@ def _self_test() -> None:
 _self_test()
 
 
+_NIBBLE_SCHEMES = ("hyundai_bitcount", "hyundai_nibble", "hyundai_bytesum")
+
+
 class FrameChecksum:
     """One message's checksum scheme, bound to its frame id (and E2E data ids).
 
@@ -164,7 +176,7 @@ class FrameChecksum:
     __slots__ = ("scheme", "frame_id", "extended", "data_ids", "min_length", "check")
 
     MIN_LENGTH = {"e2e_p2": 2, "toyota": 1, "honda": 1, "subaru": 2, "hyundai_canfd": 3,
-                  "hyundai_bitcount": 8, "hyundai_nibble": 8, "fca_giorgio": 2}
+                  "hyundai_bitcount": 8, "hyundai_nibble": 8, "hyundai_bytesum": 8, "fca_giorgio": 2}
     assert set(MIN_LENGTH) == set(CHECKSUM_SCHEMES) - {"none"}
 
     def __init__(self, scheme: str, frame_id: int, extended: bool = False, data_ids: tuple[int, ...] = (0,)):
@@ -205,6 +217,8 @@ class FrameChecksum:
             return hyundai_bitcount_checksum(payload)
         if s == "hyundai_nibble":
             return hyundai_nibble_checksum(self.frame_id, payload)
+        if s == "hyundai_bytesum":
+            return hyundai_bytesum_checksum(payload)
         if s == "fca_giorgio":
             return fca_giorgio_checksum(self.frame_id, payload)
         return hyundai_canfd_checksum(self.frame_id, payload)
@@ -220,6 +234,8 @@ class FrameChecksum:
             return hyundai_bitcount_stored(payload)
         if s == "hyundai_nibble":
             return hyundai_nibble_stored(self.frame_id, payload)
+        if s == "hyundai_bytesum":
+            return payload[7] & 0x0F
         if s == "honda":
             return payload[-1] & 0x0F
         return payload[0] | payload[1] << 8
@@ -229,7 +245,7 @@ class FrameChecksum:
         what = "E2E CRC" if self.scheme == "e2e_p2" else f"{self.scheme} checksum"
         if len(payload) < self.min_length:
             return f"{what}: {len(payload)} bytes is too short to carry one"
-        w = {"hyundai_canfd": 4, "hyundai_bitcount": 1, "hyundai_nibble": 1}.get(self.scheme, 2)
+        w = 4 if self.scheme == "hyundai_canfd" else 1 if self.scheme in _NIBBLE_SCHEMES else 2
         return f"{what} 0x{self.stored(payload):0{w}X}, expected 0x{self.expected(payload):0{w}X}"
 
     def _check_e2e_p2(self, payload) -> bool:
@@ -253,6 +269,9 @@ class FrameChecksum:
     def _check_hyundai_nibble(self, payload) -> bool:
         fid = self.frame_id
         return len(payload) >= 8 and hyundai_nibble_stored(fid, payload) == hyundai_nibble_checksum(fid, payload)
+
+    def _check_hyundai_bytesum(self, payload) -> bool:
+        return len(payload) >= 8 and payload[7] & 0x0F == hyundai_bytesum_checksum(payload)
 
     def _check_fca_giorgio(self, payload) -> bool:
         return len(payload) >= 2 and payload[-1] == fca_giorgio_checksum(self.frame_id, payload)

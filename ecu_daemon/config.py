@@ -22,7 +22,7 @@ from .samples import INPUT_NAMES
 
 #: ``[inputs.NAME] checksum`` values (implemented in checksums.py)
 CHECKSUM_SCHEMES = ("none", "e2e_p2", "toyota", "honda", "subaru", "hyundai_canfd", "hyundai_bitcount",
-                    "hyundai_nibble", "fca_giorgio")
+                    "hyundai_nibble", "hyundai_bytesum", "fca_giorgio")
 
 
 class ConfigError(ValueError):
