@@ -95,7 +95,7 @@ def hyundai_canfd_checksum(frame_id: int, payload: bytes | bytearray) -> int:
 
 def hyundai_bitcount_checksum(payload: bytes | bytearray) -> int:
     """opendbc's WHL_SPD11 checksum: set bits outside the counter/checksum pairs, xor 9."""
-    n = sum(bin(b & 0x3F if i % 2 else b).count("1") for i, b in enumerate(payload[:8]))
+    n = (int.from_bytes(payload[:8], "big") & 0xFF3FFF3FFF3FFF3F).bit_count()
     return (n ^ 9) & 0xF
 
 
