@@ -21,7 +21,8 @@ import tomli_w
 from .samples import INPUT_NAMES
 
 #: ``[inputs.NAME] checksum`` values (implemented in checksums.py)
-CHECKSUM_SCHEMES = ("none", "e2e_p2", "toyota", "honda", "subaru", "hyundai_canfd")
+CHECKSUM_SCHEMES = ("none", "e2e_p2", "toyota", "honda", "subaru", "hyundai_canfd", "hyundai_bitcount",
+                    "hyundai_nibble", "hyundai_bytesum", "fca_giorgio")
 
 
 class ConfigError(ValueError):

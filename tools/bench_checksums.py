@@ -32,6 +32,10 @@ CASES = [
     ("check honda, 8 B", FrameChecksum("honda", 0x1A6).check),
     ("check subaru, 8 B", FrameChecksum("subaru", 0x119).check),
     ("check hyundai_canfd, 32 B", FrameChecksum("hyundai_canfd", 0x1CF).check),
+    ("check hyundai_bitcount, 8 B", FrameChecksum("hyundai_bitcount", 0x386).check),
+    ("check hyundai_nibble, 8 B", FrameChecksum("hyundai_nibble", 0x394).check),
+    ("check hyundai_bytesum, 8 B", FrameChecksum("hyundai_bytesum", 0x220).check),
+    ("check fca_giorgio, 8 B", FrameChecksum("fca_giorgio", 0xFE).check),
 ]
 
 
