@@ -66,6 +66,7 @@ GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
 WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
 GNSS_CHECK_FRESH_S = 2.0
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
+SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
 
@@ -129,6 +130,8 @@ class Estimator:
         self._lp_rdot = dt / (0.05 + dt)
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
+        self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
+        self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
 
     # ----------------------------------------------------------------------------------------
     # public contract
@@ -333,6 +336,7 @@ class Estimator:
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        self.slip_hold = max(self.wheels.slip_bound(x[VX], ax), self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
@@ -463,6 +467,9 @@ class Estimator:
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
         psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
+        # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
+        # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
+        vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
@@ -472,7 +479,7 @@ class Estimator:
         st = self.single_track
         gn = self.gnss
         return Estimate(
-            t, beta, beta_std, x[PSI], psi_std, vx, vy, sd[VX], sd[VY],
+            t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
