@@ -475,6 +475,8 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
+        # heading is the gyro's integral: while a yaw witness disagrees with the gyro (the vote
+        # not yet clear) neither it nor sideslip is promised (a 5 deg/s offset is 5 deg a second)
         imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
         st = self.single_track
         gn = self.gnss
@@ -483,8 +485,8 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
-            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and gn.consecutive_rejects == 0,
+            imu_ok and not iso & YAW_RATE and not self.fdi.yaw_suspect and self.aligned
+            and psi_std < HEADING_STD_VALID and gn.consecutive_rejects == 0,
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
