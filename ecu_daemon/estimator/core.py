@@ -324,6 +324,8 @@ class Estimator:
         P = h.P[i]
         if iso:
             self._widen(iso, P)
+        if self.fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
+            self._widen_unverified(P, x[VX], self.fdi.yaw_disagreement)
         if imu_ok:
             _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
             r = r_m - b_r
@@ -396,6 +398,14 @@ class Estimator:
             P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
         if iso & YAW_RATE:
             P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
+
+    def _widen_unverified(self, P: np.ndarray, vx: float, e: float) -> None:
+        """While the gyro disagrees by ``e`` (rad/s) with a witness and the vote is not clear, the
+        heading and vy it drives may drift by e and e * vx per second: a bias, so the stds grow
+        linearly (not as a random walk), and stay grown until GNSS brings them back."""
+        dt = self.dt
+        for j, rate in ((PSI, e), (VY, e * abs(vx))):
+            P[j, j] = (math.sqrt(max(P[j, j], 0.0)) + rate * dt) ** 2
 
     def _fresh_gnss_speed(self, t: float) -> float:
         return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan
@@ -475,8 +485,6 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
-        # heading is the gyro's integral: while a yaw witness disagrees with the gyro (the vote
-        # not yet clear) neither it nor sideslip is promised (a 5 deg/s offset is 5 deg a second)
         imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
         st = self.single_track
         gn = self.gnss
@@ -485,8 +493,8 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
-            imu_ok and not iso & YAW_RATE and not self.fdi.yaw_suspect and self.aligned
-            and psi_std < HEADING_STD_VALID and gn.consecutive_rejects == 0,
+            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
+            and gn.consecutive_rejects == 0,
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
