@@ -373,9 +373,11 @@ class FaultDetector:
         a_witness = have_a and not self.ay.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
         self.yaw_suspect = w_fail or a_fail
-        # how fast the heading may be drifting meanwhile: the gyro against its kinematic witness
+        # how fast the heading may be drifting meanwhile, when the gyro is the one the check
+        # points at (the wheels disagree with it, or ay does and no wheels can say otherwise)
+        gyro_suspect = w_fail or (a_fail and not have_w)
         self.yaw_disagreement = ((abs(self.e_w) if have_w else abs(self.e_a) if have_a else 0.0)
-                                 if self.yaw_suspect else 0.0)
+                                 if gyro_suspect else 0.0)
         self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
