@@ -117,6 +117,21 @@ def test_gyro_stuck_is_isolated_by_the_wheels_and_ay():
     assert det.r_wheels == pytest.approx(0.0, abs=1e-3)  # the substitute the core predicts with
 
 
+def test_yaw_disagreement_is_the_gyro_against_the_wheels_while_suspect_only():
+    det = fd.FaultDetector(DT, TRACK)
+    _run(det, 300, r=0.2)
+    assert not det.yaw_suspect and det.yaw_disagreement == 0.0
+    x = _state()
+    seen = []
+    for j in range(300, 330):  # gyro reads 0.3 rad/s, wheels and ay say 0.2: suspect before isolated
+        left, right = 22.0 - 0.2 * TRACK / 2, 22.0 + 0.2 * TRACK / 2
+        det.step(j, (left, right, left, right), True, 0.3, 0.0, 0.2 * 22.0, True, x, 1e-4, 4e-4)
+        seen.append((det.yaw_suspect, det.yaw_disagreement))
+    suspect = [e for s_, e in seen if s_]
+    assert suspect and all(0.0 < e <= 0.1 + 1e-9 for e in suspect)
+    assert all(e == 0.0 for s_, e in seen if not s_)
+
+
 def test_gyro_bias_is_not_a_fault():
     det = fd.FaultDetector(DT, TRACK)
     x = _state()

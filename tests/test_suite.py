@@ -95,12 +95,16 @@ SUBSET = {
                            "ttv-b": "sideslip valid 12.0 s after the first fix",
                            "ttv-h": "heading valid 17.1 s after the first fix",
                            "lat": "latency +0.032 s off"},
+    # vx within 3 sigma needs the wheel-slip bias under braking in the published std (89 % without)
+    "flying_50_straight_h200": {"lat": "latency +0.123 s off"},
     "restart_flying_30_r150": {"ttv-b": "sideslip valid 4.3 s after the first fix",
                                "lat": "latency +0.056 s off after the restart"},
     "vw_mqb_sign_magnitude": {"avail-b": "sideslip valid on 80 % above 5 m/s"},
     # the three issue-7 faults below meet every target since fault detection (fault_detection.py)
     "gnss_constant": {},
     "fault_wheels_zero": {},
+    # a gyro x1.3 never isolated: heading/vy stds grow by the witnessed disagreement (else 2.3 deg off)
+    "fault_yaw_rate_scaled": {},
     "fault_accel_x_stuck_at_29.9mps2": {},
 }
 

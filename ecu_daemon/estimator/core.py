@@ -66,6 +66,7 @@ GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
 WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
 GNSS_CHECK_FRESH_S = 2.0
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
+SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
 
@@ -129,6 +130,8 @@ class Estimator:
         self._lp_rdot = dt / (0.05 + dt)
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
+        self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
+        self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
 
     # ----------------------------------------------------------------------------------------
     # public contract
@@ -321,6 +324,8 @@ class Estimator:
         P = h.P[i]
         if iso:
             self._widen(iso, P)
+        if self.fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
+            self._widen_unverified(P, x[VX], self.fdi.yaw_disagreement)
         if imu_ok:
             _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
             r = r_m - b_r
@@ -333,6 +338,7 @@ class Estimator:
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        self.slip_hold = max(self.wheels.slip_bound(x[VX], ax), self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
@@ -392,6 +398,14 @@ class Estimator:
             P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
         if iso & YAW_RATE:
             P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
+
+    def _widen_unverified(self, P: np.ndarray, vx: float, e: float) -> None:
+        """While the gyro disagrees by ``e`` (rad/s) with a witness and the vote is not clear, the
+        heading and vy it drives may drift by e and e * vx per second: a bias, so the stds grow
+        linearly (not as a random walk), and stay grown until GNSS brings them back."""
+        dt = self.dt
+        for j, rate in ((PSI, e), (VY, e * abs(vx))):
+            P[j, j] = (math.sqrt(max(P[j, j], 0.0)) + rate * dt) ** 2
 
     def _fresh_gnss_speed(self, t: float) -> float:
         return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan
@@ -463,6 +477,9 @@ class Estimator:
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
         psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
+        # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
+        # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
+        vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
@@ -472,7 +489,7 @@ class Estimator:
         st = self.single_track
         gn = self.gnss
         return Estimate(
-            t, beta, beta_std, x[PSI], psi_std, vx, vy, sd[VX], sd[VY],
+            t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,

@@ -160,6 +160,7 @@ class FaultDetector:
         self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
         self._rw_prev = math.nan
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
+        self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
@@ -372,6 +373,11 @@ class FaultDetector:
         a_witness = have_a and not self.ay.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
         self.yaw_suspect = w_fail or a_fail
+        # how fast the heading may be drifting meanwhile, when the gyro is the one the check
+        # points at (the wheels disagree with it, or ay does and no wheels can say otherwise)
+        gyro_suspect = w_fail or (a_fail and not have_w)
+        self.yaw_disagreement = ((abs(self.e_w) if have_w else abs(self.e_a) if have_a else 0.0)
+                                 if gyro_suspect else 0.0)
         self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)

@@ -4,7 +4,8 @@ Uses the wheels least disturbed by drive torque: the rear pair on a front-driven
 versa (Park 002 eq. 1). Averaging a left/right pair cancels the yaw-rate term (r * track / 2);
 the front pair sees vx cos(delta) + (vy + lf r) sin(delta). Slip under braking/traction is
 handled by inflating the noise with |ax| and by the innovation gate (a locked or spinning wheel
-fails it rather than dragging vx).
+fails it rather than dragging vx). Moderate slip passes the gate and, lasting a whole manoeuvre,
+is a bias the filter cannot average away: ``slip_bound`` sizes it for the published vx std.
 """
 from __future__ import annotations
 
@@ -16,6 +17,9 @@ from ..kalman import scalar_update
 from ..kinematic import BR, KW, NX, VX, VY
 
 WHEEL_GATE_SIGMA = 5.0
+#: slip ratio per m/s^2 of deceleration: 1 / (g C_x) for a normalised longitudinal slip stiffness
+#: C_x ~ 15, the soft end of passenger-car tyres (an axle braking its own share of the load)
+SLIP_PER_MPS2 = 1.0 / (9.81 * 15.0)
 
 
 class WheelSpeedFusion:
@@ -35,6 +39,12 @@ class WheelSpeedFusion:
         if self.use_front:
             return 0.5 * (fl + fr)
         return 0.5 * (rl + rr)
+
+    def slip_bound(self, vx: float, ax: float) -> float:
+        """Largest speed error (m/s) longitudinal slip of the fused wheels puts into vx: braking
+        slows every wheel, traction speeds up only driven ones (all of them on an all-wheel drive)."""
+        a = abs(ax) if self.use_all else max(-ax, 0.0)
+        return SLIP_PER_MPS2 * a * abs(vx)
 
     def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float, A=None) -> bool:
         kw = x[KW]
