@@ -368,10 +368,7 @@ def input_table(decoder: SignalDecoder, parsers: dict | None, est: Estimator) ->
     for name, h in decoder.health.items():
         rows[name] = {"frames": h.frames, "samples": h.samples, **{k: v for k, v in h.errors.items() if k != "stale"}}
     if parsers is not None:
-        st = {}
-        for p in parsers.values():
-            for k, v in p.stats.items():
-                st[k] = st.get(k, 0) + v
+        st = _sum_stats(parsers)
         rows["gnss"] = {"frames": st.get("ubx_frames", 0) + st.get("nmea_sentences", 0),
                         "samples": st.get("samples", 0), "fused": est.gnss.fused, "rejected": est.gnss.rejected,
                         "checksum": st.get("checksum_errors", 0),
