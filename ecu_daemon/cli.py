@@ -15,6 +15,7 @@ import os
 import sys
 
 from . import __version__
+from .errors import UserError
 
 #: subcommand -> (module, help)
 SUBCOMMANDS = {
@@ -26,22 +27,6 @@ SUBCOMMANDS = {
     "simulate": ("ecu_daemon.sim.cli", "simulate a drive: CAN log, GNSS capture, truth CSV"),
     "monitor": ("ecu_daemon.monitor", "live terminal view of a running daemon, decoded from its CAN outputs"),
 }
-
-
-class UserError(Exception):
-    """An expected failure reported as one line (bad file, bad option); exit status 2."""
-
-    exit_code = 2
-
-
-class UnusableInputError(UserError):
-    """A run that went to the end but a required input never gave a usable sample; exit status 3."""
-
-    exit_code = 3
-
-    def __init__(self, message: str, summary: dict | None = None):
-        super().__init__(message)
-        self.summary = summary
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:  # show-config

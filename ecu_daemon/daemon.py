@@ -4,25 +4,23 @@ Threads and data flow::
 
     event loop (asyncio, main thread)                 tick thread (io/tick.py)
     ---------------------------------                 ------------------------
-    CAN frame  -> ClockMapper -> SignalDecoder --+    every 6 ms at k*dt + grace:
-    GNSS bytes -> stamp -> GnssStreamParser -----+--> drain samples (time order) -> Estimator
-                                                 |    advance_to(k*dt) -> OutputEncoder -> bus.send
-    housekeeping (20 Hz): diagnostics snapshot <-+    WATCHDOG=1
-      recording, CSV, STATUS=, state persistence <--- estimates / sent frames (deque)
+    CAN frame  -> ClockMapper --------------------+    every 6 ms at k*dt + grace:
+    GNSS bytes -> stamp --------------------------+--> Pipeline.tick(k): decode what is due,
+    host health (20 Hz) --------------------------+    estimate, validity, frames -> bus.send
+                                                       WATCHDOG=1
+      recording, STATUS=, state persistence <-------- published estimates / sent frames (deque)
 
-The estimator is owned by the tick thread alone; the loop hands it samples through a deque
-(append/popleft are atomic), so there is no lock on the hot path. Samples carry receive times
-on the monotonic clock (CAN: kernel timestamps mapped once, see ``io/can_bus.py``; GNSS: time of
-the read), rounded to 1 us so that the recording replays to the same times.
+Everything between the raw inputs and the frames is :class:`~ecu_daemon.pipeline.Pipeline`,
+owned by the tick thread alone; the loop hands it raw frames and byte chunks through its inbox
+(a deque: append/popleft are atomic), so there is no lock on the hot path. Inputs carry receive
+times on the monotonic clock (CAN: kernel timestamps mapped once, see ``io/can_bus.py``; GNSS:
+time of the read), rounded to 1 us as the recording writes them.
 
-Live/replay equivalence: step k of the estimator uses the samples with t <= k*dt in both runs,
-on the same clock and the same grid, pushed in the same order (time, CAN before GNSS on a tie;
-samples stamped after the current step wait in the tick thread). Live, the step runs ``grace``
-(1 ms) after its time; a sample that reaches the tick thread after its step ran is applied at the
-next step instead (``late_samples``, counted here and by the estimator). That count is the only
-source of difference between ``estimates.csv`` of a recording and ``ecu-daemon replay`` of it:
-with no late sample the two CSVs are identical, row for row, and every step before the earliest
-late sample's time (``earliest_late_t``) is identical whatever came after.
+Live/replay equivalence: the recording (``--record``) keeps the inputs, the frames sent, the
+published estimates and the tick record (``ticks.log``: first tick, inputs that reached the tick
+thread after their step ran and were applied one step late, steps run without a tick of their
+own, the host health each tick saw). ``ecu-daemon replay`` of the recording follows the tick
+record and writes the frames the daemon sent, byte for byte.
 
 Overrun policy: a tick woken more than a period late runs the missed estimator steps at once
 (``advance_to``), sends only the newest step's frames and counts the overrun; the skipped output
@@ -32,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import bisect
 import gc
 import logging
 import math
@@ -48,11 +45,10 @@ from pathlib import Path
 import can
 
 from . import config as config_mod
-from .cli import UserError
 from .config import Config, ConfigError
 from .diagnostics import Diagnostics
-from .estimator import Estimate, Estimator
-from .estimator.estimate import STATUS_INPUT_STALE
+from .errors import UserError
+from .estimator import Estimate
 from .gnss.stream import GnssStreamParser
 from .io import health as health_mod
 from .io.can_bus import CanIO, resolve_bus_config
@@ -61,28 +57,16 @@ from .io.notify import SystemdNotifier
 from .io.serial_port import GnssSerial
 from .io.state_store import StateFileError, load_state, save_state
 from .io.tick import TickStats, TickThread
-from .outputs import OutputEncoder
-from .samples import GnssSample, InputSample
-from .signals import SignalDecoder
+from .pipeline import DIAG_S, Pipeline, TickRecord
 
 log = logging.getLogger("ecu_daemon.daemon")
 
 INPUT_GRACE_S = 0.001  # the step for time T runs at T + grace: frames stamped <= T get there first
 HOUSEKEEPING_S = 0.05
-DIAG_S = 0.05
 FLUSH_S = 1.0
 STATUS_S = 5.0
 PERSIST_S = 60.0  # learned state written this often (and at exit)
 SWITCH_INTERVAL_S = 0.0002  # GIL hand-over: <= the tick's 0.2 ms spin, so waking up costs no lateness
-
-
-def no_estimate(t: float, cfg: Config) -> Estimate:
-    """What is published before the estimator has its first sample: invalid, calibration = priors."""
-    n = math.nan
-    v = cfg.vehicle
-    return Estimate(t, n, n, n, n, n, n, n, n, n, n, n, n, n, n, n, cfg.gnss.delay_s, 1.0, 0.0,
-                    v.cornering_stiffness_front_n_per_rad, v.cornering_stiffness_rear_n_per_rad,
-                    False, False, False, False, STATUS_INPUT_STALE, 0, 0, 0)
 
 
 class Daemon:
@@ -110,12 +94,8 @@ class Daemon:
         self.dt = cfg.estimator.dt_s
         # live state, read by tests / demo / status
         self.tick_stats = TickStats()
-        self.diag = Diagnostics()
         self.latest: Estimate | None = None
-        self.late_samples = 0
         self._gaps_said = 0  # estimator gaps (clock jumps) already logged
-        self.earliest_late_t = math.inf  # time of the earliest sample applied late
-        self.samples_pushed = 0
         self.frames_sent = 0
         self.steps = 0
         self.running = False
@@ -123,28 +103,49 @@ class Daemon:
         self.stopped = threading.Event()
         self.learned_restored = False
         # internals
-        self._samples: deque = deque()  # loop thread -> tick thread
-        self._pending: list = []  # tick thread: received, stamped after the current step
-        self._out: deque = deque()
-        self._last_step_t = -math.inf
+        self.pipeline: Pipeline | None = None
+        self._can_seq = 0  # line of the next received frame in the recording's can.log
+        self._gnss_seq = 0
+        self._gnss_port = ""
+        self._out: deque = deque()  # tick thread -> loop thread (recording, live view)
+        self._last_tick: int | None = None
         self._learned_req = False
         self._learned_snap: dict | None = None
         self._stop_evt: asyncio.Event | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wd_next = 0.0
         self._wd_interval = self.notifier.watchdog_s / 3.0 if self.notifier.watchdog_s > 0 else 0.0
-        self._gnss_last: GnssSample | None = None
         self._gnss_silent = False
-        self._stale_mask: dict = {}
-        self.estimator = None
-        self.decoder = None
-        self.encoder = None
         self.canio: CanIO | None = None
         self.serial: GnssSerial | None = None
         self.parser: GnssStreamParser | None = None
         self.recorder = None
         self.tick: TickThread | None = None
         self.cpu = health_mod.CpuMeter()
+
+    # ----------------------------------------------------------------------------- pipeline views
+    @property
+    def estimator(self):
+        return self.pipeline.estimator if self.pipeline is not None else None
+
+    @property
+    def decoder(self):
+        return self.pipeline.decoder if self.pipeline is not None else None
+
+    @property
+    def diag(self) -> Diagnostics:
+        """The diagnostics of the latest EST_DIAG (empty before the first)."""
+        d = self.pipeline.diag if self.pipeline is not None else None
+        return d if d is not None else Diagnostics()
+
+    @property
+    def late_samples(self) -> int:
+        """Inputs that reached the tick thread after their step ran (applied one step late)."""
+        return self.pipeline.late_items if self.pipeline is not None else 0
+
+    @property
+    def earliest_late_t(self) -> float:
+        return self.pipeline.earliest_late_t if self.pipeline is not None else math.inf
 
     # ----------------------------------------------------------------------------- lifecycle
     def request_stop(self) -> None:
@@ -210,24 +211,25 @@ class Daemon:
     def _setup(self) -> None:
         cfg = self.cfg
         learned = self._restore_learned()
-        self.decoder = SignalDecoder(cfg)
-        self.encoder = OutputEncoder(cfg)
-        self.estimator = Estimator(cfg, learned)
+        self.pipeline = pl = Pipeline(cfg, learned, encode=cfg.can.send_outputs)
+        port = Path(cfg.gnss.port or "gnss")
+        self._gnss_port = port.parent.name + port.name if port.name.isdigit() else port.name
         if self.record_dir:
             from .io.recorder import Recorder
-            port = Path(cfg.gnss.port or "gnss")
             self.recorder = Recorder(self.record_dir, can_channel=str(self.bus_config.get("channel") or "can0"),
-                                     gnss_port=port.parent.name + port.name if port.name.isdigit() else port.name)
+                                     gnss_port=self._gnss_port)
+            pl.on_late = self._record_late
+            pl.on_host = self._record_host
         if cfg.gnss.port:
-            self.parser = GnssStreamParser(cfg.gnss.protocol, name=f"GNSS {cfg.gnss.port}",
-                                           raw_sink=self.recorder.on_gnss if self.recorder else None)
+            self.parser = pl.parsers[self._gnss_port] = GnssStreamParser(cfg.gnss.protocol,
+                                                                         name=f"GNSS {cfg.gnss.port}")
         try:
             bus = can.Bus(**self.bus_config)
         except (can.CanError, OSError, ValueError, TypeError, ImportError) as e:
             if self.recorder:
                 self.recorder.close()
             raise UserError(f"cannot open CAN bus {self._bus_name()}: {e}") from None
-        self.canio = CanIO(bus, self.decoder.frame_ids, clock=self.clock, on_frame=self._on_frame,
+        self.canio = CanIO(bus, pl.decoder.frame_ids, clock=self.clock, on_frame=self._on_frame,
                            on_error_frame=self._on_error_frame)
 
     def _restore_learned(self) -> dict | None:
@@ -292,8 +294,8 @@ class Daemon:
         if self.serial is not None:
             self.serial.drain()  # what the receiver already delivered is not lost
             self.serial.close()
-        if self.parser is not None:
-            self._samples.extend(self.parser.finish())
+        if self.recorder is not None and self._last_tick is not None:
+            self._out.append(("tick", TickRecord.line("end", self._last_tick)))
         self._drain_out()
         if self.recorder is not None:
             self.recorder.close()
@@ -314,20 +316,31 @@ class Daemon:
 
     # ----------------------------------------------------------------------------- loop thread
     def _on_frame(self, t: float, msg: can.Message) -> None:
+        t = _to_us(t)
         if self.recorder is not None:
             self.recorder.on_can(t, msg)
-        samples = self.decoder.decode(t, msg.arbitration_id, msg.data, msg.is_extended_id)
-        if samples:
-            self._samples.extend(samples)
+        self.pipeline.push_can(t, msg.arbitration_id, msg.data, msg.is_extended_id, False, self._can_seq)
+        self._can_seq += 1
 
     def _on_error_frame(self, t: float, msg: can.Message) -> None:
+        t = _to_us(t)
         if self.recorder is not None:  # BusHealth has counted it; the recording keeps it too
             self.recorder.on_can(t, msg)
+        self.pipeline.push_can(t, msg.arbitration_id, msg.data, msg.is_extended_id, True, self._can_seq)
+        self._can_seq += 1
 
     def _on_gnss_bytes(self, t: float, data: bytes) -> None:
-        for s in self.parser.feed(t, data):
-            self._gnss_last = s
-            self._samples.append(s)
+        t = _to_us(t)
+        if self.recorder is not None:
+            self.recorder.on_gnss(t, data)
+        self.pipeline.push_gnss(t, data, self._gnss_port, self._gnss_seq)
+        self._gnss_seq += 1
+
+    def _record_late(self, source: str, seq: int, k: int) -> None:
+        self._out.append(("tick", TickRecord.line("late", source, seq, k)))
+
+    def _record_host(self, k: int, status) -> None:
+        self._out.append(("tick", TickRecord.line("host", k, *status)))
 
     async def _housekeeping(self) -> None:
         stop = self._stop_evt
@@ -384,7 +397,11 @@ class Daemon:
                 if rec is not None:
                     for e in payload:
                         rec.on_estimate(e)
-            elif rec is not None:
+            elif rec is None:
+                continue
+            elif kind == "tick":
+                rec.on_tick_record(payload)
+            else:
                 for m in payload:
                     rec.on_output(m.timestamp, m)  # the time of the step the frame belongs to
         if batch:
@@ -393,21 +410,16 @@ class Daemon:
                 self.estimate_sink(batch)
 
     def _update_diagnostics(self, now: float) -> None:
-        stale = self.decoder.check_stale(now)
-        self._stale_mask = stale_validity_mask(stale)
-        est = self.latest
-        delay = est.gnss_delay_s if est is not None else self.cfg.gnss.delay_s
-        self.diag = health_mod.build_diagnostics(
-            now, decoder=self.decoder, gnss_stats=self.parser.stats if self.parser else None,
-            gnss_last=self._gnss_last, gnss_connected=bool(self.serial and self.serial.connected),
-            gnss_delay_s=delay, bus=self.canio.health, tick=self.tick_stats.snapshot(),
-            cpu_pct=self.cpu.update(), status=est.status if est is not None else 0,
-            isolation_events=dict(self.estimator.fdi.events) if self.estimator is not None else None)
+        """The host's part of EST_DIAG, for the pipeline's next tick (the rest is built there)."""
+        self.pipeline.push_host(health_mod.host_status(
+            bus=self.canio.health, tick=self.tick_stats.snapshot(), cpu_pct=self.cpu.update(),
+            gnss_connected=bool(self.serial and self.serial.connected)))
 
     def _check_gnss(self, now: float) -> None:
         if self.serial is None or not self.serial.connected:
             return
-        last = self._gnss_last.t if self._gnss_last is not None else None
+        gnss_last = self.pipeline.gnss_last
+        last = gnss_last.t if gnss_last is not None else None
         silent = last is None or now - last > self.cfg.gnss.timeout_s
         if silent and not self._gnss_silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s:
             log.warning("GNSS: no velocity solution from %s for more than %.1f s", self.cfg.gnss.port,
@@ -432,57 +444,28 @@ class Daemon:
 
     # ----------------------------------------------------------------------------- tick thread
     def _on_tick(self, k: int, now: float) -> None:
-        est = self.estimator
-        t_step = k * self.dt
-        q = self._samples
-        if q or self._pending:
-            # Push in time order and only what this step may use (t <= t_step): a sample stamped
-            # later waits here, so an earlier one that is still in flight never queues behind it
-            # inside the estimator. Replay does the same by merging the logs by time.
-            batch = self._pending
-            pop = q.popleft
-            try:
-                while True:
-                    batch.append(pop())
-            except IndexError:
-                pass
-            batch.sort(key=_sample_order)  # as replay merges: by time, CAN before GNSS on a tie
-            n = bisect.bisect_right(batch, t_step + 1e-9, key=_sample_t)
-            self._pending = batch[n:]
-            last = self._last_step_t
-            for s in batch[:n]:
-                if s.t <= last:
-                    self.late_samples += 1
-                    self.earliest_late_t = min(self.earliest_late_t, s.t)
-                if type(s) is InputSample:
-                    est.push_input(s)
-                else:
-                    est.push_gnss(s)
-            self.samples_pushed += n
-        ests = est.advance_to(t_step)
-        self._last_step_t = t_step
+        steps = self.pipeline.tick(k)
+        last, self._last_tick = self._last_tick, k
+        if self.recorder is not None:
+            if last is None:
+                self._out.append(("tick", TickRecord.line("start", k)))
+            elif k > last + 1:  # an overrun: steps last+1..k-1 ran in this tick, unsent
+                self._out.append(("tick", TickRecord.line("skip", last + 1, k - 1)))
         if self._learned_req:
             self._learned_req = False
-            self._learned_snap = est.learned_state()
+            self._learned_snap = self.pipeline.estimator.learned_state()
         if self._wd_interval:
             rt = time.monotonic()
             if rt >= self._wd_next:
                 self._wd_next = rt + self._wd_interval
                 self.notifier.watchdog()
-        if ests:
-            self.steps += len(ests)
-            self._out.append(("est", ests))
-        if not self.cfg.can.send_outputs:
+        self.steps += len(steps)
+        self._out.append(("est", [s.estimate for s in steps]))
+        # Catching up after an overrun: only the newest step has frames (no burst; each
+        # message's COUNTER still steps by one per frame encoded); the slots missed stay empty.
+        frames = steps[-1].frames
+        if not frames:
             return
-        diag = self.diag
-        mask = self._stale_mask
-        if not ests:
-            ests = [no_estimate(t_step, self.cfg)]
-        elif mask:
-            ests = [with_stale_mask(e, mask) for e in ests]
-        # Catching up after an overrun: only the newest step's frames go out (no burst; each
-        # message's COUNTER still steps by one per frame sent); the slots missed stay empty.
-        frames = self.encoder.frames(k, ests[-1], diag)
         sent = []
         send = self.canio.send
         for m in frames:
@@ -494,42 +477,9 @@ class Daemon:
                 self._out.append(("out", sent))
 
 
-_IMU = ("yaw_rate", "accel_x", "accel_y")
-_WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
-_ALL_INVALID = {"sideslip_valid": False, "heading_valid": False, "velocity_valid": False, "biases_valid": False}
-
-
-def stale_validity_mask(stale: list[str]) -> dict:
-    """Validity flags to clear on the published frames while these inputs are stale.
-
-    The decoder declares an input stale after 10 missed cycles of its observed rate (or its
-    ``timeout_s``). IMU -> everything; a wheel speed -> velocity and sideslip; steering ->
-    sideslip (the single-track model needs it). The estimator's own flags still apply on top.
-    """
-    if not stale:
-        return {}
-    s = set(stale)
-    if s.intersection(_IMU):
-        return dict(_ALL_INVALID)
-    mask = {}
-    if s.intersection(_WHEELS):
-        mask.update(velocity_valid=False, sideslip_valid=False)
-    if "steering_wheel_angle" in s:
-        mask["sideslip_valid"] = False
-    return mask
-
-
-def with_stale_mask(est: Estimate, mask: dict) -> Estimate:
-    """The estimate as published while inputs are stale (``mask`` from :func:`stale_validity_mask`)."""
-    return est._replace(status=est.status | STATUS_INPUT_STALE, **mask) if mask else est
-
-
-def _sample_order(s) -> tuple:
-    return (s.t, type(s) is not InputSample)
-
-
-def _sample_t(s) -> float:
-    return s.t
+def _to_us(t: float) -> float:
+    """A receive time as the recording writes it (%.6f) and replay reads it back, to the bit."""
+    return float("%.6f" % t)
 
 
 def _running_loop():

@@ -431,7 +431,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .cli import UserError
+    from .errors import UserError
     from .sim import SCENARIOS, simulate, vehicle_config
 
     if not (args.speed > 0 and math.isfinite(args.speed)) or args.speed > 20:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from .estimator.fault_detection import SOURCE_BITS
 from .samples import INPUT_NAMES
@@ -23,6 +24,21 @@ BUS_STATE_NAMES = {BUS_ACTIVE: "active", BUS_WARNING: "warning", BUS_PASSIVE: "p
 
 #: error kinds counted per input by the decoder (``signals.InputHealth.errors``)
 ERROR_KINDS = ("dlc", "decode", "range", "counter", "checksum", "stale")
+
+
+class HostStatus(NamedTuple):
+    """The part of EST_DIAG only the live host knows (bus, tick, CPU, serial port); same names as
+    the :class:`Diagnostics` fields it sets. A recording keeps it, so a replay sends the same."""
+
+    gnss_serial_connected: bool
+    can_bus_state: int
+    can_error_frames: int
+    can_tx_failures: int
+    tick_late_p50_us: float
+    tick_late_p99_us: float
+    tick_late_max_us: float
+    tick_overruns: int
+    cpu_load_pct: float
 
 
 @dataclass(slots=True)

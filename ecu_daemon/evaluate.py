@@ -322,7 +322,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .cli import UserError
+    from .errors import UserError
 
     if args.suite:
         from .suite import main as suite_main

@@ -200,7 +200,7 @@ def main(args: argparse.Namespace) -> int:
     from rich.live import Live
 
     from . import config as config_mod
-    from .cli import UserError
+    from .errors import UserError
     from .daemon import bus_overrides, explicit_can_keys
     from .io.can_bus import resolve_bus_config
     from .signals import load_dbc

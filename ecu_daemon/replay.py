@@ -5,10 +5,12 @@ The contract outside tools rely on::
     ecu-daemon replay --config CFG.toml --can INPUT.log [--gnss GNSS.log]
                       [--out-can OUTPUT.log] [--out-csv OUTPUT.csv]
 
-No second estimator path: frames go through ``signals.SignalDecoder`` and GNSS bytes through
-``gnss.stream.GnssStreamParser`` exactly as live, into ``estimator.Estimator``. The step grid is
-absolute (k * dt), samples are pushed in timestamp order and each step runs once every sample
-stamped at or before it has been pushed, so a re-run gives byte-identical files.
+No second path: frames and GNSS bytes go through the live daemon's :class:`~ecu_daemon.pipeline.Pipeline`
+(decoder, GNSS parser, estimator, validity, output encoder). The step grid is absolute (k * dt).
+A foreign log is stepped by the time rule: items in timestamp order, each step run once every
+item stamped at or before it has been handed over. A daemon recording (``ticks.log`` beside the
+CAN log, or ``--ticks``) is stepped tick by tick as the daemon did, and writes the frames it sent.
+A re-run gives byte-identical files.
 """
 from __future__ import annotations
 
@@ -24,17 +26,18 @@ import numpy as np
 
 from . import config as config_mod
 from .canlog import CanLogError, open_can_writer, read_can_log
-from .cli import UnusableInputError, UserError
-from .daemon import DIAG_S, stale_validity_mask, with_stale_mask
-from .estimator import ESTIMATE_FIELDS, Estimator
+from .errors import UnusableInputError, UserError
+from .estimate_csv import ROW_FORMAT, csv_header, format_row  # noqa: F401  (tools import them here)
+from .estimator import Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
-from .gnss.stream import GnssStreamParser
-from .io.health import build_diagnostics, gap_line
+from .io.health import gap_line
 from .io.logging_setup import RateLimitedLog
 from .io.output_file import OutputFile, OutputPathError, check_output_paths
+from .pipeline import CAN, GNSS, Pipeline, TickRecord
 from .replay_input import check_time_base, choose_channel, report_other_channels
-from .samples import INPUT_NAMES
+from .samples import INPUT_NAMES, InputSample
 from .signals import SignalDecoder
+from .step_grid import last_step_at, step_of
 from .time_order import TimeOrder, TimeOrderError
 
 log = logging.getLogger("ecu_daemon.replay")
@@ -42,10 +45,6 @@ log = logging.getLogger("ecu_daemon.replay")
 REQUIRED_INPUTS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr",
                    "yaw_rate", "accel_x", "accel_y")
 MIN_USED_FRACTION = 0.1
-
-_BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
-_INT_FIELDS = {"status", "gnss_fused", "gnss_rejected", "gnss_late"}
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", "-C", help="TOML configuration (default: built-in defaults)")
@@ -61,67 +60,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plots", metavar="DIR", help="write PNG plots of the drive into DIR (estimates, validity, "
                    "inputs; also DIR/out.csv when --out-csv is not given); needs matplotlib")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    p.add_argument("--ticks", metavar="FILE", help="tick record of a daemon recording (default: ticks.log"
+                   " beside the CAN log, when there is one); 'none' replays by the time rule")
     p.add_argument("--state", metavar="FILE",
                    help="learned-state file, as the daemon's [daemon] state_file: restored at the start"
                         " when it exists, written at the end (a restart mid-drive is two replays)")
 
 
-def csv_header() -> str:
-    return ",".join(ESTIMATE_FIELDS) + "\n"
+def _gnss_items(path: str, order: TimeOrder):
+    """Pipeline items for every line of a GNSS capture (``seq``: its entry in the log)."""
+    for t, port, payload, seq in order((t, port, payload, seq)
+                                       for seq, (t, port, payload) in enumerate(read_gnss_log(path))):
+        yield t, 1, seq, GNSS, (port, payload)
 
 
-def _row_format() -> str:
-    parts = []
-    for name in ESTIMATE_FIELDS:
-        if name == "t":
-            parts.append("%.6f")
-        elif name in _BOOL_FIELDS or name in _INT_FIELDS:
-            parts.append("%d")
-        else:
-            parts.append("%.9g")
-    return ",".join(parts) + "\n"
-
-
-ROW_FORMAT = _row_format()
-
-
-def format_row(est) -> str:
-    return ROW_FORMAT % tuple(est)
-
-
-def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict, order: TimeOrder):
-    """(t, sample) for every GNSS sample in a capture, one parser per port."""
-    for t, port, payload in order(read_gnss_log(path)):
-        p = parsers.get(port)
-        if p is None:
-            p = parsers[port] = GnssStreamParser(cfg.gnss.protocol, name=f"gnss {port}")
-        for s in p.feed(t, payload):
-            yield s.t, 1, s
-    for p in parsers.values():
-        for s in p.finish():
-            yield s.t, 1, s
-
-
-def _can_samples(path: str, decoder: SignalDecoder, counters: dict, order: TimeOrder, channel: str | None,
-                 time_offset: float):
+def _can_items(path: str, counters: dict, order: TimeOrder, channel: str | None, time_offset: float):
+    """Pipeline items for every frame of a CAN log (``seq``: its entry in the log, as a recording's
+    tick record names it)."""
     reader = read_can_log(path, channel=channel, time_offset=time_offset)
     counters["channels"] = reader.channels  # frames per log channel, replayed or not
-    for t, fid, ext, err, data in order(reader):
+    for t, fid, ext, err, data, seq in order((*f, seq) for seq, f in enumerate(reader)):
         counters["frames"] += 1
         if err:
             counters["error_frames"] += 1
-            continue
-        for s in decoder.decode(t, fid, data, ext):
-            yield t, 0, s
-
-
-def _sum_stats(parsers: dict) -> dict:
-    """GNSS parser counters summed over the capture's ports (the daemon has one port)."""
-    total: dict = {}
-    for p in parsers.values():
-        for k, v in p.stats.items():
-            total[k] = total.get(k, 0) + v
-    return total
+        yield t, 0, seq, CAN, (fid, data, ext, err)
 
 
 def _count_lines(path: str) -> int:
@@ -160,21 +122,29 @@ class _Progress:
             sys.stderr.write("\n")
 
 
+def default_ticks(can_path: str) -> str | None:
+    """The tick record of a daemon recording: ``ticks.log`` beside its ``can.log``."""
+    p = Path(can_path).with_name("ticks.log")
+    return str(p) if p.is_file() else None
+
+
 def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
                config_path: str | None = None, inputs: dict | None = None, can_channel: str | None = None,
-               can_time_offset: float | None = None, learned: dict | None = None) -> dict:
+               can_time_offset: float | None = None, learned: dict | None = None,
+               ticks_path: str | None = None) -> dict:
     """Replay one drive, starting from ``learned`` (see :class:`Estimator`); returns a summary
     (counts, duration, speed, per-input table, the final learned state).
 
     Raises UserError on bad files (nothing is opened for writing before the paths are checked;
     outputs are written aside and renamed at the end, a failure keeps them as ``*.partial.*``) and
-    :class:`~ecu_daemon.cli.UnusableInputError` when a required input never gave a usable sample.
+    :class:`~ecu_daemon.errors.UnusableInputError` when a required input never gave a usable sample.
     ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
     GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
-    :mod:`ecu_daemon.replay_input`.
+    :mod:`ecu_daemon.replay_input`. ``ticks_path``: a daemon recording's tick record (see
+    :class:`~ecu_daemon.pipeline.TickRecord`); None: the time rule.
     """
-    for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
+    for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log"), (ticks_path, "tick record")):
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
     try:
@@ -184,13 +154,27 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         raise UserError(str(e)) from None
     channel = choose_channel(can_path, can_channel, cfg.can.channel)
     check_time_base(can_path, gnss_path, channel, can_time_offset)
-    decoder = SignalDecoder(cfg)
-    est = Estimator(cfg, learned)
-    encoder = None
-    if out_can:
-        from .outputs import OutputEncoder
+    record = None
+    if ticks_path is not None:
+        try:
+            record = TickRecord.read(ticks_path)
+        except (OSError, ValueError) as e:
+            raise UserError(f"cannot read tick record {ticks_path}: {getattr(e, 'strerror', None) or e}") from None
+        log.info("following the tick record %s (a daemon recording: the steps and frames it sent)", ticks_path)
+    pl = Pipeline(cfg, learned, encode=out_can is not None, gnss_connected=gnss_path is not None, record=record)
+    est = pl.estimator
+    counters = {"frames": 0, "error_frames": 0, "gnss_samples": 0, "steps": 0}
 
-        encoder = OutputEncoder(cfg)
+    def on_sample(s):
+        if type(s) is not InputSample:
+            counters["gnss_samples"] += 1
+        if inputs is not None:
+            ts, vs = inputs.setdefault("gnss_speed" if type(s) is not InputSample else INPUT_NAMES[s.index],
+                                       ([], []))
+            ts.append(s.t)
+            vs.append(s.value if type(s) is InputSample else s.speed_mps)
+
+    pl.on_sample = on_sample
     outputs: list[OutputFile] = []
     try:
         csv_file = OutputFile(out_csv) if out_csv else None
@@ -203,13 +187,11 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         for o in outputs:
             o.keep_partial()
         raise UserError(str(e)) from None
-    counters = {"frames": 0, "error_frames": 0, "gnss_samples": 0, "steps": 0}
-    parsers: dict = {}
     orders = [TimeOrder(f"CAN log {can_path}", est.gap_s)]
-    streams = [_can_samples(can_path, decoder, counters, orders[0], channel, can_time_offset or 0.0)]
+    streams = [_can_items(can_path, counters, orders[0], channel, can_time_offset or 0.0)]
     if gnss_path:
         orders.append(TimeOrder(f"GNSS log {gnss_path}", est.gap_s))
-        streams.append(_gnss_samples(gnss_path, cfg, parsers, orders[1]))
+        streams.append(_gnss_items(gnss_path, orders[1]))
     merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
     bar = _Progress(_count_lines(can_path), progress)
     dt = cfg.estimator.dt_s
@@ -224,63 +206,55 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         if csv_out:
             _write(csv_file, csv_out.write, csv_header())
 
-        diag = None
-        stale_mask: dict = {}
-        diag_every = max(1, round(DIAG_S / dt))
-        gnss_last = None
-
-        def write_frames(results):
-            nonlocal diag, stale_mask
-            for e in results:
-                k = round(e.t / dt)
-                if diag is None or k % diag_every == 0:
-                    # what the daemon's housekeeping does every DIAG_S, on the step grid
-                    stale_mask = stale_validity_mask(decoder.check_stale(e.t))
-                    diag = build_diagnostics(
-                        e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
-                        gnss_connected=gnss_path is not None, gnss_delay_s=e.gnss_delay_s, bus=None,
-                        tick=None, cpu_pct=math.nan, error_frames=counters["error_frames"], status=e.status,
-                        isolation_events=dict(est.fdi.events))
-                for msg in encoder.frames(k, with_stale_mask(e, stale_mask), diag):
+        def write_frames(steps):
+            for st in steps:
+                for msg in st.frames:
                     can_out.write(msg)
 
-        def emit(results):
+        def emit(steps):
             nonlocal gaps_said
+            if not steps:
+                return
             if est.gaps != gaps_said:
                 gaps_said = est.gaps
                 gap_log.report("gap", logging.WARNING, gap_line(est))
             if csv_out:
-                _write(csv_file, csv_out.writelines, [fmt % tuple(e) for e in results])
-            if encoder is not None:
-                _write(can_file, write_frames, results)
-            counters["steps"] += len(results)
+                _write(csv_file, csv_out.writelines, [fmt % tuple(st.estimate) for st in steps])
+            if can_out is not None:
+                _write(can_file, write_frames, steps)
+            counters["steps"] += len(steps)
 
+        ticks = record.ticks() if record is not None else None
+        next_tick = next(ticks, None) if ticks is not None else None
+        push = {CAN: lambda t, seq, p: pl.push_can(t, p[0], p[1], p[2], p[3], seq),
+                GNSS: lambda t, seq, p: pl.push_gnss(t, p[1], p[0], seq)}
         n = 0
-        for t, kind, s in merged:
+        for t, _, seq, source, payload in merged:
             if not math.isfinite(t):
                 continue
-            if kind:
-                est.push_gnss(s)
-                gnss_last = s
-                counters["gnss_samples"] += 1
+            push[source](t, seq, payload)
+            if ticks is None:
+                emit(pl.feed(t))
             else:
-                est.push_input(s)
-            if inputs is not None:
-                ts, vs = inputs.setdefault("gnss_speed" if kind else INPUT_NAMES[s.index], ([], []))
-                ts.append(t)
-                vs.append(s.speed_mps if kind else s.value)
+                k_item = step_of(t, dt)
+                while next_tick is not None and next_tick < k_item:
+                    emit(pl.tick(next_tick))
+                    next_tick = next(ticks, None)
             if t_first is None:
                 t_first = t
             if t_last is None or t > t_last:
                 t_last = t
-                # every step strictly before this sample's time has all its samples now
-                if t - 2e-9 >= est.next_step_t - 1e-9 or est.k is None:
-                    emit(est.advance_to(t - 2e-9))
             n += 1
             if not n & 1023:
                 bar.update(counters["frames"], t - t_first)
         if t_last is not None:
-            emit(est.advance_to(t_last))
+            if ticks is None:
+                emit(pl.finish(t_last))
+            else:
+                k_end = last_step_at(t_last, dt) if record.end is None else record.end
+                while next_tick is not None and next_tick <= k_end:
+                    emit(pl.tick(next_tick))
+                    next_tick = next(ticks, None)
         if can_out is not None:
             _write(can_file, lambda _: can_out.close(), None)
         for o in outputs:
@@ -302,8 +276,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     dur = (t_last - t_first) if t_first is not None else 0.0
     counters.update(duration_s=dur, wall_s=wall, realtime_factor=dur / wall if wall > 0 else math.inf,
                     late_inputs=est.late_inputs, learned=est.learned_state(), gaps=est.gaps,
-                    gnss_parse=sum(sum(p.stats.values()) for p in parsers.values()),
-                    inputs=input_table(decoder, parsers if gnss_path else None, est))
+                    gnss_parse=sum(sum(p.stats.values()) for p in pl.parsers.values()),
+                    inputs=input_table(pl.decoder, pl if gnss_path else None, est))
     for line in format_input_table(counters["inputs"]):
         log.info("%s", line)
     for o in orders:
@@ -361,14 +335,14 @@ _TABLE = (("frames", "frames"), ("samples", "used"), ("dlc", "dlc"), ("decode", 
           ("range", "range"), ("counter", "counter"), ("checksum", "checksum"))
 
 
-def input_table(decoder: SignalDecoder, parsers: dict | None, est: Estimator) -> dict[str, dict]:
+def input_table(decoder: SignalDecoder, pipeline: Pipeline | None, est: Estimator) -> dict[str, dict]:
     """Per input: frames that carried it, samples used, samples dropped by reason; plus ``gnss``
     (when a GNSS log was given): samples decoded, fused, rejected and the parser's error counts."""
     rows = {}
     for name, h in decoder.health.items():
         rows[name] = {"frames": h.frames, "samples": h.samples, **{k: v for k, v in h.errors.items() if k != "stale"}}
-    if parsers is not None:
-        st = _sum_stats(parsers)
+    if pipeline is not None:
+        st = pipeline.gnss_stats()
         rows["gnss"] = {"frames": st.get("ubx_frames", 0) + st.get("nmea_sentences", 0),
                         "samples": st.get("samples", 0), "fused": est.gnss.fused, "rejected": est.gnss.rejected,
                         "checksum": st.get("checksum_errors", 0),
@@ -421,9 +395,11 @@ def main(args: argparse.Namespace) -> int:
             learned = load_state(args.state)
         except StateFileError as e:
             raise UserError(str(e)) from None
+    ticks = config_mod.off_if_none(args.ticks) if args.ticks else default_ticks(args.can)
     summary = run_replay(cfg, args.can, args.gnss, out_csv, args.out_can,
                          progress=not args.no_progress, config_path=args.config, inputs=inputs,
-                         can_channel=args.can_channel, can_time_offset=args.can_time_offset, learned=learned)
+                         can_channel=args.can_channel, can_time_offset=args.can_time_offset, learned=learned,
+                         ticks_path=ticks or None)
     if args.state:
         try:
             save_state(args.state, summary["learned"])

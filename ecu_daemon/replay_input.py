@@ -20,7 +20,7 @@ import logging
 import math
 
 from .canlog import CanLogError, log_channels, read_can_log
-from .cli import UserError
+from .errors import UserError
 from .gnss.logfile import GnssLogError, read_gnss_log
 
 log = logging.getLogger(__name__)

@@ -263,7 +263,7 @@ def run_suite(cases: list[SuiteCase], out_dir: str | Path, jobs: int = 1, progre
 
 
 def main(args) -> int:
-    from .cli import UserError
+    from .errors import UserError
 
     cases = select(args.only)
     if not cases:

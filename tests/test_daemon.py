@@ -16,7 +16,8 @@ import can
 import pytest
 
 from ecu_daemon import config as config_mod
-from ecu_daemon.daemon import Daemon, stale_validity_mask
+from ecu_daemon.daemon import Daemon
+from ecu_daemon.pipeline import stale_validity_mask
 from ecu_daemon.diagnostics import BUS_ACTIVE, BUS_OFF
 from ecu_daemon.gnss import encode as gnss_encode
 from ecu_daemon.gnss.logfile import read_gnss_log

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..config import Config
 from ..samples import INPUT_INDEX, GnssSample, InputSample
+from ..step_grid import last_step_at, step_of
 from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
@@ -146,23 +147,28 @@ class Estimator:
         """Time of the next step to run (inf before the first sample)."""
         return math.inf if self.k is None else self.k * self.dt
 
+    def no_estimate(self, t: float) -> Estimate:
+        """What a step before the first sample publishes: finite, every validity bit false."""
+        return self._invalid(t)
+
     def advance_to(self, t: float) -> list[Estimate]:
+        """Run every step up to time ``t``; step k applies the queued samples of ``step_of`` <= k."""
         out: list[Estimate] = []
         dt = self.dt
         q = self.queue
         if self.k is None:
             if not q:
                 return out
-            self.k = math.ceil(q[0].t / dt - 1e-9)
+            self.k = step_of(q[0].t, dt)
         k = self.k
+        k_end = last_step_at(t, dt)
         gap = self.gap_s
-        while k * dt <= t + 1e-9:
+        while k <= k_end:
             tk = k * dt
-            lim = tk + 1e-9
             if (q[0].t if q else t) - tk > gap:
                 k = self.k = self._skip_gap(k, q[0].t if q else t, bool(q))
                 continue
-            while q and q[0].t <= lim:
+            while q and step_of(q[0].t, dt) <= k:
                 self._apply(q.popleft(), k)
             out.append(self._step(k, tk))
             k += 1
@@ -230,7 +236,7 @@ class Estimator:
         self.held_t = [-math.inf] * len(self.held_t)
         if self.initialized:
             self._reset(k)
-        return math.ceil(t_next / self.dt - 1e-9) if to_sample else math.floor(t_next / self.dt + 1e-9)
+        return step_of(t_next, self.dt) if to_sample else last_step_at(t_next, self.dt)
 
     def _initialize(self, k: int, wheel_speed: float, r_m: float, ay_m: float) -> None:
         """Start the filter in whatever state the car is in (standstill or moving, straight or

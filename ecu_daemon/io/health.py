@@ -1,8 +1,9 @@
 """Assemble the daemon's :class:`~ecu_daemon.diagnostics.Diagnostics` from its parts.
 
 The parts keep their own counters (decoder per input, GNSS parser stats, serial port, bus
-health, tick statistics); this module only reads them, in the event-loop thread, a few times a
-second, and publishes one immutable snapshot that the tick thread encodes into the EST_DIAG frame.
+health, tick statistics); this module only reads them: the host's part in the event-loop thread
+a few times a second (:func:`host_status`), the rest in the pipeline on the step grid
+(:func:`build_diagnostics`), so that a replay of a recording builds the same EST_DIAG frames.
 """
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import math
 import os
 import time
 
-from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics
+from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics, HostStatus
 from ..estimator.fault_detection import SOURCE_BITS
 from ..samples import GnssSample
 from . import can_bus
@@ -49,14 +50,13 @@ def thread_cpu_s(native_id: int | None) -> float:
 
 
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
-                      gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth | None,
-                      tick: TickSnapshot | None, cpu_pct: float, error_frames: int = 0, status: int = 0,
-                      isolation_events: dict | None = None) -> Diagnostics:
-    """The snapshot at time ``t``. Offline (replay) there is no bus, tick or CPU to speak of:
-    ``bus``/``tick`` None and ``cpu_pct`` NaN give the "not available" values, and the log's
-    own ``error_frames`` are counted. ``status``: the latest Estimate.status (its isolation
-    bits); ``isolation_events``: the estimator's per-source isolation counts
-    (``FaultDetector.events``)."""
+                      gnss_delay_s: float, host: HostStatus | None, gnss_connected: bool = False,
+                      error_frames: int = 0, status: int = 0, isolation_events: dict | None = None) -> Diagnostics:
+    """The snapshot at step time ``t``. ``host``: the live host's part (:func:`host_status`);
+    offline (replay of a foreign log) there is none: "not available" bus state, tick and CPU,
+    ``gnss_connected`` as given and the log's own ``error_frames``. ``status``: the latest
+    Estimate.status (its isolation bits); ``isolation_events``: the estimator's per-source
+    isolation counts (``FaultDetector.events``)."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     for name, src in d.sources.items():
@@ -72,23 +72,24 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.gnss_checksum_errors = gnss_stats.get("checksum_errors", 0)
         d.gnss_parse_errors = (gnss_stats.get("malformed", 0) + gnss_stats.get("truncated", 0)
                                + gnss_stats.get("garbage_bytes", 0))
-    d.gnss_serial_connected = gnss_connected
-    if bus is None:
+    if host is None:
+        d.gnss_serial_connected = gnss_connected
         d.can_bus_state = BUS_NOT_AVAILABLE
         d.can_error_frames = error_frames
-    else:
-        d.can_bus_state = _BUS_MAP.get(bus.state, BUS_ACTIVE)
-        d.can_error_frames = bus.error_frames
-        d.can_tx_failures = bus.tx_failures
-    if tick is None:
         d.tick_late_p50_us = d.tick_late_p99_us = d.tick_late_max_us = math.nan
+        d.cpu_load_pct = math.nan
     else:
-        d.tick_late_p50_us = tick.late_p50_s * 1e6
-        d.tick_late_p99_us = tick.late_p99_s * 1e6
-        d.tick_late_max_us = tick.late_max_s * 1e6
-        d.tick_overruns = tick.overruns
-    d.cpu_load_pct = cpu_pct
+        for name, v in zip(HostStatus._fields, host):
+            setattr(d, name, v)
     return d
+
+
+def host_status(*, bus: can_bus.BusHealth, tick: TickSnapshot, cpu_pct: float,
+                gnss_connected: bool) -> HostStatus:
+    """The live host's part of the diagnostics (see :class:`~ecu_daemon.diagnostics.HostStatus`)."""
+    return HostStatus(bool(gnss_connected), _BUS_MAP.get(bus.state, BUS_ACTIVE), bus.error_frames,
+                      bus.tx_failures, tick.late_p50_s * 1e6, tick.late_p99_s * 1e6, tick.late_max_s * 1e6,
+                      tick.overruns, float(cpu_pct))
 
 
 def gap_line(est) -> str:

@@ -4,15 +4,18 @@ Files (all stamped on the daemon's monotonic clock, the same one the estimator u
 
 * ``can.log``  -- every received input frame, candump ``-L`` format, timestamps already converted
   to the monotonic clock and rounded to 1 us exactly as the estimator saw them;
-* ``gnss.log`` -- every GNSS message (and every run of unframed bytes) as received, in the
-  GNSS capture format, stamped with the receive time the parser used;
-* ``estimates.csv`` -- the live estimates, one row per step, in the format of ``replay --out-csv``;
-* ``outputs.log`` -- the frames the daemon sent, candump ``-L``, stamped with the tick time.
+* ``gnss.log`` -- every chunk of bytes read from the GNSS port, in the GNSS capture format,
+  stamped with its receive time;
+* ``estimates.csv`` -- the published estimates (validity as sent), one row per step, in the
+  format of ``replay --out-csv``;
+* ``outputs.log`` -- the frames the daemon sent, candump ``-L``, stamped with the tick time;
+* ``ticks.log`` -- the tick record (:class:`~ecu_daemon.pipeline.TickRecord`): what the time
+  rule does not say about when each input reached the estimator.
 
-``ecu-daemon replay --can DIR/can.log --gnss DIR/gnss.log`` then reproduces ``estimates.csv``
-except for inputs that arrived after the tick that would have used them (counted live as
-``late_samples``). All writes happen in the event-loop thread; :meth:`flush` runs periodically
-and on SIGTERM, so a stopped daemon leaves complete files.
+``ecu-daemon replay --can DIR/can.log --gnss DIR/gnss.log`` follows ``ticks.log`` and writes the
+frames of ``outputs.log`` and the rows of ``estimates.csv`` again, byte for byte. All writes
+happen in the event-loop thread; :meth:`flush` runs periodically and on SIGTERM, so a stopped
+daemon leaves complete files.
 """
 from __future__ import annotations
 
@@ -23,7 +26,8 @@ import can
 
 from ..canlog import CandumpWriter, CanLogError
 from ..gnss.logfile import GnssLogWriter
-from ..replay import csv_header, format_row
+from ..errors import UserError
+from ..estimate_csv import csv_header, format_row
 
 log = logging.getLogger("ecu_daemon.record")
 
@@ -37,8 +41,8 @@ class Recorder:
             self.outputs = CandumpWriter(self.dir / "outputs.log", channel=can_channel)
             self.gnss = GnssLogWriter(self.dir / "gnss.log", gnss_port)
             self._csv = open(self.dir / "estimates.csv", "w", encoding="ascii", newline="\n")
+            self._ticks = open(self.dir / "ticks.log", "w", encoding="ascii", newline="\n")
         except (OSError, CanLogError) as e:
-            from ..cli import UserError
             raise UserError(f"cannot record into {self.dir}: {getattr(e, 'strerror', None) or e}") from None
         self._csv.write(csv_header())
         self.frames = 0
@@ -62,6 +66,9 @@ class Recorder:
         self._guard(self.can.write_frame, t, msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
                     msg.is_error_frame)
 
+    def on_tick_record(self, line: str) -> None:
+        self._guard(self._ticks.write, line)
+
     def on_gnss(self, t: float, payload: bytes) -> None:
         self.gnss_messages += 1
         self._guard(self.gnss.write, t, payload)
@@ -74,14 +81,14 @@ class Recorder:
         self._guard(self._csv.write, format_row(est))
 
     def flush(self) -> None:
-        for f in (self.can, self.outputs, self.gnss, self._csv):
+        for f in (self.can, self.outputs, self.gnss, self._csv, self._ticks):
             self._guard(f.flush)
 
     def close(self) -> None:
         if self._closed:
             return
         self.flush()
-        for f in (self.can, self.outputs, self.gnss, self._csv):
+        for f in (self.can, self.outputs, self.gnss, self._csv, self._ticks):
             self._guard(f.close)
         self._closed = True
 

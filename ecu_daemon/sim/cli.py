@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _fail(text: str):
-    from ..cli import UserError
+    from ..errors import UserError
 
     raise UserError(text)
 

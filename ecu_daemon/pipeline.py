@@ -1,0 +1,347 @@
+"""One pipeline for live, replay and demo: raw inputs in, per step the published estimate and the
+output frames out.
+
+Why one: the step rule, the validity policy and the output encoding used to be written once per
+shell (daemon, replay, demo), with different epsilons and in different orders (the recording held
+estimates before the daemon's stale mask). Here they are decided once:
+
+* **inbox** -- CAN frames, GNSS byte chunks and (live only) the host's health are pushed from any
+  thread (``push_*`` append to a deque). Each CAN frame / GNSS chunk carries its ordinal in its
+  log (``seq``), which is how a recording names it.
+* **step rule** (``step_grid``) -- an item belongs to step ``step_of(t)``. Live, the shell calls
+  :meth:`tick` for the newest step due; everything received and due by then is decoded and handed
+  to the estimator, sorted by (time, CAN before GNSS, seq). An item that arrives after its step ran
+  is applied at the next step run and reported to ``on_late`` (the recording keeps it);
+  :class:`TickRecord` makes a replay of the recording hand every item over at the same tick.
+  Offline without such a record, :meth:`feed` hands each item over at its own step (and the
+  estimator skips input gaps).
+* **validity** -- the estimator's flags AND the decoder's input staleness (checked every
+  ``DIAG_S`` of step time, with the diagnostics); a step with no estimate yet publishes the
+  estimator's finite, all-invalid :meth:`~ecu_daemon.estimator.Estimator.no_estimate`.
+* **outputs** -- every frame of the output DBC (``EST_DIAG`` from diagnostics built here on the
+  step grid), counters and CRCs, by :class:`~ecu_daemon.outputs.OutputEncoder`.
+
+The pipeline is deterministic in its inputs and the ticks: what the live daemon records
+(inputs, tick record, output frames) replays to the same frames, byte for byte.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Callable, NamedTuple
+
+from .config import Config
+from .diagnostics import Diagnostics, HostStatus
+from .estimator import Estimate, Estimator
+from .estimator.estimate import STATUS_INPUT_STALE
+from .gnss.stream import GnssStreamParser
+from .io.health import build_diagnostics
+from .samples import InputSample
+from .signals import SignalDecoder
+from .step_grid import step_of
+
+DIAG_S = 0.05  # diagnostics (and the input staleness behind the validity mask) every 50 ms of steps
+
+CAN = "can"
+GNSS = "gnss"
+_ORDER = {CAN: 0, GNSS: 1}  # on a time tie, CAN before GNSS (as the logs are merged)
+
+
+class Step(NamedTuple):
+    k: int
+    estimate: Estimate  # as published (validity policy applied)
+    frames: list  # can.Message, empty when this step is not sent
+
+
+class Item(NamedTuple):
+    t: float
+    order: int
+    seq: int
+    source: str
+    payload: object  # CAN: (id, data, extended, error frame); GNSS: (port, bytes); test: InputSample
+
+
+class TickRecord:
+    """How a live run handed its inputs to the estimator, as far as the time rule does not say it:
+    the first and last tick, the inputs applied after their step (late), the steps run without a
+    tick of their own (overrun catch-up, not sent) and the host status each tick saw.
+
+    Text, one record per line (``ticks.log`` of a recording)::
+
+        start K | end K | late can|gnss SEQ K | skip K1 K2 | host K v1 ... v9
+    """
+
+    def __init__(self) -> None:
+        self.start: int | None = None
+        self.end: int | None = None
+        self.late: dict[tuple[str, int], int] = {}
+        self.skipped: list[tuple[int, int]] = []
+        self.host: dict[int, HostStatus] = {}
+
+    @staticmethod
+    def line(kind: str, *fields) -> str:
+        return " ".join([kind, *(repr(f) if isinstance(f, float) else str(f) for f in fields)]) + "\n"
+
+    @classmethod
+    def read(cls, path) -> "TickRecord":
+        rec = cls()
+        with open(path, encoding="ascii") as f:
+            for lineno, line in enumerate(f, 1):
+                w = line.split()
+                if not w or w[0].startswith("#"):
+                    continue
+                try:
+                    if w[0] == "start":
+                        rec.start = int(w[1])
+                    elif w[0] == "end":
+                        rec.end = int(w[1])
+                    elif w[0] == "late":
+                        rec.late[(w[1], int(w[2]))] = int(w[3])
+                    elif w[0] == "skip":
+                        rec.skipped.append((int(w[1]), int(w[2])))
+                    elif w[0] == "host":
+                        v = w[2:]
+                        rec.host[int(w[1])] = HostStatus(v[0] == "True", int(v[1]), int(v[2]), int(v[3]),
+                                                         float(v[4]), float(v[5]), float(v[6]), int(v[7]),
+                                                         float(v[8]))
+                    else:
+                        raise ValueError(f"unknown record {w[0]!r}")
+                except (ValueError, IndexError) as e:
+                    raise ValueError(f"{path}:{lineno}: not a tick record: {e}") from None
+        if rec.start is None:
+            raise ValueError(f"{path}: no 'start' record")
+        return rec
+
+    def ticks(self):
+        """The live ticks, from the first to the recorded end (open-ended without one)."""
+        skipped = sorted(self.skipped)
+        i = 0
+        k = self.start
+        while self.end is None or k <= self.end:
+            while i < len(skipped) and skipped[i][1] < k:
+                i += 1
+            if i < len(skipped) and skipped[i][0] <= k:
+                k = skipped[i][1] + 1
+                continue
+            yield k
+            k += 1
+
+
+class Pipeline:
+    """See the module docstring. ``encode``: build output frames (replay without ``--out-can``
+    does not need them); ``gnss_connected``: the offline stand-in for the serial port's state;
+    ``record``: a :class:`TickRecord` to follow (replay of a recording)."""
+
+    def __init__(self, cfg: Config, learned: dict | None = None, *, encode: bool = True,
+                 gnss_connected: bool = False, record: TickRecord | None = None) -> None:
+        self.cfg = cfg
+        self.dt = dt = cfg.estimator.dt_s
+        self.decoder = SignalDecoder(cfg)
+        self.estimator = Estimator(cfg, learned)
+        self.encoder = None
+        if encode:
+            from .outputs import OutputEncoder
+
+            self.encoder = OutputEncoder(cfg)
+        self.parsers: dict[str, GnssStreamParser] = {}
+        self.gnss_connected = gnss_connected
+        self.record = record
+        self.inbox: deque = deque()  # push_* (any thread) -> the stepping thread
+        self._held: list[Item] = []  # received, due at a later step
+        self._host_in: HostStatus | None = None
+        self.host: HostStatus | None = None
+        self.diag: Diagnostics | None = None
+        self.stale_mask: dict = {}
+        self.gnss_last = None
+        self.error_frames = 0
+        self.last_k: int | None = None  # last step run
+        self.late_items = 0
+        self.earliest_late_t = math.inf
+        self.items = 0
+        self._seq = {CAN: 0, GNSS: 0, "sample": 0}
+        self._diag_every = max(1, round(DIAG_S / dt))
+        self.on_late: Callable[[str, int, int], None] | None = None  # (source, seq, step applied)
+        self.on_host: Callable[[int, HostStatus], None] | None = None  # (step, status)
+        self.on_sample: Callable[[object], None] | None = None  # every decoded sample (replay's plots)
+
+    # ------------------------------------------------------------------------------- inputs
+    def push_can(self, t: float, arbitration_id: int, data: bytes, extended: bool = False,
+                 error_frame: bool = False, seq: int | None = None) -> None:
+        self.inbox.append(Item(t, 0, self._next_seq(CAN, seq), CAN, (arbitration_id, data, extended, error_frame)))
+
+    def push_gnss(self, t: float, data: bytes, port: str = "", seq: int | None = None) -> None:
+        self.inbox.append(Item(t, 1, self._next_seq(GNSS, seq), GNSS, (port, data)))
+
+    def push_sample(self, s: InputSample) -> None:
+        """An already decoded input (tests, tools): as a CAN frame carrying it."""
+        self.inbox.append(Item(s.t, 0, self._next_seq("sample", None), "sample", s))
+
+    def push_host(self, status: HostStatus) -> None:
+        """Live: the host's health, taken into the diagnostics at the next tick."""
+        self._host_in = status
+
+    def _next_seq(self, source: str, seq: int | None) -> int:
+        if seq is None:
+            seq = self._seq[source]
+        self._seq[source] = seq + 1
+        return seq
+
+    # ------------------------------------------------------------------------------- stepping
+    def tick(self, k: int) -> list[Step]:
+        """Live (and replay of a recording): hand over what is due by step k, run the steps up to
+        k; only step k gets frames (a catch-up after an overrun sends the newest step only)."""
+        if self.record is not None:
+            host = self.record.host.get(k)
+        else:
+            host = self._host_in
+            if host is not None and host is not self.host and self.on_host is not None:
+                self.on_host(k, host)
+        if host is not None:
+            self.host = host
+        est = self.estimator
+        self._drain()
+        if self._held:
+            held = self._held
+            held.sort()
+            last = self.last_k
+            keep = []
+            for it in held:
+                due = self._due(it)
+                if due > k:
+                    keep.append(it)
+                    continue
+                if last is not None and due <= last and self.record is None:
+                    self._late(it, last + 1)
+                self._take(it)
+            self._held = keep
+        ests = est.advance_to(k * self.dt)
+        self.last_k = k
+        steps = [self._publish(e, False) for e in ests[:-1]]
+        if ests:
+            steps.append(self._publish(ests[-1], True))
+        else:
+            steps.append(self._publish(est.no_estimate(k * self.dt), True))
+        return steps
+
+    def feed(self, t: float) -> list[Step]:
+        """Offline, time rule: hand over what was pushed (stamped ``t``), then run and encode every
+        step before ``t`` (the estimator sees the next sample, so it skips a gap up to it)."""
+        self._drain()
+        for it in sorted(self._held):
+            self._take(it)
+        self._held.clear()
+        est = self.estimator
+        k_before = step_of(t, self.dt) - 1
+        if est.k is not None and k_before < est.k:
+            return []
+        return [self._publish(e, True) for e in est.advance_to(k_before * self.dt)]
+
+    def finish(self, t: float) -> list[Step]:
+        """Offline: the parsers' last samples, then every step up to ``t``."""
+        for p in self.parsers.values():
+            for s in p.finish():
+                self.gnss_last = s
+                self.estimator.push_gnss(s)
+                if self.on_sample is not None:
+                    self.on_sample(s)
+        return [self._publish(e, True) for e in self.estimator.advance_to(t)]
+
+    def _drain(self) -> None:
+        pop = self.inbox.popleft
+        held = self._held
+        try:
+            while True:
+                held.append(pop())
+        except IndexError:
+            pass
+
+    def _due(self, it: Item) -> int:
+        if self.record is not None:
+            k = self.record.late.get((it.source, it.seq))
+            if k is not None:
+                return k
+        return step_of(it.t, self.dt)
+
+    def _late(self, it: Item, k: int) -> None:
+        self.late_items += 1
+        self.earliest_late_t = min(self.earliest_late_t, it.t)
+        if self.on_late is not None and it.source != "sample":
+            self.on_late(it.source, it.seq, k)
+
+    def _take(self, it: Item) -> None:
+        """Decode one item into the estimator's queue."""
+        self.items += 1
+        est = self.estimator
+        if it.source == CAN:
+            fid, data, ext, err = it.payload
+            if err:
+                self.error_frames += 1
+                return
+            for s in self.decoder.decode(it.t, fid, data, ext):
+                est.push_input(s)
+                if self.on_sample is not None:
+                    self.on_sample(s)
+        elif it.source == GNSS:
+            port, data = it.payload
+            p = self.parsers.get(port)
+            if p is None:
+                p = self.parsers[port] = GnssStreamParser(self.cfg.gnss.protocol, name=f"gnss {port}")
+            for s in p.feed(it.t, data):
+                self.gnss_last = s
+                est.push_gnss(s)
+                if self.on_sample is not None:
+                    self.on_sample(s)
+        else:
+            est.push_input(it.payload)
+
+    # ------------------------------------------------------------------------------- outputs
+    def _publish(self, e: Estimate, send: bool) -> Step:
+        k = round(e.t / self.dt)
+        if self.diag is None or k % self._diag_every == 0:
+            self._update_diagnostics(e)
+        mask = self.stale_mask
+        if mask:
+            e = e._replace(status=e.status | STATUS_INPUT_STALE, **mask)
+        frames = self.encoder.frames(k, e, self.diag) if send and self.encoder is not None else []
+        return Step(k, e, frames)
+
+    def _update_diagnostics(self, e: Estimate) -> None:
+        t = e.t
+        self.stale_mask = stale_validity_mask(self.decoder.check_stale(t))
+        self.diag = build_diagnostics(
+            t, decoder=self.decoder, gnss_stats=self.gnss_stats(), gnss_last=self.gnss_last,
+            gnss_delay_s=e.gnss_delay_s, host=self.host, gnss_connected=self.gnss_connected,
+            error_frames=self.error_frames, status=e.status, isolation_events=dict(self.estimator.fdi.events))
+
+    def gnss_stats(self) -> dict:
+        """GNSS parser counters summed over the ports (the daemon has one)."""
+        total: dict = {}
+        for p in self.parsers.values():
+            for k, v in p.stats.items():
+                total[k] = total.get(k, 0) + v
+        return total
+
+
+_IMU = ("yaw_rate", "accel_x", "accel_y")
+_WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
+_ALL_INVALID = {"sideslip_valid": False, "heading_valid": False, "velocity_valid": False, "biases_valid": False}
+
+
+def stale_validity_mask(stale: list[str]) -> dict:
+    """Validity flags to clear on the published estimate while these inputs are stale.
+
+    The decoder declares an input stale after 10 missed cycles of its observed rate (or its
+    ``timeout_s``). IMU -> everything; a wheel speed -> velocity and sideslip; steering ->
+    sideslip (the single-track model needs it). The estimator's own flags still apply on top.
+    """
+    if not stale:
+        return {}
+    s = set(stale)
+    if s.intersection(_IMU):
+        return dict(_ALL_INVALID)
+    mask = {}
+    if s.intersection(_WHEELS):
+        mask.update(velocity_valid=False, sideslip_valid=False)
+    if "steering_wheel_angle" in s:
+        mask["sideslip_valid"] = False
+    return mask
