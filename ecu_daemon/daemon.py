@@ -279,6 +279,7 @@ class Daemon:
             self.serial = GnssSerial(self.cfg.gnss.port, self.cfg.gnss.baudrate, on_data=self._on_gnss_bytes,
                                      clock=self.clock)
             self.serial.start(loop)
+        self._update_diagnostics(self.clock())  # the first tick already has the host's part
         self.tick = TickThread(self.dt, self._on_tick, offset_s=self.grace_s, clock=self.clock,
                                speed=self.speed, realtime_priority=self.cfg.daemon.realtime_priority,
                                stats=self.tick_stats)

@@ -1,19 +1,18 @@
 """Live == replay: the daemon on a ``virtual`` bus fed in real time by a simulated drive (GNSS
-written into a pseudo-terminal) produces the estimates ``ecu-daemon replay`` computes from its
-own recording, and sends every output frame at its cycle time.
+written into a pseudo-terminal) sends the output frames that ``ecu-daemon replay`` of its own
+recording writes, byte for byte, every frame (EST_DIAG included) of the whole run, and records
+the estimates that replay computes, every row.
 
-Equivalence, precisely: both runs push the same samples (times rounded to 1 us on the daemon's
-monotonic clock, as recorded) into the same estimator and step it on the same grid k * 6 ms.
-Step k uses the samples with t <= k * dt. Live, step k runs at k * dt + grace and a sample that
-reaches the tick thread after that is applied one step later (``Daemon.late_samples``). Every
-step before the earliest late sample (``Daemon.earliest_late_t``; all of them when none was late)
-is identical (same CSV text); each late sample may shift later estimates by a small amount,
-bounded here by TOLERANCE.
+Both run the same :class:`~ecu_daemon.pipeline.Pipeline`. Live, step k runs ``grace`` after its
+time and an input that reaches the tick thread after that is applied at the next step run; a
+loaded machine also makes ticks overrun (the missed steps run in the next tick, unsent). The
+recording's tick record (``ticks.log``) keeps both, and the host health each tick saw, so the
+replay follows the live run exactly; the test runs with the daemon's default 1 ms grace so that
+late inputs and overruns do happen on a busy machine (their counts are printed).
 """
 from __future__ import annotations
 
 import asyncio
-import csv
 import math
 import os
 import threading
@@ -23,28 +22,14 @@ import pytest
 
 from ecu_daemon import config as config_mod
 from ecu_daemon.cli import main as cli_main
+from ecu_daemon.canlog import read_can_log
 from ecu_daemon.daemon import Daemon
 from ecu_daemon.demo import Feeder, open_gnss_pty
 from ecu_daemon.outputs import decode_output_frame
 from ecu_daemon.signals import load_dbc
 
 DURATION_S = 10.0
-GRACE_S = float(os.environ.get('ECU_TEST_GRACE_S', '0.05'))
-#: max |live - replay| when samples were late (identical rows otherwise). Measured with the
-#: default 1 ms grace on a busy 2-CPU VM, ~100 of ~8000 samples late in 10 s: sideslip 0.013 deg,
-#: heading 0.002 deg, vx 0.008 m/s, vy 0.004 m/s, yaw-rate bias 0.026 deg/s, GNSS latency identical.
-TOLERANCE = {"sideslip_rad": math.radians(0.1), "heading_rad": math.radians(0.05), "vx_mps": 0.05,
-             "vy_mps": 0.02, "yaw_rate_bias_radps": math.radians(0.1), "gnss_delay_s": 0.01}
-#: ... and the 99th percentile of |live - replay|
-TOLERANCE_P99 = {"vx_mps": 0.01, "vy_mps": 0.005}
-#: columns compared only where both runs flag the quantity valid
-VALID_FLAG = {"sideslip_rad": "sideslip_valid", "heading_rad": "heading_valid"}
-
-
-def read_csv(path):
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    return {round(float(r["t"]) * 1e6): r for r in rows}
+GRACE_S = float(os.environ.get('ECU_TEST_GRACE_S', '0.001'))
 
 
 def wait_until(cond, timeout=30.0, what="condition"):
@@ -53,14 +38,6 @@ def wait_until(cond, timeout=30.0, what="condition"):
     while not cond():
         assert time.monotonic() < end, f"timed out after {timeout} s waiting for {what}"
         time.sleep(0.005)
-
-
-def flag(v: str) -> bool:
-    return v.strip().lower() in ("1", "true")
-
-
-def angle_diff(a, b):
-    return abs((a - b + math.pi) % (2 * math.pi) - math.pi)
 
 
 @pytest.fixture(scope="module")
@@ -76,8 +53,6 @@ def live_run(tmp_path_factory):
     cfg.can.interface, cfg.can.channel = "virtual", channel
     cfg.gnss.port = port
     cfg.daemon.state_file = ""
-    # A 50 ms input grace (default 1 ms) makes late samples rare even on a loaded test machine,
-    # so the comparison is usually exact; the tolerances cover the runs where some are late.
     daemon = Daemon(cfg, bus_config={"interface": "virtual", "channel": channel}, record_dir=tmp / "rec",
                     input_grace_s=GRACE_S)
     feeder = Feeder(sim, channel, master, keep_outputs=True)
@@ -110,44 +85,32 @@ def live_run(tmp_path_factory):
     return dict(tmp=tmp, cfg=cfg, cfg_path=cfg_path, daemon=daemon, feeder=feeder, sim=sim)
 
 
-def test_replay_of_the_recording_reproduces_the_live_estimates(live_run):
+def frames(path):
+    return [(round(t * 1e6), fid, bytes(data)) for t, fid, _, _, data in read_can_log(path)]
+
+
+def test_replay_of_the_recording_sends_the_live_frames_byte_for_byte(live_run):
     tmp, d = live_run["tmp"], live_run["daemon"]
     rec = tmp / "rec"
-    out = tmp / "replay.csv"
+    out_can, out_csv = tmp / "replay.log", tmp / "replay.csv"
     rc = cli_main(["replay", "--config", str(live_run["cfg_path"]), "--can", str(rec / "can.log"),
-                   "--gnss", str(rec / "gnss.log"), "--out-csv", str(out)])
+                   "--gnss", str(rec / "gnss.log"), "--out-can", str(out_can), "--out-csv", str(out_csv)])
     assert rc == 0
-    live, rep = read_csv(rec / "estimates.csv"), read_csv(out)
-    common = sorted(set(live) & set(rep))
-    assert len(live) > 0.9 * DURATION_S / 0.006 * 0.9
-    # the same step grid: every replayed step (they end at the last recorded sample) was live too
-    assert len(common) >= 0.98 * len(rep)
-    # Exact: every step before the earliest late sample's time is identical, every column (all of
-    # them when nothing was late). Late samples are rare with a 50 ms grace, but a loaded machine
-    # can make one late at any time (one 0.35 s into the run has been seen): how many steps were
-    # compared exactly is printed, and there is at least one
-    exact = [k for k in common if k * 1e-6 < d.earliest_late_t]
-    assert d.late_samples > 0 or len(exact) == len(common)
-    assert exact, (d.late_samples, d.earliest_late_t)
-    for k in exact:
-        assert live[k] == rep[k], k
-    worst, p99 = {}, {}
-    for col in TOLERANCE:
-        diff = angle_diff if col == "heading_rad" else (lambda a, b: abs(a - b))
-        vf = VALID_FLAG.get(col)
-        errs = sorted(diff(float(live[k][col]), float(rep[k][col])) for k in common
-                      if (vf is None or (flag(live[k][vf]) and flag(rep[k][vf])))
-                      and math.isfinite(float(live[k][col])) and math.isfinite(float(rep[k][col])))
-        worst[col] = errs[-1] if errs else 0.0
-        p99[col] = errs[int(0.99 * (len(errs) - 1))] if errs else 0.0
-    print(f"live vs replay: {len(common)} steps, {len(exact)} identical before the first of "
-          f"{d.late_samples} late samples, worst |diff|: "
-          + ", ".join(f"{c} {worst[c]:.3g}" for c in TOLERANCE)
-          + "; p99: " + ", ".join(f"{c} {p99[c]:.3g}" for c in TOLERANCE_P99))
-    assert all(worst[c] <= TOLERANCE[c] for c in TOLERANCE), (d.late_samples, worst)
-    assert all(p99[c] <= TOLERANCE_P99[c] for c in TOLERANCE_P99), (d.late_samples, p99)
-    same_valid = sum(flag(live[k]["sideslip_valid"]) == flag(rep[k]["sideslip_valid"]) for k in common)
-    assert same_valid >= 0.99 * len(common)
+    live, rep = frames(rec / "outputs.log"), frames(out_can)
+    assert d.canio.health.tx_failures == 0  # (a failed send is a frame missing from outputs.log)
+    assert len(live) > 0.9 * DURATION_S / 0.006  # several frames per step, most steps sent
+    assert {fid for _, fid, _ in live} == {m.frame_id for m in load_dbc(live_run["cfg"].output_dbc_path()).messages}
+    first_diff = next((i for i, (a, b) in enumerate(zip(live, rep)) if a != b), None)
+    assert first_diff is None, (first_diff, live[first_diff], rep[first_diff])
+    assert len(live) == len(rep)
+    live_rows = (rec / "estimates.csv").read_text().splitlines()
+    rep_rows = out_csv.read_text().splitlines()
+    assert live_rows == rep_rows
+    ticks = d.tick_stats.snapshot()
+    record = (rec / "ticks.log").read_text().splitlines()
+    print(f"live vs replay: {len(live)} frames identical over {len(live_rows) - 1} steps"
+          f" ({(len(live_rows) - 1) * 0.006:.1f} s), {d.late_samples} inputs applied late,"
+          f" {ticks.skipped} steps skipped by overruns, {len(record)} tick records")
 
 
 def test_output_frames_are_sent_at_their_cycle_times(live_run):
