@@ -1,0 +1,155 @@
+"""The pipeline alone: the tick record makes a replay hand every input over at the tick the live
+run did (late inputs, overrun catch-ups, host health), and the time rule is what a foreign log gets.
+
+A "live" run is played here without threads: ticks on the step grid, the inputs of a stalled
+event loop delivered a few steps late, one overrun; everything goes through the real
+:class:`~ecu_daemon.io.recorder.Recorder` into files that ``run_replay`` reads back.
+"""
+from __future__ import annotations
+
+import math
+
+import can
+import pytest
+
+from ecu_daemon.canlog import read_can_log
+from ecu_daemon.diagnostics import BUS_PASSIVE, HostStatus
+from ecu_daemon.estimate_csv import format_row
+from ecu_daemon.io.recorder import Recorder
+from ecu_daemon.pipeline import Pipeline, TickRecord, stale_validity_mask
+from ecu_daemon.replay import run_replay
+from ecu_daemon.step_grid import last_step_at, step_of
+
+DT = 0.006
+STALLS = ((150, 3), (260, 2), (371, 4))  # (step, steps): the loop delivers that step's inputs late
+OVERRUN = (300, 303)  # ticks not run: their steps run in tick 304, unsent
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory):
+    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+    tmp = tmp_path_factory.mktemp("pipeline")
+    scenario = SCENARIOS["demo"].with_(duration_s=3.0)
+    cfg = vehicle_config(scenario)
+    sim = simulate(scenario, cfg)
+    events = sorted([(t, 0, fid, data) for t, fid, data in sim.can_frames]
+                    + [(t, 1, None, payload) for t, payload in sim.gnss_messages], key=lambda e: (e[0], e[1]))
+    events = [(float("%.6f" % t), kind, fid, data) for t, kind, fid, data in events]
+    k0 = step_of(events[0][0], DT)
+    stalls = [(k0 + s, n) for s, n in STALLS]
+    overrun = range(k0 + OVERRUN[0], k0 + OVERRUN[1] + 1)
+
+    def arrival(t):
+        k = step_of(t, DT)
+        for s, n in stalls:
+            if s <= k < s + n:
+                return s + n
+        return k
+
+    rec = Recorder(tmp / "rec", can_channel="vcan0", gnss_port="ttyACM0")
+    pl = Pipeline(cfg, gnss_connected=True)
+    pl.on_late = lambda source, seq, k: rec.on_tick_record(TickRecord.line("late", source, seq, k))
+    pl.on_host = lambda k, h: rec.on_tick_record(TickRecord.line("host", k, *h))
+    host = HostStatus(True, 0, 0, 0, 120.5, 800.25, 1500.0, 0, 3.5)
+    pl.push_host(host)
+    sent, steps = [], []
+    i, can_seq, gnss_seq = 0, 0, 0
+    k_end = last_step_at(events[-1][0], DT)
+    rec.on_tick_record(TickRecord.line("start", k0))
+    last = None
+    for k in range(k0, k_end + 1):
+        while i < len(events) and arrival(events[i][0]) <= k:
+            t, kind, fid, data = events[i]
+            i += 1
+            if kind == 0:
+                rec.on_can(t, can.Message(arbitration_id=fid, data=data, is_extended_id=False))
+                pl.push_can(t, fid, data, False, False, can_seq)
+                can_seq += 1
+            else:
+                rec.on_gnss(t, data)
+                pl.push_gnss(t, data, "ttyACM0", gnss_seq)
+                gnss_seq += 1
+        if k in overrun:
+            continue
+        if last is not None and k > last + 1:
+            rec.on_tick_record(TickRecord.line("skip", last + 1, k - 1))
+        last = k
+        if k == k0 + 200:
+            pl.push_host(host._replace(can_bus_state=BUS_PASSIVE, can_error_frames=7, cpu_load_pct=math.pi))
+        out = pl.tick(k)
+        steps += out
+        for m in out[-1].frames:
+            rec.on_output(m.timestamp, m)
+            sent.append(m)
+        for st in out:
+            rec.on_estimate(st.estimate)
+    rec.on_tick_record(TickRecord.line("end", last))
+    rec.close()
+    return dict(tmp=tmp, cfg=cfg, pl=pl, sent=sent, steps=steps, rec=tmp / "rec")
+
+
+def frames(path):
+    return [(round(t * 1e6), fid, bytes(data)) for t, fid, _, _, data in read_can_log(path)]
+
+
+def test_the_live_run_had_late_inputs_and_an_overrun(live):
+    record = TickRecord.read(live["rec"] / "ticks.log")
+    assert live["pl"].late_items == len(record.late) > 10
+    assert record.skipped == [(record.start + OVERRUN[0], record.start + OVERRUN[1])]
+    assert len(record.host) == 2
+    assert len(live["steps"]) == record.end - record.start + 1  # every step ran, some unsent
+
+
+def test_replay_following_the_tick_record_writes_the_live_frames_and_estimates(live, tmp_path):
+    out_can, out_csv = tmp_path / "out.log", tmp_path / "out.csv"
+    run_replay(live["cfg"], str(live["rec"] / "can.log"), str(live["rec"] / "gnss.log"), str(out_csv),
+               str(out_can), ticks_path=str(live["rec"] / "ticks.log"))
+    want = [(round(m.timestamp * 1e6), m.arbitration_id, bytes(m.data)) for m in live["sent"]]
+    assert frames(out_can) == want == frames(live["rec"] / "outputs.log")
+    rows = out_csv.read_text().splitlines()[1:]
+    assert rows == [format_row(s.estimate).rstrip("\n") for s in live["steps"]]
+    assert rows == (live["rec"] / "estimates.csv").read_text().splitlines()[1:]
+
+
+def test_the_time_rule_alone_does_not_reproduce_the_live_run(live, tmp_path):
+    """Without the tick record the late inputs are applied at their own step: different estimates
+    (which is why the recording keeps it)."""
+    out_csv = tmp_path / "out.csv"
+    run_replay(live["cfg"], str(live["rec"] / "can.log"), str(live["rec"] / "gnss.log"), str(out_csv))
+    live_rows = {r.split(",")[0]: r for r in (live["rec"] / "estimates.csv").read_text().splitlines()[1:]}
+    rows = {r.split(",")[0]: r for r in out_csv.read_text().splitlines()[1:]}
+    common = set(live_rows) & set(rows)
+    assert len(common) > 0.9 * len(rows)
+    assert any(live_rows[t] != rows[t] for t in common)
+
+
+def test_a_tick_record_round_trips_and_lists_the_ticks(tmp_path):
+    p = tmp_path / "ticks.log"
+    h = HostStatus(False, 3, 2, 1, 0.1, 1e-300, math.inf, 4, math.nan)
+    p.write_text("start 10\n" + TickRecord.line("late", "can", 5, 12) + TickRecord.line("skip", 13, 14)
+                 + TickRecord.line("host", 11, *h) + "end 17\n")
+    r = TickRecord.read(p)
+    assert (r.start, r.end, r.late, r.skipped) == (10, 17, {("can", 5): 12}, [(13, 14)])
+    assert r.host[11][:8] == h[:8] and math.isnan(r.host[11].cpu_load_pct)
+    assert list(r.ticks()) == [10, 11, 12, 15, 16, 17]
+    p.write_text("late can 5\n")
+    with pytest.raises(ValueError, match="not a tick record"):
+        TickRecord.read(p)
+
+
+def test_stale_inputs_clear_the_flags_that_depend_on_them():
+    assert stale_validity_mask([]) == {}
+    assert stale_validity_mask(["yaw_rate"]) == {"sideslip_valid": False, "heading_valid": False,
+                                                 "velocity_valid": False, "biases_valid": False}
+    assert stale_validity_mask(["wheel_speed_fl"]) == {"velocity_valid": False, "sideslip_valid": False}
+
+
+def test_a_step_before_the_first_input_publishes_finite_invalid_values(live):
+    cfg = live["cfg"]
+    pl = Pipeline(cfg)
+    (st,) = pl.tick(1000)
+    e = st.estimate
+    assert not (e.sideslip_valid or e.heading_valid or e.velocity_valid or e.biases_valid)
+    assert all(math.isfinite(v) for v in e[:21])
+    assert {m.arbitration_id for m in st.frames}  # the frames due at this step go out
