@@ -48,22 +48,22 @@ def _read_until(fd: int, n: int, timeout: float = 10.0) -> bytes:
     return buf
 
 
-def test_candump_frame_syntax():
-    m = player.parse_candump_frame("123#0102")
-    assert (m.arbitration_id, m.is_extended_id, bytes(m.data), m.dlc) == (0x123, False, b"\x01\x02", 2)
-    m = player.parse_candump_frame("12345678#DEADBEEF")
-    assert m.is_extended_id and m.arbitration_id == 0x12345678
-    m = player.parse_candump_frame("20000040#0000000000000000")  # bus-off error frame
-    assert m.is_error_frame and m.arbitration_id == 0x40 and not m.is_extended_id
-    m = player.parse_candump_frame("321#R")
-    assert m.is_remote_frame and m.dlc == 0
-    m = player.parse_candump_frame("123##1AABB")
-    assert m.is_fd and m.bitrate_switch and bytes(m.data) == b"\xaa\xbb"
-    m = player.parse_candump_frame("7FF#01.02.03")
-    assert bytes(m.data) == b"\x01\x02\x03"
+def test_candump_frame_syntax(tmp_path):
+    """The player reads logs with the package's one reader (canlog): every candump frame syntax."""
+    log = tmp_path / "frames.log"
+    log.write_text("".join(f"(1.{i:06d}) can0 {f}\n" for i, f in enumerate(
+        ("123#0102", "12345678#DEADBEEF", "20000040#0000000000000000", "321#R", "123##1AABB", "7FF#01.02.03"))))
+    m = [e.message for e in player.read_candump(log)]
+    assert (m[0].arbitration_id, m[0].is_extended_id, bytes(m[0].data), m[0].dlc) == (0x123, False, b"\x01\x02", 2)
+    assert m[1].is_extended_id and m[1].arbitration_id == 0x12345678
+    assert m[2].is_error_frame and m[2].arbitration_id == 0x40 and not m[2].is_extended_id  # bus-off
+    assert m[3].is_remote_frame and m[3].dlc == 0
+    assert m[4].is_fd and m[4].bitrate_switch and bytes(m[4].data) == b"\xaa\xbb"
+    assert bytes(m[5].data) == b"\x01\x02\x03"
     for bad in ("12#00", "123", "123#0"):
-        with pytest.raises(ValueError):
-            player.parse_candump_frame(bad)
+        log.write_text(f"(1.000000) can0 {bad}\n")
+        with pytest.raises(player.PlayerError, match="frames.log:1"):
+            list(player.read_candump(log))
 
 
 def test_readers_and_bad_lines(tmp_path):

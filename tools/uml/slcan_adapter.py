@@ -11,7 +11,7 @@ the LAWICEL ASCII protocol over a tty. We attach it to a pty slave, rename the i
 * frames the host transmits (``t``/``T`` lines: the daemon's outputs) are logged in candump
   ``-L`` format;
 * a drive log (and GNSS capture, into a second pty) is played *into* can0 as received frames with
-  ``tools/player.py``'s scheduler, once the interface is open.
+  the package's player (``ecu_daemon.io.player``), once the interface is open.
 
 Needs root (TIOCSETD to N_SLCAN, ``ip link set name``) and the slcan module.
 """
@@ -19,14 +19,12 @@ from __future__ import annotations
 
 import argparse
 import fcntl
-import heapq
 import json
 import os
 import select
 import signal
 import struct
 import subprocess
-import sys
 import threading
 import time
 import tty
@@ -34,8 +32,7 @@ from pathlib import Path
 
 import can
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tools/ (player.py)
-import player  # noqa: E402
+from ecu_daemon.io import player
 
 N_SLCAN = 17
 TIOCSETD = 0x5423
@@ -183,10 +180,7 @@ def main(argv=None) -> int:
             pass
         if a.play and not stop.is_set():
             def events():
-                streams = [player.read_candump(a.play)]
-                if a.gnss:
-                    streams.append(player.read_gnss_capture(a.gnss))
-                return heapq.merge(*streams, key=lambda e: e.t)
+                return player.merged_events(a.play, a.gnss)
             loops = None if a.loop == "i" else int(a.loop)
             p_obj = player.Player(player.schedule(events, loops=loops), buses={None: link}, gnss=gnss)
             stats = p_obj.run()
