@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import collections
-import errno
 import io
 import math
 import os
@@ -32,6 +31,7 @@ from .daemon import Daemon, bus_overrides
 from .diagnostics import BUS_STATE_NAMES
 from .estimator import estimate as est_mod
 from .io.logging_setup import setup_logging
+from .io.player import Event, GnssPort, Player
 from .io.tick import ScaledClock
 
 DEG = 180.0 / math.pi
@@ -39,13 +39,15 @@ _STATUS_NAMES = [(getattr(est_mod, n), n[len("STATUS_"):].lower()) for n in dir(
 
 
 class Feeder(threading.Thread):
-    """Plays a :class:`~ecu_daemon.sim.SimResult` onto a virtual bus and a pty master in real time.
+    """Plays a :class:`~ecu_daemon.sim.SimResult` onto a virtual bus and a pty master in real time,
+    through the package's one player (:class:`~ecu_daemon.io.player.Player`).
 
     Simulated receive time ``s`` is sent at daemon-clock time ``c0 + (s - sim.t0)``. At
     ``speed == 1`` the virtual bus stamps frames with ``time.time()`` like a kernel would (so the
     daemon's realtime->monotonic mapping is exercised); otherwise frames carry the daemon's
-    (scaled) clock. The daemon's own output frames come back on this bus and are drained
-    (``outputs`` collects them with their arrival time when ``keep_outputs`` is set).
+    (scaled) clock. The daemon's own output frames come back on this bus and are drained while
+    waiting (``outputs`` collects them with their arrival time when ``keep_outputs`` is set).
+    ``frame_filter(t, kind, id, data) -> data | None`` changes or drops an event as it is due.
     """
 
     def __init__(self, sim, channel: str, gnss_fd: int, *, clock=time.monotonic, speed: float = 1.0,
@@ -54,16 +56,12 @@ class Feeder(threading.Thread):
         super().__init__(name="demo-feeder", daemon=True)
         self.sim = sim
         self.channel = channel
-        self.gnss_fd = gnss_fd
         self.clock = clock
         self.speed = speed
         self.lead_s = lead_s
         self.keep_outputs = keep_outputs
-        self.frame_filter = frame_filter  # f(t_sim, id, data) -> data | None (fault injection)
+        self.frame_filter = frame_filter  # f(t_sim, kind, id, data) -> data | None (fault injection)
         self.c0 = math.nan
-        self.frames_sent = 0
-        self.gnss_bytes = 0
-        self.gnss_dropped = 0
         self.outputs: list = []  # (daemon-clock arrival time, can.Message)
         self.played = threading.Event()  # every frame and GNSS byte is out
         self.finished = threading.Event()  # ... and the thread is done
@@ -72,12 +70,27 @@ class Feeder(threading.Thread):
             self._bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=speed != 1.0)
         else:  # a bus other processes see (e.g. udp_multicast): they stamp receive times themselves
             self._bus = can.Bus(**bus_config)
+        self._player = Player((), buses={None: self._bus}, gnss=GnssPort(fd=gnss_fd), clock=clock,
+                              rate=speed, stamp=clock if speed != 1.0 else None, idle=self._drain)
+
+    @property
+    def frames_sent(self) -> int:
+        return self._player.stats.can_sent
+
+    @property
+    def gnss_bytes(self) -> int:
+        return self._player.stats.gnss_bytes
+
+    @property
+    def gnss_dropped(self) -> int:
+        return self._player.stats.gnss_dropped
 
     def sim_time(self, t_daemon: float) -> float:
         return t_daemon - self.c0 + self.sim.t0
 
     def stop(self) -> None:
         self._stop_evt.set()
+        self._player.stop()
         if self.is_alive():
             self.join(5.0)
 
@@ -90,39 +103,31 @@ class Feeder(threading.Thread):
             if self.keep_outputs:
                 self.outputs.append((self.clock(), m))
 
-    def run(self) -> None:
-        sim, clock, speed = self.sim, self.clock, self.speed
+    def _events(self):
+        """(seconds after c0, Event), the fault filter applied as each comes due."""
+        sim = self.sim
         events = [(t, 0, fid, data) for t, fid, data in sim.can_frames]
         events += [(t, 1, None, payload) for t, payload in sim.gnss_messages]
         events.sort(key=lambda e: (e[0], e[1]))
         ext = sim.extended_ids
-        bus = self._bus
         s0 = sim.t0
-        self.c0 = c0 = clock() + self.lead_s
-        stamp = clock if speed != 1.0 else None
+        for t, kind, fid, data in events:
+            if self.frame_filter is not None:
+                data = self.frame_filter(t, kind, fid, data)
+                if data is None:
+                    continue
+            if kind == 0:
+                yield t - s0, Event(t, self.channel, can.Message(arbitration_id=fid, data=data,
+                                                                 is_extended_id=fid in ext, check=False))
+            else:
+                yield t - s0, Event(t, "gnss", None, data)
+
+    def run(self) -> None:
+        player = self._player
+        self.c0 = player.start_at = self.clock() + self.lead_s
+        player.events = self._events()
         try:
-            i, n = 0, len(events)
-            while i < n and not self._stop_evt.is_set():
-                now = clock()
-                while i < n and c0 + (events[i][0] - s0) <= now:
-                    t, kind, fid, data = events[i]
-                    i += 1
-                    if self.frame_filter is not None:
-                        data = self.frame_filter(t, kind, fid, data)
-                        if data is None:
-                            continue
-                    if kind == 0:
-                        msg = can.Message(arbitration_id=fid, data=data, is_extended_id=fid in ext,
-                                          timestamp=stamp() if stamp else 0.0, check=False)
-                        bus.send(msg)
-                        self.frames_sent += 1
-                    else:
-                        self._write_gnss(data)
-                self._drain()
-                if i < n:
-                    wait = (c0 + (events[i][0] - s0) - clock()) / speed
-                    if wait > 0:
-                        self._stop_evt.wait(min(wait, 0.1))
+            player.run()
             self.played.set()
             # keep draining briefly so late outputs are collected
             end = time.monotonic() + (0.2 if self.keep_outputs else 0.0)
@@ -131,21 +136,8 @@ class Feeder(threading.Thread):
                 self._stop_evt.wait(0.01)
         finally:
             self._drain()
-            bus.shutdown()
+            self._bus.shutdown()
             self.finished.set()
-
-    def _write_gnss(self, data: bytes) -> None:
-        try:
-            n = os.write(self.gnss_fd, data)
-            self.gnss_bytes += n
-            if n < len(data):
-                self.gnss_dropped += len(data) - n
-        except BlockingIOError:
-            self.gnss_dropped += len(data)  # nobody reading (port closed): like a receiver's lost bytes
-        except OSError as e:
-            if e.errno not in (errno.EIO, errno.EBADF):
-                raise
-            self.gnss_dropped += len(data)
 
 
 def open_gnss_pty() -> tuple[int, str]:
