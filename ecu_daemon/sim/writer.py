@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..canlog import CandumpWriter
 from ..config import CanSettings, Config, to_toml
 from ..gnss.logfile import GnssLogWriter
 from .run import SimResult
@@ -32,16 +33,11 @@ GNSS_PORT = "ttyACM0"
 CAN_CHANNEL = "can0"
 
 
-def candump_line(t: float, arbitration_id: int, data: bytes, extended: bool = False,
-                 channel: str = CAN_CHANNEL) -> str:
-    ident = f"{arbitration_id:08X}" if extended else f"{arbitration_id:03X}"
-    return f"({t:.6f}) {channel} {ident}#{data.hex().upper()}\n"
-
-
 def write_can_log(path: Path, result: SimResult) -> None:
     ext = result.extended_ids
-    with open(path, "w", encoding="ascii", newline="\n") as f:
-        f.writelines(candump_line(t, fid, data, fid in ext) for t, fid, data in result.can_frames)
+    with CandumpWriter(path, CAN_CHANNEL) as w:
+        for t, fid, data in result.can_frames:
+            w.write_frame(t, fid, data, fid in ext)
 
 
 def write_gnss_log(path: Path, result: SimResult) -> None:
