@@ -27,7 +27,7 @@ import numpy as np
 from . import config as config_mod
 from .canlog import CanLogError, open_can_writer, read_can_log
 from .errors import UnusableInputError, UserError
-from .estimate_csv import ROW_FORMAT, csv_header, format_row  # noqa: F401  (tools import them here)
+from .estimate_csv import ROW_FORMAT, csv_header
 from .estimator import Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .io.health import gap_line
