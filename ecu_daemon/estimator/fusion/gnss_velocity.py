@@ -21,8 +21,10 @@ import math
 import numpy as np
 
 from ...samples import GnssSample
+from .. import generated as gen
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
-from ..kinematic import NX, VX, VY, antenna_velocity_ne, gnss_jacobian
+from ..kalman import joseph
+from ..kinematic import NX, VX, jacobian
 
 ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
@@ -38,6 +40,7 @@ CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
 #: a GNSS speed above this (m/s) is a receiver fault, not a car: rejected and reported to the FDI
 MAX_PLAUSIBLE_SPEED = 150.0
 IMPLAUSIBLE = "implausible velocity"
+NOT_PD = "covariance not positive definite after the correction"
 
 
 class GnssVelocityFusion:
@@ -83,30 +86,28 @@ class GnssVelocityFusion:
         i = hist.slot(s)
         x = hist.X[i]
         P = hist.P[i]
-        r = hist.aux[i, AUX_R]
-        vax = x[VX] - r * self.lever_y
-        vay = x[VY] + r * self.lever_x
-        sp = math.hypot(vax, vay)
+        args = (*x.tolist(), hist.aux[i, AUX_R], self.lever_x, self.lever_y)
+        (sp,) = gen.gnss_speed(*args)
         zs = g.speed_mps
-        if sp < 0.5:
+        if sp < 0.5:  # the direction is noise: the speed is vx
             h = np.zeros(NX)
             h[VX] = 1.0
+            sp = x[VX]
         else:
-            h = np.zeros(NX)
-            h[VX] = vax / sp
-            h[VY] = vay / sp
+            h = jacobian(gen.GNSS_SPEED_H, gen.gnss_speed_H(*args), 1)[0]
         a = hist.aux[i]
         sig2 = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
         Ph = P @ h
         S = float(h @ Ph) + sig2
-        y = zs - (sp if sp >= 0.5 else x[VX])
+        y = zs - sp
         if y * y > 25.0 * S:
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = "speed innovation gate"
             return False
         K = Ph / S
-        hist.correct(s, K * y, np.outer(K, Ph))
+        if not self._correct(hist, s, K * y, P - joseph(P, K[:, None], h[None, :], np.array([[sig2]]))):
+            return False
         self.consecutive_rejects = 0
         self.fused += 1
         return True
@@ -125,23 +126,23 @@ class GnssVelocityFusion:
         i = hist.slot(s)
         x = hist.X[i]
         P = hist.P[i]
-        r = hist.aux[i, AUX_R]
-        vn, ve = antenna_velocity_ne(x, r, self.lever_x, self.lever_y)
-        H = gnss_jacobian(x, r, self.lever_x, self.lever_y)
+        args = (*x.tolist(), hist.aux[i, AUX_R], self.lever_x, self.lever_y)
+        vn, ve = gen.gnss_velocity(*args)
+        H = jacobian(gen.GNSS_VELOCITY_H, gen.gnss_velocity_H(*args), 2)
         a = hist.aux[i]
         d2 = delay_std_s * delay_std_s
         sig2 = self.sigma(g) ** 2
         y = np.array([g.vel_n_mps - vn, g.vel_e_mps - ve])
         PHt = P @ H.T
-        S = H @ PHt
         sp = math.hypot(vn, ve)
-        u = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
+        u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
         iso = sig2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
         along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
-        S[0, 0] += iso + along * u[0] * u[0]
-        S[1, 1] += iso + along * u[1] * u[1]
-        S[0, 1] += along * u[0] * u[1]
-        S[1, 0] = S[0, 1]
+        R = np.array([[iso + along * u0 * u0, along * u0 * u1], [along * u0 * u1, iso + along * u1 * u1]])
+        S = H @ PHt
+        S += S.T.copy()
+        S *= 0.5
+        S += R
         Sinv = np.linalg.inv(S)
         nis = float(y @ Sinv @ y)
         if gate and nis > self.gate:
@@ -150,10 +151,20 @@ class GnssVelocityFusion:
             self.last_reason = f"innovation gate (NIS {nis:.1f})"
             return False
         K = PHt @ Sinv
-        hist.correct(s, K @ y, K @ PHt.T)
+        if not self._correct(hist, s, K @ y, P - joseph(P, K, H, R)):
+            return False
         self.consecutive_rejects = 0
         self.fused += 1
         return True
+
+    def _correct(self, hist: StepHistory, s: int, dx: np.ndarray, M: np.ndarray) -> bool:
+        """Apply the correction through the history; a covariance that would lose positive
+        definiteness (rounding, or a model gone wrong) rejects the fix instead."""
+        if hist.correct(s, dx, M):
+            return True
+        self.rejected += 1
+        self.last_reason = NOT_PD
+        return False
 
     @staticmethod
     def course(g: GnssSample) -> float:
