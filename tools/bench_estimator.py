@@ -145,9 +145,10 @@ def bench_steps(cfg, events, steps: int, profile: bool = False) -> dict:
     def timed_correct(s, dx, M):
         depth = hist.last - s
         t0 = perf()
-        correct(s, dx, M)
+        ok = correct(s, dx, M)
         t1 = perf()
         correct_calls.append((t1 - t0, depth))
+        return ok
 
     est._on_gnss = timed_on_gnss
     hist.correct = timed_correct
