@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ecu_daemon.estimator import generated as gen
-from ecu_daemon.estimator.kinematic import BR, NX, KinematicModel, jacobian
+from ecu_daemon.estimator.kinematic import BR, NX, KinematicModel
 
 ROOT = Path(__file__).resolve().parents[1]
 RNG = np.random.default_rng(20261202)
@@ -27,6 +27,14 @@ def random_states(n=25):
     x[:, 6] = RNG.uniform(0.9, 1.1, n)
     x[:, 7] = RNG.uniform(-0.05, 0.05, n)
     return x
+
+
+def jacobian(entries, values, rows):
+    """A dense Jacobian from a generated function's nonzero ``entries`` and their ``values``."""
+    H = np.zeros((rows, NX))
+    for (i, j), v in zip(entries, values):
+        H[i, j] = v
+    return H
 
 
 def numeric_jacobian(fun, x, eps=1e-6):

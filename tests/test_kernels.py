@@ -137,6 +137,38 @@ def test_update_is_joseph_form():
             assert P[0, 0] > 0.0 and np.linalg.eigvalsh(P).min() > 0.0
 
 
+@pytest.mark.parametrize("m", [1, 2])
+def test_late_update_agrees_and_is_the_joseph_reduction(m):
+    P0 = spd()
+    H = RNG.normal(size=(m, NX))
+    R = np.diag(RNG.uniform(0.1, 0.5, m))
+    y = RNG.normal(size=m)
+
+    def run():
+        dx, M = np.zeros(NX), np.zeros((NX, NX))
+        nis = kalman.late_update(P0.copy(), H, R, y, dx, M)
+        return nis, dx, M
+
+    (nr, dxr, Mr), (nc, dxc, Mc) = _both(run)
+    S = H @ P0 @ H.T + R
+    K = P0 @ H.T @ np.linalg.inv(S)
+    assert nc == pytest.approx(float(y @ np.linalg.solve(S, y)), rel=1e-12) and nr == pytest.approx(nc, rel=1e-12)
+    np.testing.assert_allclose(dxc, K @ y, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(dxr, dxc, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(Mc, K @ S @ K.T, rtol=1e-9, atol=1e-12)  # = P - Joseph(P) at the optimal K
+    np.testing.assert_allclose(Mr, Mc, rtol=1e-10, atol=1e-13)
+    assert np.array_equal(Mc, Mc.T) and np.array_equal(Mr, Mr.T)
+
+
+def test_late_update_without_a_positive_innovation_covariance_is_nan():
+    for compiled in (False, True):
+        with kernels(compiled):
+            P = np.zeros((NX, NX))
+            dx, M = np.zeros(NX), np.zeros((NX, NX))
+            nis = kalman.late_update(P, np.ones((2, NX)), np.zeros((2, 2)), np.ones(2), dx, M)
+            assert nis != nis
+
+
 def _history(n=40, last=100):
     h = StepHistory(n)
     h.reset(last - n + 1)

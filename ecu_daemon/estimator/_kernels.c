@@ -422,6 +422,135 @@ r_x:
     return ret;
 }
 
+/* late_update(P, H, R, y, dx, M) -> NIS: a 1- or 2-D measurement update computed at a stored
+ * step without applying it: dx = K y and the covariance reduction M = P - Joseph(P), for
+ * correct(). NaN if the innovation covariance is not positive definite. */
+static PyObject *k_late_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "late_update(P, H, R, y, dx, M)");
+        return NULL;
+    }
+    Py_buffer bP, bH, bR, by, bd, bM;
+    PyObject *ret = NULL;
+    double *P = get_doubles(args[0], &bP, N * N, "P");
+    if (!P)
+        return NULL;
+    double *H = get_doubles(args[1], &bH, -N, "H");
+    if (!H)
+        goto u_p;
+    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
+    if (m > 2) {
+        PyErr_SetString(PyExc_ValueError, "late_update: at most 2 rows");
+        goto u_h;
+    }
+    double *R = get_doubles(args[2], &bR, m * m, "R");
+    if (!R)
+        goto u_h;
+    double *y = get_doubles(args[3], &by, m, "y");
+    if (!y)
+        goto u_r;
+    double *dx = get_doubles(args[4], &bd, N, "dx");
+    if (!dx)
+        goto u_y;
+    double *Mo = get_doubles(args[5], &bM, N * N, "M");
+    if (!Mo)
+        goto u_d;
+    double PHt[N][2], S[2][2], Si[2][2], K[N][2], nis;
+    for (int a = 0; a < N; a++)
+        for (int i = 0; i < m; i++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += P[a * N + b] * H[i * N + b];
+            PHt[a][i] = v;
+        }
+    for (int i = 0; i < m; i++)
+        for (int j = 0; j < m; j++) {
+            double v = 0.0;
+            for (int a = 0; a < N; a++)
+                v += H[i * N + a] * PHt[a][j];
+            S[i][j] = v;
+        }
+    if (m == 2)
+        S[0][1] = S[1][0] = 0.5 * (S[0][1] + S[1][0]);
+    for (int i = 0; i < m; i++)
+        for (int j = 0; j < m; j++)
+            S[i][j] += R[i * m + j];
+    if (m == 1) {
+        if (!(S[0][0] > 0.0))
+            goto not_pd;
+        Si[0][0] = 1.0 / S[0][0];
+        nis = y[0] * y[0] * Si[0][0];
+    } else {
+        double det = S[0][0] * S[1][1] - S[0][1] * S[1][0];
+        if (!(S[0][0] > 0.0) || !(det > 0.0))
+            goto not_pd;
+        Si[0][0] = S[1][1] / det;
+        Si[1][1] = S[0][0] / det;
+        Si[0][1] = Si[1][0] = -S[0][1] / det;
+        nis = y[0] * (Si[0][0] * y[0] + Si[0][1] * y[1]) + y[1] * (Si[1][0] * y[0] + Si[1][1] * y[1]);
+    }
+    for (int a = 0; a < N; a++) {
+        double d = 0.0;
+        for (int j = 0; j < m; j++) {
+            double v = 0.0;
+            for (int i = 0; i < m; i++)
+                v += PHt[a][i] * Si[i][j];
+            K[a][j] = v;
+            d += v * y[j];
+        }
+        dx[a] = d;
+    }
+    {
+        /* Joseph: B = P - K (H P) = P - K PHt'; J = B - (B H') K' + K R K'; M = P - J */
+        double B[N * N], BHt[N][2];
+        for (int a = 0; a < N; a++)
+            for (int b = 0; b < N; b++) {
+                double v = P[a * N + b];
+                for (int i = 0; i < m; i++)
+                    v -= K[a][i] * PHt[b][i];
+                B[a * N + b] = v;
+            }
+        for (int a = 0; a < N; a++)
+            for (int i = 0; i < m; i++) {
+                double v = 0.0;
+                for (int b = 0; b < N; b++)
+                    v += B[a * N + b] * H[i * N + b];
+                BHt[a][i] = v;
+            }
+        for (int a = 0; a < N; a++)
+            for (int b = 0; b < N; b++) {
+                double v = B[a * N + b];
+                for (int i = 0; i < m; i++) {
+                    v -= BHt[a][i] * K[b][i];
+                    double kr = 0.0;
+                    for (int j = 0; j < m; j++)
+                        kr += K[a][j] * R[j * m + i];
+                    v += kr * K[b][i];
+                }
+                Mo[a * N + b] = P[a * N + b] - v;
+            }
+        symmetrize(Mo);
+    }
+    ret = PyFloat_FromDouble(nis);
+    goto u_m;
+not_pd:
+    ret = PyFloat_FromDouble(NAN);
+u_m:
+    PyBuffer_Release(&bM);
+u_d:
+    PyBuffer_Release(&bd);
+u_y:
+    PyBuffer_Release(&by);
+u_r:
+    PyBuffer_Release(&bR);
+u_h:
+    PyBuffer_Release(&bH);
+u_p:
+    PyBuffer_Release(&bP);
+    return ret;
+}
+
 static PyObject *k_positive_definite(PyObject *self, PyObject *arg)
 {
     Py_buffer b;
@@ -446,6 +575,8 @@ static PyMethodDef methods[] = {
     {"symmetrize", k_symmetrize, METH_O, "symmetrize(P): P <- (P + P') / 2 in place"},
     {"correct", (PyCFunction)(void (*)(void))k_correct, METH_FASTCALL,
      "correct(X, P, A, s, last, dx, M) -> applied (False: a covariance would not be positive definite)"},
+    {"late_update", (PyCFunction)(void (*)(void))k_late_update, METH_FASTCALL,
+     "late_update(P, H, R, y, dx, M) -> NIS; dx = K y, M = P - Joseph(P) (NaN: S not positive definite)"},
     {"positive_definite", k_positive_definite, METH_O,
      "positive_definite(P) -> every 8x8 matrix of the stack is finite and positive definite"},
     {NULL, NULL, 0, NULL},

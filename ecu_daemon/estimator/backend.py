@@ -2,8 +2,9 @@
 
 The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under the same names,
 ``kinematic.KinematicModel.predict``, ``kalman.scalar_update`` / ``index_update`` /
-``symmetrize`` and ``history.StepHistory.correct``; the pure-Python ``*_reference`` versions of
-the same math stay, for machines without the extension and for the tests that compare the two.
+``late_update`` / ``symmetrize`` and ``history.StepHistory.correct``; the pure-Python
+``*_reference`` versions of the same math stay, for machines without the extension and for the
+tests that compare the two.
 """
 from __future__ import annotations
 
@@ -40,6 +41,7 @@ def select(use_compiled: bool = True) -> str:
     kalman.scalar_update = compiled.scalar_update if on else kalman.scalar_update_reference
     kalman.index_update = compiled.index_update if on else kalman.index_update_reference
     kalman.symmetrize = compiled.symmetrize if on else kalman.symmetrize_reference
+    kalman.late_update = compiled.late_update if on else kalman.late_update_reference
     return active()
 
 

@@ -60,6 +60,23 @@ def index_update_reference(x: np.ndarray, P: np.ndarray, innovation: float, i: i
     return True
 
 
+def late_update_reference(P: np.ndarray, H: np.ndarray, R: np.ndarray, y: np.ndarray, dx: np.ndarray,
+                          M: np.ndarray) -> float:
+    """A 1- or 2-D update at a stored step, not applied: dx <- K y, M <- P - Joseph(P) (for
+    ``StepHistory.correct``); returns the normalised innovation squared (NaN: S not PD)."""
+    PHt = P @ H.T
+    S = H @ PHt
+    S = 0.5 * (S + S.T) + R
+    if not (S[0, 0] > 0.0 and np.linalg.det(S) > 0.0):
+        return float("nan")
+    Sinv = np.linalg.inv(S)
+    K = PHt @ Sinv
+    dx[:] = K @ y
+    M[:] = P - joseph(P, K, H, R)
+    symmetrize_reference(M)
+    return float(y @ Sinv @ y)
+
+
 def symmetrize_reference(P: np.ndarray) -> None:
     """P <- (P + P') / 2 in place: exactly symmetric."""
     P += P.T.copy()
@@ -68,4 +85,5 @@ def symmetrize_reference(P: np.ndarray) -> None:
 
 scalar_update = scalar_update_reference
 index_update = index_update_reference
+late_update = late_update_reference
 symmetrize = symmetrize_reference

@@ -81,14 +81,6 @@ class KinematicModel:
     predict = predict_reference
 
 
-def jacobian(entries, values, rows: int) -> np.ndarray:
-    """A dense Jacobian from a generated function's nonzero ``entries`` and their ``values``."""
-    H = np.zeros((rows, NX))
-    for (i, j), v in zip(entries, values):
-        H[i, j] = v
-    return H
-
-
 def wrap_pi(a: float) -> float:
     """Wrap an angle to [-pi, pi)."""
     return (a + math.pi) % TWO_PI - math.pi

@@ -22,9 +22,9 @@ import numpy as np
 
 from ...samples import GnssSample
 from .. import generated as gen
+from .. import kalman
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
-from ..kalman import joseph
-from ..kinematic import NX, VX, jacobian
+from ..kinematic import NX, VX
 
 ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
@@ -41,6 +41,9 @@ CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
 MAX_PLAUSIBLE_SPEED = 150.0
 IMPLAUSIBLE = "implausible velocity"
 NOT_PD = "covariance not positive definite after the correction"
+# flat indices of the generated Jacobians' nonzero entries in the preallocated H
+VELOCITY_H_FLAT = [i * NX + j for i, j in gen.GNSS_VELOCITY_H]
+SPEED_H_FLAT = [i * NX + j for i, j in gen.GNSS_SPEED_H]
 
 
 class GnssVelocityFusion:
@@ -57,6 +60,11 @@ class GnssVelocityFusion:
         self.late = 0
         self.consecutive_rejects = 0
         self.last_reason = ""
+        # preallocated update operands (fusion is not re-entrant: one estimator, one thread)
+        self._H1, self._H2 = np.zeros((1, NX)), np.zeros((2, NX))
+        self._R1, self._R2 = np.zeros((1, 1)), np.zeros((2, 2))
+        self._y1, self._y2 = np.zeros(1), np.zeros(2)
+        self._dx, self._M = np.zeros(NX), np.zeros((NX, NX))
 
     def sigma(self, g: GnssSample) -> float:
         acc = g.speed_acc_mps
@@ -81,32 +89,30 @@ class GnssVelocityFusion:
         return True
 
     def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample, delay_std_s: float = 0.0) -> bool:
-        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only; ``delay_std_s`` as in :meth:`fuse` (a start-up
-        acceleration with the latency still unknown must not be read as a wheel-scale error)."""
+        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only;
+        ``delay_std_s`` as in :meth:`fuse` (a start-up acceleration with the latency still
+        unknown must not be read as a wheel-scale error)."""
         i = hist.slot(s)
         x = hist.X[i]
-        P = hist.P[i]
-        args = (*x.tolist(), hist.aux[i, AUX_R], self.lever_x, self.lever_y)
+        a = hist.aux[i]
+        args = (*x.tolist(), a[AUX_R], self.lever_x, self.lever_y)
         (sp,) = gen.gnss_speed(*args)
-        zs = g.speed_mps
+        H = self._H1
+        H.fill(0.0)
         if sp < 0.5:  # the direction is noise: the speed is vx
-            h = np.zeros(NX)
-            h[VX] = 1.0
+            H[0, VX] = 1.0
             sp = x[VX]
         else:
-            h = jacobian(gen.GNSS_SPEED_H, gen.gnss_speed_H(*args), 1)[0]
-        a = hist.aux[i]
-        sig2 = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
-        Ph = P @ h
-        S = float(h @ Ph) + sig2
-        y = zs - sp
-        if y * y > 25.0 * S:
+            H.put(SPEED_H_FLAT, gen.gnss_speed_H(*args))
+        self._R1[0, 0] = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
+        self._y1[0] = g.speed_mps - sp
+        nis = kalman.late_update(hist.P[i], H, self._R1, self._y1, self._dx, self._M)
+        if not nis <= 25.0:  # 5 sigma (NaN: no usable innovation covariance)
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = "speed innovation gate"
             return False
-        K = Ph / S
-        if not self._correct(hist, s, K * y, P - joseph(P, K[:, None], h[None, :], np.array([[sig2]]))):
+        if not self._correct(hist, s, self._dx, self._M):
             return False
         self.consecutive_rejects = 0
         self.fused += 1
@@ -124,34 +130,26 @@ class GnssVelocityFusion:
         effect on heading is published in the heading std by the core.
         """
         i = hist.slot(s)
-        x = hist.X[i]
-        P = hist.P[i]
-        args = (*x.tolist(), hist.aux[i, AUX_R], self.lever_x, self.lever_y)
-        vn, ve = gen.gnss_velocity(*args)
-        H = jacobian(gen.GNSS_VELOCITY_H, gen.gnss_velocity_H(*args), 2)
         a = hist.aux[i]
+        args = (*hist.X[i].tolist(), a[AUX_R], self.lever_x, self.lever_y)
+        vn, ve = gen.gnss_velocity(*args)
+        H = self._H2
+        H.put(VELOCITY_H_FLAT, gen.gnss_velocity_H(*args))
         d2 = delay_std_s * delay_std_s
-        sig2 = self.sigma(g) ** 2
-        y = np.array([g.vel_n_mps - vn, g.vel_e_mps - ve])
-        PHt = P @ H.T
         sp = math.hypot(vn, ve)
         u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
-        iso = sig2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
+        iso = self.sigma(g) ** 2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
         along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
-        R = np.array([[iso + along * u0 * u0, along * u0 * u1], [along * u0 * u1, iso + along * u1 * u1]])
-        S = H @ PHt
-        S += S.T.copy()
-        S *= 0.5
-        S += R
-        Sinv = np.linalg.inv(S)
-        nis = float(y @ Sinv @ y)
-        if gate and nis > self.gate:
+        R = self._R2
+        R.flat = (iso + along * u0 * u0, along * u0 * u1, along * u0 * u1, iso + along * u1 * u1)
+        self._y2.flat = (g.vel_n_mps - vn, g.vel_e_mps - ve)
+        nis = kalman.late_update(hist.P[i], H, R, self._y2, self._dx, self._M)
+        if not nis == nis or (gate and nis > self.gate):  # NaN: no usable innovation covariance
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = f"innovation gate (NIS {nis:.1f})"
             return False
-        K = PHt @ Sinv
-        if not self._correct(hist, s, K @ y, P - joseph(P, K, H, R)):
+        if not self._correct(hist, s, self._dx, self._M):
             return False
         self.consecutive_rejects = 0
         self.fused += 1
