@@ -14,12 +14,17 @@ from . import history, kalman, kinematic
 
 log = logging.getLogger(__name__)
 
+KERNELS = ("predict", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
+
 try:
     from . import _kernels as compiled
     _import_error = ""
 except ImportError as e:  # no compiler at install time, or a source checkout never built
     compiled = None
     _import_error = str(e)
+if compiled is not None and not all(hasattr(compiled, name) for name in KERNELS):
+    _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
+    compiled = None
 
 _announced = False
 
