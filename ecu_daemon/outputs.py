@@ -150,14 +150,43 @@ class _Field:
         self.modulus = 1 << signal.length
 
 
+def _layout(message):
+    """The message's bit layout precompiled for :func:`_pack`: per signal (name, cantools' own
+    scaled-to-raw conversion, shift, mask, raw range); None if a signal is big-endian or float
+    (those frames keep ``Message.encode``)."""
+    out = []
+    for sig in message.signals:
+        if sig.byte_order != "little_endian" or sig.is_float:
+            return None
+        n = sig.length
+        lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
+        out.append((sig.name, sig.conversion.numeric_scaled_to_raw, sig.start, (1 << n) - 1, lo, hi))
+    return out
+
+
+def _pack(layout, values: dict, length: int) -> bytearray | None:
+    """The payload ``Message.encode(values, scaling=True, padding=False, strict=False)`` gives,
+    without its per-call generality (tests/test_outputs.py checks them equal); None if a raw value
+    does not fit its bits."""
+    acc = 0
+    for name, to_raw, shift, mask, lo, hi in layout:
+        raw = to_raw(values[name])
+        if raw < lo or raw > hi:
+            return None
+        acc |= (raw & mask) << shift
+    return bytearray(acc.to_bytes(length, "little"))
+
+
 class _MessagePlan:
-    __slots__ = ("name", "message", "encode", "frame_id", "data_id", "period", "phase", "counter",
-                 "values", "fields", "valid", "status", "pages")
+    __slots__ = ("name", "message", "encode", "layout", "length", "frame_id", "data_id", "period", "phase",
+                 "counter", "values", "fields", "valid", "status", "pages")
 
     def __init__(self, message, period: int):
         self.name = message.name
         self.message = message
         self.encode = message.encode
+        self.layout = None if message.is_multiplexed() else _layout(message)
+        self.length = message.length
         self.frame_id = message.frame_id
         self.data_id = data_id_for(message)
         self.period = period
@@ -290,7 +319,9 @@ class OutputEncoder:
                         values[ssig] = 1 if status & mask else 0
             values["COUNTER"] = p.counter
             p.counter = (p.counter + 1) & 0xF
-            payload = bytearray(p.encode(values, True, False, False))
+            payload = None if p.layout is None else _pack(p.layout, values, p.length)
+            if payload is None:
+                payload = bytearray(p.encode(values, True, False, False))
             payload[0] = e2e_p2_crc(payload, p.data_id)
             out.append(can.Message(timestamp=t, arbitration_id=p.frame_id, is_extended_id=False,
                                    data=payload, check=False))

@@ -268,3 +268,38 @@ def test_diagnostics_summary_is_one_line_naming_problems():
     line = d.summary()
     assert "\n" not in line and "bus-off" in line and "port closed" in line and "input errors 2" in line
     assert "1/8 fresh" in line and "wheel_speed_fl" in line and "yaw_rate," not in line
+
+
+def test_precompiled_layout_packs_exactly_what_cantools_encodes(enc):
+    """The per-frame fast path (outputs._pack) against ``Message.encode`` on every output message:
+    random raw values over each signal's whole bit range, as the scaled values the encoder feeds."""
+    import random
+
+    from ecu_daemon.outputs import _layout, _pack
+
+    rng = random.Random(5)
+    checked = 0
+    for msg in enc.db.messages:
+        layout = _layout(msg)
+        if msg.is_multiplexed():
+            continue  # EST_DIAG keeps cantools' multiplexing
+        assert layout is not None, msg.name  # our DBC is all Intel integers
+        for _ in range(300):
+            values = {}
+            for sig in msg.signals:
+                n = sig.length
+                lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
+                raw = rng.choice((lo, hi, 0, rng.randint(lo, hi)))
+                v = raw * sig.scale + sig.offset
+                values[sig.name] = v + rng.uniform(-0.49, 0.49) * sig.scale if isinstance(v, float) else v
+            assert _pack(layout, values, msg.length) == msg.encode(values, True, False, False), msg.name
+            checked += 1
+    assert checked >= 300 * 5
+
+
+def test_a_big_endian_message_keeps_cantools_encode(tmp_path):
+    from ecu_daemon.outputs import _layout
+
+    db = cantools.database.load_string(
+        'VERSION ""\nBO_ 256 M: 8 ECU\n SG_ A : 7|16@0+ (1,0) [0|65535] "" ECU\n', database_format="dbc")
+    assert _layout(db.messages[0]) is None

@@ -5,6 +5,7 @@ import importlib.metadata
 import importlib.resources
 import subprocess
 import sys
+import tarfile
 import zipfile
 from pathlib import Path
 
@@ -74,3 +75,24 @@ def test_wheel_ships_the_dbcs_and_the_licence_and_no_data_files(tmp_path):
     meta = zipfile.ZipFile(whl).read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
     requires = [ln.split(":", 1)[1].strip() for ln in meta.splitlines() if ln.startswith("Requires-Dist:")]
     assert "python-can>=4.6" in requires and "crccheck>=1.3" in requires  # imported directly
+    # the compiled estimator kernels are built into the wheel (setup.py)
+    assert [n for n in names if n.startswith("ecu_daemon/estimator/_kernels.") and n.endswith(".so")], names
+
+
+def test_sdist_carries_the_kernel_sources_and_builds_them(tmp_path):
+    """A user installing from the sdist (no repository) gets the compiled kernels too."""
+    sdist_dir, wheel_dir = tmp_path / "sdist", tmp_path / "wheel"
+    sdist_dir.mkdir()
+    code = f"from setuptools import build_meta; print(build_meta.build_sdist({str(sdist_dir)!r}))"
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    (sdist,) = sdist_dir.glob("ecu[-_]daemon-*.tar.gz")
+    with tarfile.open(sdist) as tf:
+        names = {n.split("/", 1)[1] for n in tf.getnames() if "/" in n}
+    assert {"setup.py", "ecu_daemon/estimator/_kernels.c", "ecu_daemon/estimator/_generated.h",
+            "ecu_daemon/estimator/generated.py"} <= names
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheel_dir), str(sdist)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-2000:]
+    (whl,) = wheel_dir.glob("ecu_daemon-*.whl")
+    assert [n for n in zipfile.ZipFile(whl).namelist() if n.startswith("ecu_daemon/estimator/_kernels.")]

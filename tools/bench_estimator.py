@@ -18,9 +18,13 @@ config, ``[gnss] delay_s = 0.5``, ``estimate_delay = false`` so every rewind is 
    as a multiple of real time; breakdown from separate timings of each stage on the same files.
 4. FilterPy: ``filterpy.kalman.ExtendedKalmanFilter`` with ``predict_x`` overridden by the same
    8-state kinematic model and the same F and Q as ``KinematicModel``; its ``predict()`` vs
-   ``KinematicModel.predict`` and vs the whole estimator step, on the same inputs.
+   ``KinematicModel.predict`` and vs the whole estimator step, on the same inputs; and a bare
+   FilterPy EKF step of the same problem (predict + the wheel-speed update, derived h and H),
+   the yardstick for the whole replay's cost per step.
+5. ``--reference``: the step and GNSS rows again with the pure-Python reference kernels
+   (``backend.select(False)``), in the same run, for a before/after at the same load.
 
-    python3 tools/bench_estimator.py [--steps 20000] [--quick] [--json] [--profile]
+    python3 tools/bench_estimator.py [--steps 20000] [--quick] [--json] [--profile] [--reference]
 
 The machine is shared: the load average is printed with the results. Wall-clock percentiles include
 preemption by other processes and GC pauses; the thread-CPU-time rows of the same steps do not
@@ -53,7 +57,8 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from ecu_daemon import config as config_mod
 from ecu_daemon.canlog import CandumpWriter, read_can_log
-from ecu_daemon.estimator import Estimator
+from ecu_daemon.estimator import Estimator, backend
+from ecu_daemon.estimator import generated as gen
 from ecu_daemon.estimator.kinematic import (
     BAX,
     BAY,
@@ -145,9 +150,10 @@ def bench_steps(cfg, events, steps: int, profile: bool = False) -> dict:
     def timed_correct(s, dx, M):
         depth = hist.last - s
         t0 = perf()
-        correct(s, dx, M)
+        ok = correct(s, dx, M)
         t1 = perf()
         correct_calls.append((t1 - t0, depth))
+        return ok
 
     est._on_gnss = timed_on_gnss
     hist.correct = timed_correct
@@ -160,7 +166,7 @@ def bench_steps(cfg, events, steps: int, profile: bool = False) -> dict:
     plain, with_gnss, gnss_fused_steps = [], [], []
     plain_cpu, gnss_cpu = [], []  # thread CPU time of the same steps (excludes preemption)
     cpu = time.thread_time_ns
-    inputs = []  # (r_m, ax_m, ay_m) held at each measured step, for the FilterPy comparison
+    inputs = []  # (r_m, ax_m, ay_m, wheel speed) held at each measured step, for the FilterPy comparison
     held = est.held
     prof = cProfile.Profile() if profile else None
     gc.collect()
@@ -196,7 +202,7 @@ def bench_steps(cfg, events, steps: int, profile: bool = False) -> dict:
             else:
                 plain.append(t1 - t0)
                 plain_cpu.append(c1 - c0)
-            inputs.append((held[I_YAW], held[I_AX], held[I_AY]))
+            inputs.append((held[I_YAW], held[I_AX], held[I_AY], est.wheels.measured_speed(*held[:4])))
         k += 1
     # timer overhead: two back-to-back reads
     ovh = []
@@ -232,6 +238,9 @@ def bench_steps(cfg, events, steps: int, profile: bool = False) -> dict:
         "final_x": est.hist.X[est.hist.slot(est.hist.last)].copy(),
         "final_P": est.hist.P[est.hist.slot(est.hist.last)].copy(),
         "inputs": inputs,
+        "wheel_frac": est.wheels.frac,
+        "wheel_noise2": est.wheels.noise2,
+        "kernels": backend.active(),
     }
     res["gnss"]["extra_step_us"] = res["gnss_step_us"]["median"] - res["plain_step_us"]["median"]
     if prof is not None:
@@ -274,7 +283,7 @@ class KinematicEKF(ExtendedKalmanFilter):
         F[VY, GAY] = -ay_m * dt
 
 
-def bench_filterpy(cfg, x0, P0, inputs) -> dict:
+def bench_filterpy(cfg, x0, P0, inputs, frac: float, wheel_r: float) -> dict:
     es = cfg.estimator
     model = KinematicModel(es.dt_s, es.accel_noise_mps2, es.yaw_rate_noise_radps,
                            es.yaw_rate_bias_walk, es.accel_bias_walk, es.wheel_scale_walk)
@@ -287,7 +296,7 @@ def bench_filterpy(cfg, x0, P0, inputs) -> dict:
     gc.collect()
     for u in inputs:
         t0 = perf()
-        ekf.predict(u)
+        ekf.predict(u[:3])
         t1 = perf()
         fp.append(t1 - t0)
         t0 = perf()
@@ -297,8 +306,33 @@ def bench_filterpy(cfg, x0, P0, inputs) -> dict:
         Pa, Pb = Pb, Pa
     dx = float(np.max(np.abs(ekf.x[:, 0] - x)))
     dP = float(np.max(np.abs(ekf.P - Pa)))
+
+    # a bare FilterPy EKF of the same problem: predict, then the wheel-speed update (derived h, H)
+    wh_cols = [j for _, j in gen.WHEEL_SPEED_H]
+    lf = cfg.vehicle.cg_to_front_axle_m
+
+    def hx(xc, r):
+        return np.array([[gen.wheel_speed(*xc[:, 0], r, lf, frac, 0.0)[0]]])
+
+    def h_jac(xc, r):
+        H = np.zeros((1, NX))
+        H[0, wh_cols] = gen.wheel_speed_H(*xc[:, 0], r, lf, frac, 0.0)
+        return H
+
+    ekf = KinematicEKF(model, x0, P0)
+    full = []
+    Rw = np.array([[wheel_r]])
+    gc.collect()
+    for u in inputs:
+        t0 = perf()
+        ekf.predict(u[:3])
+        if math.isfinite(u[3]):
+            r = u[0] - ekf.x[BR, 0]
+            ekf.update(np.array([[u[3]]]), h_jac, hx, R=Rw, args=(r,), hx_args=(r,))
+        t1 = perf()
+        full.append(t1 - t0)
     return {"filterpy_predict_us": stats_us(fp), "kinematic_predict_us": stats_us(ours),
-            "max_abs_diff_x": dx, "max_abs_diff_P": dP}
+            "filterpy_step_us": stats_us(full), "max_abs_diff_x": dx, "max_abs_diff_P": dP}
 
 
 # ------------------------------------------------------------------------------------------------
@@ -413,6 +447,15 @@ def print_table(r: dict) -> None:
     f = r["filterpy"]
     row("KinematicModel.predict [us]", f["kinematic_predict_us"])
     row("FilterPy EKF predict (same F, Q) [us]", f["filterpy_predict_us"])
+    row("FilterPy EKF step: predict + wheel update [us]", f["filterpy_step_us"])
+    if "reference" in r:
+        ref = r["reference"]
+        print(f"with the pure-Python reference kernels (same run), vs compiled ({s['kernels']}):")
+        row("  estimator step, no GNSS [us]", ref["plain_step_us"])
+        row("  estimator step, all steps [us]", ref["all_steps_us"])
+        row("  estimator step fusing GNSS (0.5 s) [us]", ref["gnss_step_us"])
+        row("  Estimator._on_gnss, 2-D fused [us]", ref["gnss"]["on_gnss_fused_2d_us"])
+        row("  StepHistory.correct [us]", ref["gnss"]["correct_us"])
     print()
     print(f"GNSS: {g['fused_2d']} fixes fused 2-D ({g['fused_total']} fused, {g['rejected']} rejected), "
           f"rewind {g['rewind_steps_median']:.0f} steps (min {g['rewind_steps_min']}, max "
@@ -437,6 +480,11 @@ def print_table(r: dict) -> None:
     for name, v in bd.items():
         print(f"    {name:24s} {v:6.2f} s {100 * v / tot:5.1f} %  "
               f"{1e6 * v / max(rp['breakdown_steps'], 1):6.1f} us/step")
+    x = rp["csv+out_can"]
+    per_step = 1e6 * x["wall_s"] / max(x["steps"], 1)
+    fp_step = f["filterpy_step_us"]["median"]
+    print(f"  whole replay (--out-csv --out-can) {per_step:.1f} us per step = {per_step / fp_step:.1f} x a bare "
+          f"FilterPy EKF step ({fp_step:.1f} us, median, this run)")
     if "profile" in s:
         print()
         print("cProfile of the measured steps (tottime):")
@@ -450,6 +498,8 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true", help="short run (2000 steps, < 20 s)")
     ap.add_argument("--json", action="store_true", help="print JSON instead of the table")
     ap.add_argument("--profile", action="store_true", help="also cProfile the measured steps")
+    ap.add_argument("--reference", action="store_true",
+                    help="also time the steps with the pure-Python reference kernels")
     args = ap.parse_args()
     steps = 2000 if args.quick else args.steps
     if steps < 100:
@@ -463,7 +513,13 @@ def main() -> int:
     st = bench_steps(cfg, events, steps)
     if args.profile:
         r["profile"] = bench_steps(cfg, events, steps, profile=True)["profile"]
-    r["filterpy"] = bench_filterpy(cfg, st.pop("final_x"), st.pop("final_P"), st.pop("inputs"))
+    if args.reference:
+        backend.select(False)
+        ref = bench_steps(cfg, events, steps)
+        backend.select(True)
+        r["reference"] = {k: ref[k] for k in ("plain_step_us", "all_steps_us", "gnss_step_us", "gnss")}
+    r["filterpy"] = bench_filterpy(cfg, st.pop("final_x"), st.pop("final_P"), st.pop("inputs"),
+                                   st.pop("wheel_frac"), st.pop("wheel_noise2"))
     r["steps"] = st
     if args.profile:
         st["profile"] = r.pop("profile")

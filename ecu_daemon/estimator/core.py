@@ -29,6 +29,7 @@ import numpy as np
 from ..config import Config
 from ..samples import INPUT_INDEX, GnssSample, InputSample
 from ..step_grid import last_step_at, step_of
+from . import backend, kalman
 from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
@@ -76,6 +77,7 @@ class Estimator:
         es = cfg.estimator
         veh = cfg.vehicle
         gn = cfg.gnss
+        backend.announce()
         self.cfg = cfg
         self.dt = dt = es.dt_s
         self.model = KinematicModel(dt, es.accel_noise_mps2, es.yaw_rate_noise_radps,
@@ -371,9 +373,7 @@ class Estimator:
         clamp_learned(x)
         h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k
-        if k % 64 == 0:
-            P += P.T
-            P *= 0.5
+        kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
         xl = x.tolist()
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):

@@ -25,21 +25,27 @@ import math
 
 import numpy as np
 
+from . import generated as gen
+
 VX, VY, PSI, BR, BAX, BAY, KW, GAY = range(8)
 NX = 8
 TWO_PI = 2.0 * math.pi
+assert gen.MODEL_ROWS == (VX, VY, PSI) and gen.STATE[GAY] == "g_ay"  # the order predict writes
 
 
 class KinematicModel:
-    """Builds the transition F and process noise Qd for one fixed step (preallocated, reused)."""
+    """Builds the transition F and process noise Qd for one fixed step (preallocated, reused).
+
+    f and F come from ``generated.py`` (SymPy, ``tools/derive_jacobians.py``); F is the identity
+    plus the dt-only entries set once here plus the few entries that vary per step.
+    """
 
     def __init__(self, dt: float, accel_noise: float, yaw_rate_noise: float, yaw_rate_bias_walk: float,
                  accel_bias_walk: float, wheel_scale_walk: float, accel_gain_walk: float = 1e-4):
         self.dt = dt
         self.F = np.eye(NX)
-        self.F[VX, BAX] = -dt
-        self.F[VY, BAY] = -dt
-        self.F[PSI, BR] = dt
+        for (i, j), v in zip(gen.F_CONST, gen.kinematic_F_const(dt)):
+            self.F[i, j] = v
         q = np.zeros(NX)
         q[VX] = accel_noise ** 2 * dt
         q[VY] = accel_noise ** 2 * dt
@@ -50,55 +56,29 @@ class KinematicModel:
         q[KW] = wheel_scale_walk ** 2 * dt
         q[GAY] = accel_gain_walk ** 2 * dt
         self.Qd = np.diag(q)
+        self.q = q
         self._tmp = np.empty((NX, NX))
 
-    def predict(self, x: np.ndarray, P: np.ndarray, P_out: np.ndarray, r_m: float, ax_m: float,
-                ay_m: float) -> None:
-        """x <- f(x, u) in place; P_out <- F P F' + Qd. ``self.F`` holds the F used afterwards."""
+    def predict_reference(self, x: np.ndarray, P: np.ndarray, P_out: np.ndarray, r_m: float, ax_m: float,
+                          ay_m: float) -> None:
+        """x <- f(x, u) in place; P_out <- F P F' + Qd. ``self.F`` holds the F used afterwards.
+
+        The pure-Python (numpy) reference; ``backend.py`` swaps in the compiled one as ``predict``.
+        """
         dt = self.dt
-        vx, vy, psi, b_r, b_ax, b_ay, _, g_ay = x.tolist()
-        r = r_m - b_r
-        psi -= dt * r
+        args = (*x.tolist(), r_m, ax_m, ay_m, dt)
+        vx, vy, psi = gen.kinematic_f(*args)
         if psi >= TWO_PI or psi < 0.0:
             psi %= TWO_PI
-        x[:3] = (vx + dt * (ax_m - b_ax + r * vy), vy + dt * (ay_m - b_ay - g_ay * ay_m - r * vx), psi)
+        x[:3] = (vx, vy, psi)
         F = self.F
-        rdt = r * dt
-        F[VX, VY] = rdt
-        F[VX, BR] = -vy * dt
-        F[VY, VX] = -rdt
-        F[VY, BR] = vx * dt
-        F[VY, GAY] = -ay_m * dt
+        for (i, j), v in zip(gen.F_VAR, gen.kinematic_F_var(*args)):
+            F[i, j] = v
         np.matmul(F, P, out=self._tmp)
         np.matmul(self._tmp, F.T, out=P_out)
         P_out += self.Qd
 
-
-def antenna_velocity_ne(x, r: float, lever_x: float, lever_y: float) -> tuple[float, float]:
-    """North/east velocity of a GNSS antenna at (lever_x, lever_y) from the CG, body axes."""
-    vax = x[VX] - r * lever_y
-    vay = x[VY] + r * lever_x
-    c = math.cos(x[PSI])
-    s = math.sin(x[PSI])
-    return vax * c + vay * s, vax * s - vay * c
-
-
-def gnss_jacobian(x, r: float, lever_x: float, lever_y: float) -> np.ndarray:
-    """d[vN, vE]/dx for :func:`antenna_velocity_ne` (r = r_m - b_r at that step)."""
-    vax = x[VX] - r * lever_y
-    vay = x[VY] + r * lever_x
-    c = math.cos(x[PSI])
-    s = math.sin(x[PSI])
-    H = np.zeros((2, NX))
-    H[0, VX] = c
-    H[0, VY] = s
-    H[0, PSI] = -vax * s + vay * c
-    H[0, BR] = lever_y * c - lever_x * s
-    H[1, VX] = s
-    H[1, VY] = -c
-    H[1, PSI] = vax * c + vay * s
-    H[1, BR] = lever_y * s + lever_x * c
-    return H
+    predict = predict_reference
 
 
 def wrap_pi(a: float) -> float:

@@ -21,8 +21,10 @@ import math
 import numpy as np
 
 from ...samples import GnssSample
+from .. import generated as gen
+from .. import kalman
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
-from ..kinematic import NX, VX, VY, antenna_velocity_ne, gnss_jacobian
+from ..kinematic import NX, VX
 
 ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
@@ -38,6 +40,10 @@ CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
 #: a GNSS speed above this (m/s) is a receiver fault, not a car: rejected and reported to the FDI
 MAX_PLAUSIBLE_SPEED = 150.0
 IMPLAUSIBLE = "implausible velocity"
+NOT_PD = "covariance not positive definite after the correction"
+# flat indices of the generated Jacobians' nonzero entries in the preallocated H
+VELOCITY_H_FLAT = [i * NX + j for i, j in gen.GNSS_VELOCITY_H]
+SPEED_H_FLAT = [i * NX + j for i, j in gen.GNSS_SPEED_H]
 
 
 class GnssVelocityFusion:
@@ -54,6 +60,11 @@ class GnssVelocityFusion:
         self.late = 0
         self.consecutive_rejects = 0
         self.last_reason = ""
+        # preallocated update operands (fusion is not re-entrant: one estimator, one thread)
+        self._H1, self._H2 = np.zeros((1, NX)), np.zeros((2, NX))
+        self._R1, self._R2 = np.zeros((1, 1)), np.zeros((2, 2))
+        self._y1, self._y2 = np.zeros(1), np.zeros(2)
+        self._dx, self._M = np.zeros(NX), np.zeros((NX, NX))
 
     def sigma(self, g: GnssSample) -> float:
         acc = g.speed_acc_mps
@@ -78,35 +89,31 @@ class GnssVelocityFusion:
         return True
 
     def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample, delay_std_s: float = 0.0) -> bool:
-        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only; ``delay_std_s`` as in :meth:`fuse` (a start-up
-        acceleration with the latency still unknown must not be read as a wheel-scale error)."""
+        """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only;
+        ``delay_std_s`` as in :meth:`fuse` (a start-up acceleration with the latency still
+        unknown must not be read as a wheel-scale error)."""
         i = hist.slot(s)
         x = hist.X[i]
-        P = hist.P[i]
-        r = hist.aux[i, AUX_R]
-        vax = x[VX] - r * self.lever_y
-        vay = x[VY] + r * self.lever_x
-        sp = math.hypot(vax, vay)
-        zs = g.speed_mps
-        if sp < 0.5:
-            h = np.zeros(NX)
-            h[VX] = 1.0
-        else:
-            h = np.zeros(NX)
-            h[VX] = vax / sp
-            h[VY] = vay / sp
         a = hist.aux[i]
-        sig2 = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
-        Ph = P @ h
-        S = float(h @ Ph) + sig2
-        y = zs - (sp if sp >= 0.5 else x[VX])
-        if y * y > 25.0 * S:
+        args = (*x.tolist(), a[AUX_R], self.lever_x, self.lever_y)
+        (sp,) = gen.gnss_speed(*args)
+        H = self._H1
+        H.fill(0.0)
+        if sp < 0.5:  # the direction is noise: the speed is vx
+            H[0, VX] = 1.0
+            sp = x[VX]
+        else:
+            H.put(SPEED_H_FLAT, gen.gnss_speed_H(*args))
+        self._R1[0, 0] = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
+        self._y1[0] = g.speed_mps - sp
+        nis = kalman.late_update(hist.P[i], H, self._R1, self._y1, self._dx, self._M)
+        if not nis <= 25.0:  # 5 sigma (NaN: no usable innovation covariance)
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = "speed innovation gate"
             return False
-        K = Ph / S
-        hist.correct(s, K * y, np.outer(K, Ph))
+        if not self._correct(hist, s, self._dx, self._M):
+            return False
         self.consecutive_rejects = 0
         self.fused += 1
         return True
@@ -123,37 +130,39 @@ class GnssVelocityFusion:
         effect on heading is published in the heading std by the core.
         """
         i = hist.slot(s)
-        x = hist.X[i]
-        P = hist.P[i]
-        r = hist.aux[i, AUX_R]
-        vn, ve = antenna_velocity_ne(x, r, self.lever_x, self.lever_y)
-        H = gnss_jacobian(x, r, self.lever_x, self.lever_y)
         a = hist.aux[i]
+        args = (*hist.X[i].tolist(), a[AUX_R], self.lever_x, self.lever_y)
+        vn, ve = gen.gnss_velocity(*args)
+        H = self._H2
+        H.put(VELOCITY_H_FLAT, gen.gnss_velocity_H(*args))
         d2 = delay_std_s * delay_std_s
-        sig2 = self.sigma(g) ** 2
-        y = np.array([g.vel_n_mps - vn, g.vel_e_mps - ve])
-        PHt = P @ H.T
-        S = H @ PHt
         sp = math.hypot(vn, ve)
-        u = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
-        iso = sig2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
+        u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
+        iso = self.sigma(g) ** 2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
         along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
-        S[0, 0] += iso + along * u[0] * u[0]
-        S[1, 1] += iso + along * u[1] * u[1]
-        S[0, 1] += along * u[0] * u[1]
-        S[1, 0] = S[0, 1]
-        Sinv = np.linalg.inv(S)
-        nis = float(y @ Sinv @ y)
-        if gate and nis > self.gate:
+        R = self._R2
+        R.flat = (iso + along * u0 * u0, along * u0 * u1, along * u0 * u1, iso + along * u1 * u1)
+        self._y2.flat = (g.vel_n_mps - vn, g.vel_e_mps - ve)
+        nis = kalman.late_update(hist.P[i], H, R, self._y2, self._dx, self._M)
+        if not nis == nis or (gate and nis > self.gate):  # NaN: no usable innovation covariance
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = f"innovation gate (NIS {nis:.1f})"
             return False
-        K = PHt @ Sinv
-        hist.correct(s, K @ y, K @ PHt.T)
+        if not self._correct(hist, s, self._dx, self._M):
+            return False
         self.consecutive_rejects = 0
         self.fused += 1
         return True
+
+    def _correct(self, hist: StepHistory, s: int, dx: np.ndarray, M: np.ndarray) -> bool:
+        """Apply the correction through the history; a covariance that would lose positive
+        definiteness (rounding, or a model gone wrong) rejects the fix instead."""
+        if hist.correct(s, dx, M):
+            return True
+        self.rejected += 1
+        self.last_reason = NOT_PD
+        return False
 
     @staticmethod
     def course(g: GnssSample) -> float:

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ..kalman import index_update
+from .. import kalman
 from ..kinematic import VX, VY
 
 G = 9.81
@@ -126,7 +126,7 @@ class SingleTrackFusion:
         if vx < MIN_SPEED:
             return False
         vy_m, var = self.pseudo_measurement(vx, r, ay, rdot)
-        return index_update(x, P, vy_m - x[VY], VY, var / every, A=A)
+        return kalman.index_update(x, P, vy_m - x[VY], VY, var / every, 0.0, A)
 
     def adapt_from(self, vx: float, vy: float, var_vy: float, r: float, ay: float, rdot: float,
                    delta: float) -> None:

@@ -7,7 +7,7 @@ crawl) held for a short time, so a brief zero crossing does not count.
 """
 from __future__ import annotations
 
-from ..kalman import index_update
+from .. import kalman
 from ..kinematic import BAX, BAY, BR, VX, VY
 
 STANDSTILL_SPEED = 0.05  # m/s, every wheel below this
@@ -31,7 +31,7 @@ class StandstillFusion:
 
     def fuse(self, x, P, r_m: float, ax_m: float, ay_m: float, A) -> None:
         for i in (VX, VY):
-            index_update(x, P, -x[i], i, 1e-4, A=A)
-        index_update(x, P, r_m - x[BR], BR, self.gyro_R, gate_sigma=6.0, A=A)
-        index_update(x, P, ax_m - x[BAX], BAX, self.accel_R, gate_sigma=6.0, A=A)
-        index_update(x, P, ay_m - x[BAY], BAY, self.accel_R, gate_sigma=6.0, A=A)
+            kalman.index_update(x, P, -x[i], i, 1e-4, 0.0, A)
+        kalman.index_update(x, P, r_m - x[BR], BR, self.gyro_R, 6.0, A)
+        kalman.index_update(x, P, ax_m - x[BAX], BAX, self.accel_R, 6.0, A)
+        kalman.index_update(x, P, ay_m - x[BAY], BAY, self.accel_R, 6.0, A)

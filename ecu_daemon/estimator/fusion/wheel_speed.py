@@ -9,23 +9,25 @@ is a bias the filter cannot average away: ``slip_bound`` sizes it for the publis
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..kalman import scalar_update
-from ..kinematic import BR, KW, NX, VX, VY
+from .. import generated as gen
+from .. import kalman
+from ..kinematic import NX
 
 WHEEL_GATE_SIGMA = 5.0
 #: slip ratio per m/s^2 of deceleration: 1 / (g C_x) for a normalised longitudinal slip stiffness
 #: C_x ~ 15, the soft end of passenger-car tyres (an axle braking its own share of the load)
 SLIP_PER_MPS2 = 1.0 / (9.81 * 15.0)
+WHEEL_H_COLS = [j for _, j in gen.WHEEL_SPEED_H]
 
 
 class WheelSpeedFusion:
     def __init__(self, driven_axle: str, lf: float, noise_mps: float):
         self.use_front = driven_axle == "rear"
         self.use_all = driven_axle == "all"
+        # share of the fused mean that comes from the front pair ('all': half of it)
+        self.frac = 1.0 if self.use_front else 0.5 if self.use_all else 0.0
         self.lf = lf
         self.noise2 = noise_mps * noise_mps
         self.h = np.zeros(NX)
@@ -47,23 +49,12 @@ class WheelSpeedFusion:
         return SLIP_PER_MPS2 * a * abs(vx)
 
     def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float, A=None) -> bool:
-        kw = x[KW]
         h = self.h
-        if self.use_front or self.use_all:
-            frac = 1.0 if self.use_front else 0.5  # 'all': half of the mean comes from the front pair
-            c = 1.0 - frac + frac * math.cos(delta)
-            s = frac * math.sin(delta)
-            v = x[VX] * c + (x[VY] + self.lf * r) * s
-            h[VX] = c / kw
-            h[VY] = s / kw
-            h[BR] = -self.lf * s / kw
-        else:
-            v = x[VX]
-            h[VX] = 1.0 / kw
-        pred = v / kw
-        h[KW] = -pred / kw
+        args = (*x.tolist(), r, self.lf, self.frac, delta if self.frac else 0.0)
+        (pred,) = gen.wheel_speed(*args)
+        h.put(WHEEL_H_COLS, gen.wheel_speed_H(*args))
         R = self.noise2 + (0.02 * ax) ** 2 + (0.002 * pred) ** 2
-        ok = scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA, A)
+        ok = kalman.scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA, A)
         if ok:
             self.consecutive_rejects = 0
         else:

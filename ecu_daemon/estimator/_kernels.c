@@ -1,0 +1,592 @@
+/* Compiled estimator kernels: the per-step linear algebra of kinematic.py, kalman.py and
+ * history.py on 8x8 float64 arrays, in place, with no Python object created per call.
+ *
+ * Why: numpy's per-call overhead (~1 us) dominates 8x8 products; the step is a few hundred
+ * flops. Ahead-of-time compiled (setup.py, at pip install), no JIT: the service keeps
+ * MemoryDenyWriteExecute=yes. The model f and the sparse structure of F come from
+ * _generated.h (tools/derive_jacobians.py), the same SymPy derivation as generated.py.
+ * Each function is the same math as its *_reference in Python (tests/test_kernels.py checks a
+ * whole drive both ways within 1e-9).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <string.h>
+
+#include "_generated.h"
+
+#define N GEN_NX
+#define TWO_PI 6.283185307179586
+
+/* A writable C-contiguous float64 buffer of exactly `count` doubles (count < 0: a multiple of -count). */
+static double *get_doubles(PyObject *obj, Py_buffer *view, Py_ssize_t count, const char *name)
+{
+    if (PyObject_GetBuffer(obj, view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        return NULL;
+    Py_ssize_t n = view->len / (Py_ssize_t)sizeof(double);
+    if (view->itemsize != sizeof(double) || strcmp(view->format, "d") != 0
+        || (count > 0 ? n != count : (n == 0 || n % (-count) != 0))) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a contiguous float64 array of %zd values", name,
+                     count > 0 ? count : -count);
+        PyBuffer_Release(view);
+        return NULL;
+    }
+    return (double *)view->buf;
+}
+
+static double py_mod(double a, double m)
+{
+    double r = fmod(a, m);
+    if (r != 0.0) {
+        if (r < 0.0)
+            r += m;
+    } else {
+        r = copysign(0.0, m);
+    }
+    return r;
+}
+
+static void symmetrize(double *P)
+{
+    for (int a = 0; a < N; a++)
+        for (int b = 0; b < a; b++) {
+            double v = 0.5 * (P[a * N + b] + P[b * N + a]);
+            P[a * N + b] = v;
+            P[b * N + a] = v;
+        }
+}
+
+/* 1 if P is finite and positive definite (its Cholesky factor exists). */
+static int positive_definite(const double *P)
+{
+    double L[N * N];
+    for (int a = 0; a < N * N; a++)
+        if (!isfinite(P[a]))
+            return 0;
+    for (int j = 0; j < N; j++) {
+        double d = P[j * N + j];
+        for (int k = 0; k < j; k++)
+            d -= L[j * N + k] * L[j * N + k];
+        if (!(d > 0.0))
+            return 0;
+        double ljj = sqrt(d);
+        L[j * N + j] = ljj;
+        for (int i = j + 1; i < N; i++) {
+            double s = P[i * N + j];
+            for (int k = 0; k < j; k++)
+                s -= L[i * N + k] * L[j * N + k];
+            L[i * N + j] = s / ljj;
+        }
+    }
+    return 1;
+}
+
+/* predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): x <- f(x, u); F's varying entries set;
+ * P_out <- F P F' + diag(q), with F = I + (its few off-diagonal entries). */
+static PyObject *k_predict(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError, "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt)");
+        return NULL;
+    }
+    double r_m = PyFloat_AsDouble(args[5]), ax_m = PyFloat_AsDouble(args[6]);
+    double ay_m = PyFloat_AsDouble(args[7]), dt = PyFloat_AsDouble(args[8]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bx, bp, bo, bf, bq;
+    double *x = get_doubles(args[0], &bx, N, "x");
+    if (!x)
+        return NULL;
+    double *P = get_doubles(args[1], &bp, N * N, "P");
+    if (!P)
+        goto fail_x;
+    double *Po = get_doubles(args[2], &bo, N * N, "P_out");
+    if (!Po)
+        goto fail_p;
+    double *F = get_doubles(args[3], &bf, N * N, "F");
+    if (!F)
+        goto fail_o;
+    double *q = get_doubles(args[4], &bq, N, "q");
+    if (!q)
+        goto fail_f;
+
+    double fx[GEN_N_MODEL_ROWS], fv[GEN_N_F_VAR], fc[GEN_N_F_CONST];
+    gen_kinematic_f(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], r_m, ax_m, ay_m, dt, fx);
+    gen_kinematic_F_var(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], r_m, ax_m, ay_m, dt, fv);
+    gen_kinematic_F_const(dt, fc);
+    for (int m = 0; m < GEN_N_MODEL_ROWS; m++)
+        x[GEN_MODEL_ROWS[m]] = fx[m];
+    if (x[2] >= TWO_PI || x[2] < 0.0)
+        x[2] = py_mod(x[2], TWO_PI);
+    /* the sparse part E of F = I + E: (row, col, value) */
+    int er[GEN_N_F_CONST + GEN_N_F_VAR], ec[GEN_N_F_CONST + GEN_N_F_VAR];
+    double ev[GEN_N_F_CONST + GEN_N_F_VAR];
+    int ne = 0;
+    for (int m = 0; m < GEN_N_F_CONST; m++, ne++) {
+        er[ne] = GEN_F_CONST[m][0];
+        ec[ne] = GEN_F_CONST[m][1];
+        ev[ne] = fc[m];
+    }
+    for (int m = 0; m < GEN_N_F_VAR; m++, ne++) {
+        er[ne] = GEN_F_VAR[m][0];
+        ec[ne] = GEN_F_VAR[m][1];
+        ev[ne] = fv[m];
+        F[er[ne] * N + ec[ne]] = fv[m];
+    }
+    double T[N * N];
+    memcpy(T, P, sizeof(T)); /* T = F P = P + E P */
+    for (int m = 0; m < ne; m++)
+        for (int b = 0; b < N; b++)
+            T[er[m] * N + b] += ev[m] * P[ec[m] * N + b];
+    memcpy(Po, T, sizeof(T)); /* P_out = T F' = T + T E' */
+    for (int m = 0; m < ne; m++)
+        for (int a = 0; a < N; a++)
+            Po[a * N + er[m]] += ev[m] * T[a * N + ec[m]];
+    for (int a = 0; a < N; a++)
+        Po[a * N + a] += q[a];
+
+    PyBuffer_Release(&bq);
+    PyBuffer_Release(&bf);
+    PyBuffer_Release(&bo);
+    PyBuffer_Release(&bp);
+    PyBuffer_Release(&bx);
+    Py_RETURN_NONE;
+fail_f:
+    PyBuffer_Release(&bf);
+fail_o:
+    PyBuffer_Release(&bo);
+fail_p:
+    PyBuffer_Release(&bp);
+fail_x:
+    PyBuffer_Release(&bx);
+    return NULL;
+}
+
+/* Joseph-form update with gain K = Ph / S: P <- (I - K h') P (I - K h')' + R K K', given
+ * Ph = P h and Bh computed from B = (I - K h') P; x += K y; A <- A - K (h' A). */
+static void joseph_update(double *x, double *P, double *A, const double *h, int idx, double y,
+                          double R, const double *Ph, double S)
+{
+    double K[N], Bh[N];
+    for (int a = 0; a < N; a++)
+        K[a] = Ph[a] / S;
+    for (int a = 0; a < N; a++)
+        x[a] += K[a] * y;
+    for (int a = 0; a < N; a++)
+        for (int b = 0; b < N; b++)
+            P[a * N + b] -= K[a] * Ph[b];
+    for (int a = 0; a < N; a++) {
+        if (h) {
+            double s = 0.0;
+            for (int b = 0; b < N; b++)
+                s += P[a * N + b] * h[b];
+            Bh[a] = s;
+        } else {
+            Bh[a] = P[a * N + idx];
+        }
+    }
+    for (int a = 0; a < N; a++)
+        for (int b = 0; b < N; b++) {
+            P[a * N + b] -= Bh[a] * K[b];
+            P[a * N + b] += R * (K[a] * K[b]);
+        }
+    if (A) {
+        double hA[N];
+        for (int b = 0; b < N; b++) {
+            if (h) {
+                double s = 0.0;
+                for (int c = 0; c < N; c++)
+                    s += h[c] * A[c * N + b];
+                hA[b] = s;
+            } else {
+                hA[b] = A[idx * N + b];
+            }
+        }
+        for (int a = 0; a < N; a++)
+            for (int b = 0; b < N; b++)
+                A[a * N + b] -= K[a] * hA[b];
+    }
+}
+
+/* shared argument handling of scalar_update / index_update */
+static PyObject *update(PyObject *const *args, Py_ssize_t nargs, int indexed)
+{
+    const char *sig = indexed ? "index_update(x, P, innovation, i, R, gate_sigma=0.0, A=None)"
+                              : "scalar_update(x, P, innovation, h, R, gate_sigma=0.0, A=None)";
+    if (nargs < 5 || nargs > 7) {
+        PyErr_SetString(PyExc_TypeError, sig);
+        return NULL;
+    }
+    double y = PyFloat_AsDouble(args[2]);
+    double R = PyFloat_AsDouble(args[4]);
+    double gate = nargs > 5 ? PyFloat_AsDouble(args[5]) : 0.0;
+    long idx = indexed ? PyLong_AsLong(args[3]) : 0;
+    if (PyErr_Occurred())
+        return NULL;
+    if (indexed && (idx < 0 || idx >= N)) {
+        PyErr_SetString(PyExc_IndexError, "state index out of range");
+        return NULL;
+    }
+    Py_buffer bx, bp, bh, ba;
+    int have_h = 0, have_a = 0;
+    PyObject *ret = NULL;
+    double *x = get_doubles(args[0], &bx, N, "x");
+    if (!x)
+        return NULL;
+    double *P = get_doubles(args[1], &bp, N * N, "P");
+    if (!P)
+        goto done_x;
+    double *h = NULL, *A = NULL;
+    if (!indexed) {
+        h = get_doubles(args[3], &bh, N, "h");
+        if (!h)
+            goto done_p;
+        have_h = 1;
+    }
+    if (nargs > 6 && args[6] != Py_None) {
+        A = get_doubles(args[6], &ba, N * N, "A");
+        if (!A)
+            goto done_h;
+        have_a = 1;
+    }
+    double Ph[N], S;
+    for (int a = 0; a < N; a++) {
+        if (h) {
+            double s = 0.0;
+            for (int b = 0; b < N; b++)
+                s += P[a * N + b] * h[b];
+            Ph[a] = s;
+        } else {
+            Ph[a] = P[a * N + idx];
+        }
+    }
+    if (h) {
+        S = 0.0;
+        for (int a = 0; a < N; a++)
+            S += h[a] * Ph[a];
+        S += R;
+    } else {
+        S = Ph[idx] + R;
+    }
+    if (!(S > 0.0) || (gate > 0.0 && y * y > gate * gate * S)) {
+        ret = Py_False;
+    } else {
+        joseph_update(x, P, A, h, (int)idx, y, R, Ph, S);
+        ret = Py_True;
+    }
+    Py_INCREF(ret);
+    if (have_a)
+        PyBuffer_Release(&ba);
+done_h:
+    if (have_h)
+        PyBuffer_Release(&bh);
+done_p:
+    PyBuffer_Release(&bp);
+done_x:
+    PyBuffer_Release(&bx);
+    return ret;
+}
+
+static PyObject *k_scalar_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    return update(args, nargs, 0);
+}
+
+static PyObject *k_index_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    return update(args, nargs, 1);
+}
+
+static PyObject *k_symmetrize(PyObject *self, PyObject *arg)
+{
+    Py_buffer b;
+    double *P = get_doubles(arg, &b, N * N, "P");
+    if (!P)
+        return NULL;
+    symmetrize(P);
+    PyBuffer_Release(&b);
+    Py_RETURN_NONE;
+}
+
+/* correct(X, P, A, s, last, dx, M) -> bool: the history shift of history.py, carried step by step
+ * (d_j = A_j d_{j-1}, M_j = A_j M_{j-1} A_j'); every corrected P symmetric and checked positive
+ * definite before anything is written (False: nothing changed). */
+static PyObject *k_correct(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "correct(X, P, A, s, last, dx, M)");
+        return NULL;
+    }
+    long long s = PyLong_AsLongLong(args[3]), last = PyLong_AsLongLong(args[4]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bX, bP, bA, bd, bM;
+    PyObject *ret = NULL;
+    double *X = get_doubles(args[0], &bX, -N, "X");
+    if (!X)
+        return NULL;
+    Py_ssize_t n = bX.len / (Py_ssize_t)(N * sizeof(double));
+    double *P = get_doubles(args[1], &bP, n * N * N, "P");
+    if (!P)
+        goto r_x;
+    double *A = get_doubles(args[2], &bA, n * N * N, "A");
+    if (!A)
+        goto r_p;
+    double *dx = get_doubles(args[5], &bd, N, "dx");
+    if (!dx)
+        goto r_a;
+    double *M0 = get_doubles(args[6], &bM, N * N, "M");
+    if (!M0)
+        goto r_d;
+    long long count = last - s + 1;
+    if (count < 1 || count > n) {
+        PyErr_SetString(PyExc_ValueError, "correct: step outside the history");
+        goto r_m;
+    }
+    double *newX = PyMem_Malloc((size_t)count * N * sizeof(double));
+    double *newP = PyMem_Malloc((size_t)count * N * N * sizeof(double));
+    if (!newX || !newP) {
+        PyMem_Free(newX);
+        PyMem_Free(newP);
+        PyErr_NoMemory();
+        goto r_m;
+    }
+    double d[N], M[N * N], T[N * N];
+    memcpy(d, dx, sizeof(d));
+    memcpy(M, M0, sizeof(M));
+    int ok = 1;
+    for (long long c = 0; c < count && ok; c++) {
+        long long slot = (s + c) % n;
+        if (slot < 0)
+            slot += n;
+        if (c > 0) {
+            const double *Ak = A + slot * N * N;
+            double d2[N];
+            for (int a = 0; a < N; a++) {
+                double v = 0.0;
+                for (int b = 0; b < N; b++)
+                    v += Ak[a * N + b] * d[b];
+                d2[a] = v;
+            }
+            memcpy(d, d2, sizeof(d));
+            for (int a = 0; a < N; a++) /* T = A M */
+                for (int b = 0; b < N; b++) {
+                    double v = 0.0;
+                    for (int k = 0; k < N; k++)
+                        v += Ak[a * N + k] * M[k * N + b];
+                    T[a * N + b] = v;
+                }
+            for (int a = 0; a < N; a++) /* M = T A', lower triangle mirrored */
+                for (int b = 0; b <= a; b++) {
+                    double v = 0.0;
+                    for (int k = 0; k < N; k++)
+                        v += T[a * N + k] * Ak[b * N + k];
+                    M[a * N + b] = v;
+                    M[b * N + a] = v;
+                }
+        }
+        double *xo = newX + c * N, *po = newP + c * N * N;
+        const double *xi = X + slot * N, *pi = P + slot * N * N;
+        for (int a = 0; a < N; a++)
+            xo[a] = xi[a] + d[a];
+        for (int a = 0; a < N * N; a++)
+            po[a] = pi[a] - M[a];
+        symmetrize(po);
+        ok = positive_definite(po);
+    }
+    if (ok) {
+        for (long long c = 0; c < count; c++) {
+            long long slot = (s + c) % n;
+            if (slot < 0)
+                slot += n;
+            double *xo = newX + c * N;
+            xo[2] = py_mod(xo[2], TWO_PI);
+            memcpy(X + slot * N, xo, N * sizeof(double));
+            memcpy(P + slot * N * N, newP + c * N * N, N * N * sizeof(double));
+        }
+    }
+    PyMem_Free(newX);
+    PyMem_Free(newP);
+    ret = ok ? Py_True : Py_False;
+    Py_INCREF(ret);
+r_m:
+    PyBuffer_Release(&bM);
+r_d:
+    PyBuffer_Release(&bd);
+r_a:
+    PyBuffer_Release(&bA);
+r_p:
+    PyBuffer_Release(&bP);
+r_x:
+    PyBuffer_Release(&bX);
+    return ret;
+}
+
+/* late_update(P, H, R, y, dx, M) -> NIS: a 1- or 2-D measurement update computed at a stored
+ * step without applying it: dx = K y and the covariance reduction M = P - Joseph(P), for
+ * correct(). NaN if the innovation covariance is not positive definite. */
+static PyObject *k_late_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "late_update(P, H, R, y, dx, M)");
+        return NULL;
+    }
+    Py_buffer bP, bH, bR, by, bd, bM;
+    PyObject *ret = NULL;
+    double *P = get_doubles(args[0], &bP, N * N, "P");
+    if (!P)
+        return NULL;
+    double *H = get_doubles(args[1], &bH, -N, "H");
+    if (!H)
+        goto u_p;
+    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
+    if (m > 2) {
+        PyErr_SetString(PyExc_ValueError, "late_update: at most 2 rows");
+        goto u_h;
+    }
+    double *R = get_doubles(args[2], &bR, m * m, "R");
+    if (!R)
+        goto u_h;
+    double *y = get_doubles(args[3], &by, m, "y");
+    if (!y)
+        goto u_r;
+    double *dx = get_doubles(args[4], &bd, N, "dx");
+    if (!dx)
+        goto u_y;
+    double *Mo = get_doubles(args[5], &bM, N * N, "M");
+    if (!Mo)
+        goto u_d;
+    double PHt[N][2], S[2][2], Si[2][2], K[N][2], nis;
+    for (int a = 0; a < N; a++)
+        for (int i = 0; i < m; i++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += P[a * N + b] * H[i * N + b];
+            PHt[a][i] = v;
+        }
+    for (int i = 0; i < m; i++)
+        for (int j = 0; j < m; j++) {
+            double v = 0.0;
+            for (int a = 0; a < N; a++)
+                v += H[i * N + a] * PHt[a][j];
+            S[i][j] = v;
+        }
+    if (m == 2)
+        S[0][1] = S[1][0] = 0.5 * (S[0][1] + S[1][0]);
+    for (int i = 0; i < m; i++)
+        for (int j = 0; j < m; j++)
+            S[i][j] += R[i * m + j];
+    if (m == 1) {
+        if (!(S[0][0] > 0.0))
+            goto not_pd;
+        Si[0][0] = 1.0 / S[0][0];
+        nis = y[0] * y[0] * Si[0][0];
+    } else {
+        double det = S[0][0] * S[1][1] - S[0][1] * S[1][0];
+        if (!(S[0][0] > 0.0) || !(det > 0.0))
+            goto not_pd;
+        Si[0][0] = S[1][1] / det;
+        Si[1][1] = S[0][0] / det;
+        Si[0][1] = Si[1][0] = -S[0][1] / det;
+        nis = y[0] * (Si[0][0] * y[0] + Si[0][1] * y[1]) + y[1] * (Si[1][0] * y[0] + Si[1][1] * y[1]);
+    }
+    for (int a = 0; a < N; a++) {
+        double d = 0.0;
+        for (int j = 0; j < m; j++) {
+            double v = 0.0;
+            for (int i = 0; i < m; i++)
+                v += PHt[a][i] * Si[i][j];
+            K[a][j] = v;
+            d += v * y[j];
+        }
+        dx[a] = d;
+    }
+    {
+        /* Joseph: B = P - K (H P) = P - K PHt'; J = B - (B H') K' + K R K'; M = P - J */
+        double B[N * N], BHt[N][2];
+        for (int a = 0; a < N; a++)
+            for (int b = 0; b < N; b++) {
+                double v = P[a * N + b];
+                for (int i = 0; i < m; i++)
+                    v -= K[a][i] * PHt[b][i];
+                B[a * N + b] = v;
+            }
+        for (int a = 0; a < N; a++)
+            for (int i = 0; i < m; i++) {
+                double v = 0.0;
+                for (int b = 0; b < N; b++)
+                    v += B[a * N + b] * H[i * N + b];
+                BHt[a][i] = v;
+            }
+        for (int a = 0; a < N; a++)
+            for (int b = 0; b < N; b++) {
+                double v = B[a * N + b];
+                for (int i = 0; i < m; i++) {
+                    v -= BHt[a][i] * K[b][i];
+                    double kr = 0.0;
+                    for (int j = 0; j < m; j++)
+                        kr += K[a][j] * R[j * m + i];
+                    v += kr * K[b][i];
+                }
+                Mo[a * N + b] = P[a * N + b] - v;
+            }
+        symmetrize(Mo);
+    }
+    ret = PyFloat_FromDouble(nis);
+    goto u_m;
+not_pd:
+    ret = PyFloat_FromDouble(NAN);
+u_m:
+    PyBuffer_Release(&bM);
+u_d:
+    PyBuffer_Release(&bd);
+u_y:
+    PyBuffer_Release(&by);
+u_r:
+    PyBuffer_Release(&bR);
+u_h:
+    PyBuffer_Release(&bH);
+u_p:
+    PyBuffer_Release(&bP);
+    return ret;
+}
+
+static PyObject *k_positive_definite(PyObject *self, PyObject *arg)
+{
+    Py_buffer b;
+    double *P = get_doubles(arg, &b, -N * N, "P");
+    if (!P)
+        return NULL;
+    Py_ssize_t n = b.len / (Py_ssize_t)(N * N * sizeof(double));
+    int ok = 1;
+    for (Py_ssize_t i = 0; i < n && ok; i++)
+        ok = positive_definite(P + i * N * N);
+    PyBuffer_Release(&b);
+    return PyBool_FromLong(ok);
+}
+
+static PyMethodDef methods[] = {
+    {"predict", (PyCFunction)(void (*)(void))k_predict, METH_FASTCALL,
+     "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): one model step in place"},
+    {"scalar_update", (PyCFunction)(void (*)(void))k_scalar_update, METH_FASTCALL,
+     "scalar_update(x, P, innovation, h, R, gate_sigma=0.0, A=None) -> fused"},
+    {"index_update", (PyCFunction)(void (*)(void))k_index_update, METH_FASTCALL,
+     "index_update(x, P, innovation, i, R, gate_sigma=0.0, A=None) -> fused"},
+    {"symmetrize", k_symmetrize, METH_O, "symmetrize(P): P <- (P + P') / 2 in place"},
+    {"correct", (PyCFunction)(void (*)(void))k_correct, METH_FASTCALL,
+     "correct(X, P, A, s, last, dx, M) -> applied (False: a covariance would not be positive definite)"},
+    {"late_update", (PyCFunction)(void (*)(void))k_late_update, METH_FASTCALL,
+     "late_update(P, H, R, y, dx, M) -> NIS; dx = K y, M = P - Joseph(P) (NaN: S not positive definite)"},
+    {"positive_definite", k_positive_definite, METH_O,
+     "positive_definite(P) -> every 8x8 matrix of the stack is finite and positive definite"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_kernels", "Compiled estimator kernels (see _kernels.c).", -1, methods,
+};
+
+PyMODINIT_FUNC PyInit__kernels(void)
+{
+    return PyModule_Create(&module);
+}

@@ -1,0 +1,66 @@
+"""Which implementation of the estimator's numerical kernels runs: compiled or reference.
+
+The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under the same names,
+``kinematic.KinematicModel.predict``, ``kalman.scalar_update`` / ``index_update`` /
+``late_update`` / ``symmetrize`` and ``history.StepHistory.correct``; the pure-Python
+``*_reference`` versions of the same math stay, for machines without the extension and for the
+tests that compare the two.
+"""
+from __future__ import annotations
+
+import logging
+
+from . import history, kalman, kinematic
+
+log = logging.getLogger(__name__)
+
+KERNELS = ("predict", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
+
+try:
+    from . import _kernels as compiled
+    _import_error = ""
+except ImportError as e:  # no compiler at install time, or a source checkout never built
+    compiled = None
+    _import_error = str(e)
+if compiled is not None and not all(hasattr(compiled, name) for name in KERNELS):
+    _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
+    compiled = None
+
+_announced = False
+
+
+def _predict_compiled(self, x, P, P_out, r_m, ax_m, ay_m):
+    compiled.predict(x, P, P_out, self.F, self.q, r_m, ax_m, ay_m, self.dt)
+
+
+def _correct_compiled(self, s, dx, M):
+    return compiled.correct(self.X, self.P, self.A, s, self.last, dx, M)
+
+
+def select(use_compiled: bool = True) -> str:
+    """Install the compiled kernels (if built and asked for) or the references; the name of the
+    one now active. Process-wide: every Estimator uses the same."""
+    on = use_compiled and compiled is not None
+    kinematic.KinematicModel.predict = _predict_compiled if on else kinematic.KinematicModel.predict_reference
+    history.StepHistory.correct = _correct_compiled if on else history.StepHistory.correct_reference
+    kalman.scalar_update = compiled.scalar_update if on else kalman.scalar_update_reference
+    kalman.index_update = compiled.index_update if on else kalman.index_update_reference
+    kalman.symmetrize = compiled.symmetrize if on else kalman.symmetrize_reference
+    kalman.late_update = compiled.late_update if on else kalman.late_update_reference
+    return active()
+
+
+def active() -> str:
+    return "compiled" if kalman.scalar_update is not kalman.scalar_update_reference else "reference"
+
+
+def announce() -> None:
+    """One log line, once per process, when the compiled kernels are missing."""
+    global _announced
+    if compiled is None and not _announced:
+        _announced = True
+        log.warning("compiled estimator kernels not available (%s): using the pure-Python reference, "
+                    "several times slower; reinstall with a C compiler to build them", _import_error)
+
+
+select()

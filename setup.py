@@ -1,0 +1,15 @@
+"""Only the compiled estimator kernels; everything else is in pyproject.toml.
+
+Ahead-of-time C (no JIT: the service runs with MemoryDenyWriteExecute=yes). ``optional``: a
+machine without a compiler still installs, and the estimator says so once and runs its
+pure-Python reference (ecu_daemon/estimator/backend.py).
+"""
+from setuptools import Extension, setup
+
+setup(ext_modules=[Extension(
+    "ecu_daemon.estimator._kernels",
+    sources=["ecu_daemon/estimator/_kernels.c"],
+    depends=["ecu_daemon/estimator/_generated.h"],
+    extra_compile_args=["-O2", "-ffp-contract=off"],
+    optional=True,
+)])

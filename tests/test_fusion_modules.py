@@ -1,0 +1,191 @@
+"""Each aiding source alone (fusion/*.py): what it measures, that it pulls the state the right way
+by the right amount, and what it refuses."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ecu_daemon.estimator import generated as gen
+from ecu_daemon.estimator.fusion.gnss_velocity import GnssVelocityFusion
+from ecu_daemon.estimator.fusion.single_track import SingleTrackFusion
+from ecu_daemon.estimator.fusion.standstill import StandstillFusion
+from ecu_daemon.estimator.fusion.wheel_speed import WheelSpeedFusion
+from ecu_daemon.estimator.history import AUX_R, StepHistory
+from ecu_daemon.estimator.kinematic import BAX, BAY, BR, KW, NX, PSI, VX, VY
+from ecu_daemon.samples import GnssSample
+
+
+def state(vx=20.0, vy=0.3, psi=1.0, kw=1.0):
+    x = np.zeros(NX)
+    x[[VX, VY, PSI, KW]] = vx, vy, psi, kw
+    P = np.diag([0.5, 0.2, 0.01, 1e-6, 0.01, 0.01, 1e-4, 1e-4])
+    return x, P, np.eye(NX)
+
+
+# ---- wheel speed -------------------------------------------------------------------------------
+
+def test_wheel_speed_pulls_vx_towards_the_wheels_by_the_kalman_weight():
+    w = WheelSpeedFusion("front", 1.2, 0.05)  # rear (undriven) pair: measures vx / k_w
+    x, P, A = state()
+    p0 = P[VX, VX]
+    assert w.fuse(x, P, 21.0, 0.0, 0.0, 0.0, A)
+    R = 0.05 ** 2 + (0.002 * 20.0) ** 2
+    # h = [1/kw, ..., -vx/kw^2 at KW]: the k_w prior is tight, so vx takes almost all of it
+    assert x[VX] - 20.0 == pytest.approx(p0 / (p0 + 20.0 ** 2 * 1e-4 + R), rel=1e-6)
+    assert P[VX, VX] < 0.1 * p0 and A[VX, VX] < 0.1  # A carries (I - K h') for the rewind
+    assert w.consecutive_rejects == 0
+
+
+def test_wheel_speed_gates_a_locked_wheel_out_and_counts_the_run():
+    w = WheelSpeedFusion("front", 1.2, 0.05)
+    x, P, A = state(vx=20.0)
+    x0, P0 = x.copy(), P.copy()
+    for n in (1, 2):
+        assert not w.fuse(x, P, 0.0, 0.0, 0.0, 0.0, A)
+        assert w.consecutive_rejects == n
+    np.testing.assert_array_equal(x, x0)
+    np.testing.assert_array_equal(P, P0)
+    assert w.fuse(x, P, 20.1, 0.0, 0.0, 0.0, A) and w.consecutive_rejects == 0
+
+
+def test_front_wheels_of_a_rear_driven_car_see_the_steered_velocity():
+    """The front pair measures vx cos(delta) + (vy + lf r) sin(delta): fed exactly that, nothing
+    moves (a zero innovation), fed vx alone while steering, vy is corrected too."""
+    w = WheelSpeedFusion("rear", 1.3, 0.05)
+    x, P, A = state(vx=15.0, vy=0.4)
+    delta, r = 0.2, 0.3
+    z = 15.0 * math.cos(delta) + (0.4 + 1.3 * r) * math.sin(delta)
+    assert w.fuse(x, P, z, delta, r, 0.0, A)
+    np.testing.assert_allclose(x[[VX, VY]], [15.0, 0.4], atol=1e-12)
+    assert w.h[VY] == pytest.approx(math.sin(delta)) and w.h[BR] == pytest.approx(-1.3 * math.sin(delta))
+
+
+# ---- single track ------------------------------------------------------------------------------
+
+def single_track():
+    return SingleTrackFusion(1500.0, 2500.0, 1.2, 1.5, 80000.0, 90000.0, adapt=True)
+
+
+def test_single_track_on_a_straight_is_the_kinematic_vy():
+    st = single_track()
+    vy, var = st.pseudo_measurement(20.0, 0.1, 0.0, 0.0)
+    assert vy == pytest.approx(1.5 * 0.1)  # lr r: no lateral force, no rear slip
+    assert var > 0.0
+
+
+def test_single_track_in_a_corner_is_the_rear_slip_of_the_lateral_force():
+    """vy = lr r - vx (m / C_r) (lf ay - Iz/m r_dot) / L at small ay (the cubic term is negligible)."""
+    st = single_track()
+    vx, r, ay = 20.0, 0.05, 1.0
+    vy, _ = st.pseudo_measurement(vx, r, ay, 0.0)
+    k3 = st.rear.k[1] * (ay / 9.81) ** 2
+    want = 1.5 * r - vx * (1500.0 / 90000.0 + k3) * (1.2 * ay) / 2.7
+    assert vy == pytest.approx(want, rel=1e-9)
+    assert vy < 1.5 * r  # the rear axle slips outwards
+
+
+def test_single_track_fuses_vy_only_and_not_at_a_crawl():
+    st = single_track()
+    x, P, A = state(vx=20.0, vy=0.0)
+    assert st.fuse(x, P, 0.1, 0.0, 0.0, A)
+    assert 0.0 < x[VY] < 0.15 and x[VX] == pytest.approx(20.0, abs=1e-12)  # P is diagonal
+    x, P, A = state(vx=0.3)
+    x0 = x.copy()
+    assert not st.fuse(x, P, 0.1, 0.0, 0.0, A)
+    np.testing.assert_array_equal(x, x0)
+
+
+# ---- standstill --------------------------------------------------------------------------------
+
+def test_standstill_needs_the_hold_time():
+    s = StandstillFusion(0.006, 0.01)
+    assert not any(s.detect(0.0) for _ in range(s.hold_steps - 1))
+    assert s.detect(0.0)
+    assert not s.detect(0.5)  # one moving wheel restarts the count
+    assert not s.detect(0.0)
+
+
+def test_standstill_zeroes_velocity_and_reads_the_gyro_bias():
+    s = StandstillFusion(0.006, 0.01)
+    x, P, A = state(vx=0.2, vy=0.05)
+    P[BR, BR] = 1e-4
+    for _ in range(50):
+        s.fuse(x, P, 0.004, 0.1, -0.05, A)
+    assert abs(x[VX]) < 1e-3 and abs(x[VY]) < 1e-3
+    # a constant observed 50 times: the Bayesian mean of the prior (0) and the readings
+    assert x[BR] == pytest.approx(0.004 * (50 / s.gyro_R) / (1 / 1e-4 + 50 / s.gyro_R), rel=1e-9)
+    assert x[BAX] == pytest.approx(0.1 * (50 / s.accel_R) / (1 / 0.01 + 50 / s.accel_R), rel=1e-9)
+    assert x[BAY] == pytest.approx(-0.05 * (50 / s.accel_R) / (1 / 0.01 + 50 / s.accel_R), rel=1e-9)
+
+
+# ---- GNSS velocity -----------------------------------------------------------------------------
+
+def gnss(vn, ve, acc=0.1, fix=3):
+    return GnssSample(t=0.0, vel_n_mps=vn, vel_e_mps=ve, speed_acc_mps=acc, fix_type=fix, fix_ok=True)
+
+
+def history(x, P, steps=20):
+    h = StepHistory(steps + 5)
+    h.reset(0)
+    for k in range(steps):
+        h.X[k], h.P[k], h.A[k] = x, P, np.eye(NX)
+        h.aux[k, AUX_R] = 0.0
+    h.last = steps - 1
+    return h
+
+
+def test_gnss_velocity_corrects_heading_and_carries_it_to_the_present():
+    g = GnssVelocityFusion(1.0, 0.0, 3, 1.0, 0.3, 5.0)
+    x, P, _ = state(vx=20.0, vy=0.0, psi=1.0)
+    P[PSI, PSI] = math.radians(3.0) ** 2
+    P[VY, VY] = 0.01  # else part of the cross-track error is (rightly) read as sideslip
+    h = history(x, P)
+    course = 1.0 + math.radians(2.0)  # the car really points 2 deg further clockwise
+    assert g.fuse(h, 5, gnss(20.0 * math.cos(course), 20.0 * math.sin(course)))
+    for k in range(5, h.last + 1):
+        assert h.X[k, PSI] == pytest.approx(course, abs=math.radians(0.3))
+        assert h.P[k][PSI, PSI] < P[PSI, PSI]
+    assert h.X[4, PSI] == 1.0  # before the time of validity: untouched
+    assert g.fused == 1
+
+
+def test_gnss_velocity_gates_a_glitch_and_leaves_the_history_alone():
+    g = GnssVelocityFusion(0.0, 0.0, 3, 1.0, 0.3, 5.0)
+    x, P, _ = state(vx=20.0, vy=0.0, psi=0.0)
+    h = history(x, P)
+    X0, P0 = h.X.copy(), h.P.copy()
+    assert not g.fuse(h, 5, gnss(60.0, 0.0))
+    assert g.consecutive_rejects == 1 and "innovation gate" in g.last_reason
+    np.testing.assert_array_equal(h.X, X0)
+    np.testing.assert_array_equal(h.P, P0)
+
+
+def test_gnss_speed_only_moves_the_speed_not_the_heading():
+    g = GnssVelocityFusion(0.0, 0.0, 3, 1.0, 0.3, 5.0)
+    x, P, _ = state(vx=20.0, vy=0.0, psi=2.0)
+    P[PSI, PSI] = math.pi ** 2
+    h = history(x, P)
+    assert g.fuse_speed(h, 5, gnss(0.0, 21.0))
+    assert 20.0 < h.X[h.last, VX] <= 21.0
+    assert h.X[h.last, PSI] == pytest.approx(2.0, abs=1e-9)
+
+
+def test_gnss_uses_the_derived_antenna_velocity():
+    """At the antenna, a lever arm adds r x lever: the fusion predicts what generated.py says."""
+    g = GnssVelocityFusion(1.5, 0.4, 3, 1.0, 0.3, 5.0)
+    x, P, _ = state(vx=20.0, vy=0.5, psi=0.7)
+    h = history(x, P)
+    h.aux[:, AUX_R] = 0.2
+    vn, ve = gen.gnss_velocity(*x, 0.2, 1.5, 0.4)
+    assert g.fuse(h, 5, gnss(vn, ve, acc=0.05))  # exactly the prediction: nothing moves
+    np.testing.assert_allclose(h.X[h.last], x, atol=1e-12)
+
+
+def test_gnss_quality_checks():
+    g = GnssVelocityFusion(0.0, 0.0, 3, 1.0, 0.3, 5.0)
+    assert g.usable(gnss(10.0, 0.0))
+    assert not g.usable(gnss(10.0, 0.0, fix=2))
+    assert not g.usable(gnss(10.0, 0.0, acc=2.0))
+    assert not g.usable(gnss(200.0, 0.0))

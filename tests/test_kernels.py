@@ -1,0 +1,286 @@
+"""The compiled estimator kernels against their pure-Python references: each kernel alone on
+random inputs, and a whole simulated drive both ways (within 1e-9, and byte-identical twice)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+from ecu_daemon.estimator import Estimator, backend, kalman
+from ecu_daemon.estimator.history import StepHistory, positive_definite
+from ecu_daemon.estimator.kinematic import NX, KinematicModel
+from ecu_daemon.gnss.stream import GnssStreamParser
+from ecu_daemon.signals import SignalDecoder
+from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+RNG = np.random.default_rng(7)
+
+
+@contextmanager
+def kernels(compiled: bool):
+    backend.select(compiled)
+    try:
+        yield
+    finally:
+        backend.select(True)
+
+
+def spd(scale=1.0):
+    a = RNG.normal(size=(NX, NX))
+    return scale * (a @ a.T + 0.1 * np.eye(NX))
+
+
+def test_the_compiled_kernels_are_built_and_active():
+    """pip install builds them (setup.py); a silent fallback would hide a broken build."""
+    assert backend.compiled is not None, backend._import_error
+    assert backend.active() == "compiled"
+
+
+def test_without_the_extension_one_log_line_and_the_reference_runs():
+    """A process where ``_kernels`` cannot be imported: one warning naming why, then it works."""
+    code = ("import sys, logging; sys.modules['ecu_daemon.estimator._kernels'] = None\n"
+            "logging.basicConfig(level=logging.INFO, format='%(levelname)s %(message)s')\n"
+            "from ecu_daemon import config\nfrom ecu_daemon.estimator import Estimator, backend\n"
+            "Estimator(config.load(None)); Estimator(config.load(None)); print(backend.active())")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "reference"
+    lines = [ln for ln in r.stderr.splitlines() if "kernels" in ln]
+    assert len(lines) == 1 and lines[0].startswith("WARNING") and "reference" in lines[0], r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def _both(fn):
+    """fn() under the reference and under the compiled kernels."""
+    with kernels(False):
+        ref = fn()
+    with kernels(True):
+        out = fn()
+    return ref, out
+
+
+def test_predict_agrees():
+    m = KinematicModel(0.006, 0.5, 0.01, 1e-4, 1e-3, 1e-4)
+    x0 = np.array([20.0, 0.3, 6.2, 0.01, 0.1, -0.2, 1.01, 0.02])
+    P0 = spd(0.01)
+
+    def run():
+        x, P, Po = x0.copy(), P0.copy(), np.empty((NX, NX))
+        m.predict(x, P, Po, -0.5, 1.0, 3.0)  # turns psi past 2 pi: wrapped the same way
+        return x, Po, m.F.copy()
+
+    (xr, Pr, Fr), (xc, Pc, Fc) = _both(run)
+    np.testing.assert_allclose(xc, xr, rtol=0, atol=1e-15)
+    assert 0.0 <= xc[2] < 2 * np.pi
+    np.testing.assert_allclose(Pc, Pr, rtol=1e-14, atol=1e-18)
+    np.testing.assert_array_equal(Fc, Fr)
+
+
+@pytest.mark.parametrize("gate", [0.0, 3.0])
+def test_scalar_and_index_updates_agree(gate):
+    x0 = RNG.normal(size=NX)
+    P0 = spd()
+    A0 = RNG.normal(size=(NX, NX))
+    h = RNG.normal(size=NX)
+
+    def run():
+        out = []
+        for innov in (0.3, 50.0):  # the second one beyond a 3-sigma gate
+            x, P, A = x0.copy(), P0.copy(), A0.copy()
+            ok1 = kalman.scalar_update(x, P, innov, h, 0.2, gate, A)
+            ok2 = kalman.index_update(x, P, innov, 3, 0.1, gate, A)
+            kalman.symmetrize(P)
+            out.append((ok1, ok2, x, P, A))
+        return out
+
+    for (o1, o2, xr, Pr, Ar), (c1, c2, xc, Pc, Ac) in zip(*_both(run)):
+        assert (o1, o2) == (c1, c2)
+        np.testing.assert_allclose(xc, xr, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(Pc, Pr, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(Ac, Ar, rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(Pc, Pc.T)
+    assert run()[1][:2] == ((False, False) if gate else (True, True))
+
+
+def test_index_update_is_the_scalar_update_with_a_unit_row():
+    for compiled in (False, True):
+        with kernels(compiled):
+            x, P, A = RNG.normal(size=NX), spd(), RNG.normal(size=(NX, NX))
+            x2, P2, A2 = x.copy(), P.copy(), A.copy()
+            kalman.index_update(x, P, 0.4, 5, 0.3, 0.0, A)
+            kalman.scalar_update(x2, P2, 0.4, np.eye(NX)[5], 0.3, 0.0, A2)
+            np.testing.assert_allclose(x, x2, rtol=1e-12, atol=1e-13)
+            np.testing.assert_allclose(P, P2, rtol=1e-12, atol=1e-13)
+            np.testing.assert_allclose(A, A2, rtol=1e-12, atol=1e-13)
+
+
+def test_update_is_joseph_form():
+    """The stored covariance is (I - K h') P (I - K h')' + K R K', exactly symmetric after the
+    step's symmetrize, and stays positive definite where P - K h' P would not (a tiny R against
+    a huge variance: the subtraction cancels all digits)."""
+    for compiled in (False, True):
+        with kernels(compiled):
+            P = np.diag([1e8, 1.0, 1.0, 1e-6, 1.0, 1.0, 1e-4, 1.0])
+            P[0, 1] = P[1, 0] = 9999.0
+            x = np.zeros(NX)
+            h = np.eye(NX)[0]
+            K = P @ h / (P[0, 0] + 1e-10)
+            I_Kh = np.eye(NX) - np.outer(K, h)
+            want = I_Kh @ P @ I_Kh.T + 1e-10 * np.outer(K, K)
+            kalman.scalar_update(x, P, 1.0, h, 1e-10)
+            kalman.symmetrize(P)
+            np.testing.assert_allclose(P, want, rtol=1e-9, atol=1e-12)
+            np.testing.assert_array_equal(P, P.T)
+            assert P[0, 0] > 0.0 and np.linalg.eigvalsh(P).min() > 0.0
+
+
+@pytest.mark.parametrize("m", [1, 2])
+def test_late_update_agrees_and_is_the_joseph_reduction(m):
+    P0 = spd()
+    H = RNG.normal(size=(m, NX))
+    R = np.diag(RNG.uniform(0.1, 0.5, m))
+    y = RNG.normal(size=m)
+
+    def run():
+        dx, M = np.zeros(NX), np.zeros((NX, NX))
+        nis = kalman.late_update(P0.copy(), H, R, y, dx, M)
+        return nis, dx, M
+
+    (nr, dxr, Mr), (nc, dxc, Mc) = _both(run)
+    S = H @ P0 @ H.T + R
+    K = P0 @ H.T @ np.linalg.inv(S)
+    assert nc == pytest.approx(float(y @ np.linalg.solve(S, y)), rel=1e-12) and nr == pytest.approx(nc, rel=1e-12)
+    np.testing.assert_allclose(dxc, K @ y, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(dxr, dxc, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(Mc, K @ S @ K.T, rtol=1e-9, atol=1e-12)  # = P - Joseph(P) at the optimal K
+    np.testing.assert_allclose(Mr, Mc, rtol=1e-10, atol=1e-13)
+    assert np.array_equal(Mc, Mc.T) and np.array_equal(Mr, Mr.T)
+
+
+def test_late_update_without_a_positive_innovation_covariance_is_nan():
+    for compiled in (False, True):
+        with kernels(compiled):
+            P = np.zeros((NX, NX))
+            dx, M = np.zeros(NX), np.zeros((NX, NX))
+            nis = kalman.late_update(P, np.ones((2, NX)), np.zeros((2, 2)), np.ones(2), dx, M)
+            assert nis != nis
+
+
+def _history(n=40, last=100):
+    h = StepHistory(n)
+    h.reset(last - n + 1)
+    h.last = last
+    for k in range(h.oldest(), last + 1):
+        i = h.slot(k)
+        h.X[i] = RNG.normal(size=NX)
+        h.X[i, 2] = RNG.uniform(0, 2 * np.pi)
+        h.P[i] = spd()
+        h.A[i] = np.eye(NX) + 0.02 * RNG.normal(size=(NX, NX))
+    return h
+
+
+@pytest.mark.parametrize("depth", [0, 1, 7, 39])
+def test_correct_agrees(depth):
+    h0 = _history()
+    s = h0.last - depth
+    dx = 0.1 * RNG.normal(size=NX)
+    G = 0.03 * RNG.normal(size=(NX, 2))
+    M = G @ G.T  # a rank-2 reduction, small enough to keep every P positive definite
+
+    def run():
+        h = StepHistory(h0.n)
+        h.X, h.P, h.A, h.first, h.last = h0.X.copy(), h0.P.copy(), h0.A.copy(), h0.first, h0.last
+        assert h.correct(s, dx, M)
+        return h.X, h.P
+
+    (Xr, Pr), (Xc, Pc) = _both(run)
+    np.testing.assert_allclose(Xc, Xr, rtol=1e-11, atol=1e-11)
+    np.testing.assert_allclose(Pc, Pr, rtol=1e-10, atol=1e-10)
+    assert np.array_equal(Pc, Pc.transpose(0, 2, 1))
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_correct_refuses_a_covariance_that_is_not_positive_definite(compiled):
+    """A reduction larger than what a later step knows would leave a negative variance there:
+    refused, and the history is left exactly as it was."""
+    h = _history()
+    s = h.last - 10
+    M = np.zeros((NX, NX))
+    M[4, 4] = 1e3  # far more than any P[4, 4]
+    X0, P0 = h.X.copy(), h.P.copy()
+    with kernels(compiled):
+        assert not h.correct(s, np.ones(NX), M)
+    np.testing.assert_array_equal(h.X, X0)
+    np.testing.assert_array_equal(h.P, P0)
+
+
+def test_positive_definite_check():
+    good = np.stack([spd(), spd()])
+    bad = good.copy()
+    bad[1, 2, 2] = -1.0
+    nan = good.copy()
+    nan[0, 0, 1] = np.nan
+    assert positive_definite(good) and backend.compiled.positive_definite(good)
+    for P in (bad, nan):
+        assert not positive_definite(P) and not backend.compiled.positive_definite(P)
+
+
+# ------------------------------------------------------------------------------------------------
+# a whole drive
+
+@pytest.fixture(scope="module")
+def drive_events():
+    sc = SCENARIOS["dlc_dry"]
+    cfg = vehicle_config(sc)
+    sim = simulate(sc, cfg)
+    decoder = SignalDecoder(cfg)
+    events = []
+    for t, fid, data in sim.can_frames:
+        events.extend((t, 0, s) for s in decoder.decode(t, fid, data, fid in sim.extended_ids))
+    parser = GnssStreamParser(cfg.gnss.protocol)
+    for t, payload in sim.gnss_messages:
+        events.extend((s.t, 1, s) for s in parser.feed(t, payload))
+    events.extend((s.t, 1, s) for s in parser.finish())
+    events.sort(key=lambda e: (e[0], e[1]))
+    return cfg, events
+
+
+def run_drive(cfg, events):
+    est = Estimator(cfg)
+    out, Ps = [], []
+    for t, kind, s in events:
+        (est.push_gnss if kind else est.push_input)(s)
+        for e in est.advance_to(t - 1e-6):
+            out.append(tuple(e))
+            h = est.hist
+            Ps.append(h.P[h.slot(h.last)].copy() if est.initialized else None)
+    return est, out, Ps
+
+
+def test_a_whole_drive_compiled_and_reference_agree_within_1e9(drive_events):
+    cfg, events = drive_events
+    (er, ref, _), (ec, comp, Ps) = _both(lambda: run_drive(cfg, events))
+    assert ec.gnss.fused > 50 and ec.resets == er.resets and len(comp) == len(ref) > 3000
+    worst = 0.0
+    for a, b in zip(ref, comp):
+        for u, v in zip(a, b):
+            if isinstance(u, float):
+                worst = max(worst, abs(u - v) / max(1.0, abs(u)))
+            else:
+                assert u == v
+    assert worst < 1e-9
+    # every step's covariance exactly symmetric (and positive definite) as stored
+    stored = [P for P in Ps if P is not None]
+    assert len(stored) > 3000
+    assert all(np.array_equal(P, P.T) for P in stored)
+    assert positive_definite(np.stack(stored))
+
+
+def test_two_compiled_runs_are_byte_identical(drive_events):
+    cfg, events = drive_events
+    _, a, _ = run_drive(cfg, events)
+    _, b, _ = run_drive(cfg, events)
+    assert repr(a).encode() == repr(b).encode()
