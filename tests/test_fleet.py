@@ -182,7 +182,7 @@ def test_calibrate_prints_an_override_the_config_loader_reads(serial, tmp_path, 
     doc = tomllib.loads(text)
     rows = [r for r in read_drives(out) if r["vehicle"] == "car02"]
     learned = [r["gnss_delay_s"] for r in rows if math.isfinite(r["gnss_delay_s_std"])]
-    if learned:
+    if "gnss" in doc:  # set only when the drives know it to 0.02 s
         assert cfg.gnss.delay_s == doc["gnss"]["delay_s"]
         assert min(learned) - 1e-4 <= cfg.gnss.delay_s <= max(learned) + 1e-4
     assert "wheel_scale" in text and "learned state, no config key" in text
@@ -206,3 +206,37 @@ def test_outliers_need_a_robust_and_an_own_sigma_excess():
     assert outliers(v, np.full(6, 0.01)).tolist() == [False] * 5 + [True]
     assert not outliers(v, np.full(6, 0.3)).any()  # within its own 3 sigma: not flagged
     assert not outliers(v[:3], np.full(3, 0.01)).any()  # too few drives to say
+
+
+def test_progress_counts_failures_and_only_the_drives_replayed_now():
+    from ecu_daemon.fleet.progress import FleetProgress
+
+    with FleetProgress(3, enabled=False) as bar:
+        bar.done({"status": "ok", "duration_s": 3600.0, "cached": False})
+        bar.done({"status": "ok", "duration_s": 7200.0, "cached": True})  # stored earlier: no work now
+        bar.done({"status": "error", "cached": False})
+    assert (bar.drive_s, bar.failed) == (3600.0, 1)
+    assert bar.progress.tasks[0].completed == 3
+
+
+def _row(i: int, **values) -> dict:
+    row = {"vehicle": "v", "drive": f"d{i}", "status": "ok"}
+    for name in job_mod.PARAMS:
+        row[name], row[f"{name}_std"] = values.get(name, (math.nan, math.nan))
+    return row
+
+
+def test_override_sets_only_well_known_config_parameters_and_loads(tmp_path):
+    rows = [_row(i, gnss_delay_s=(0.41 + 0.01 * (i % 2), 0.02), wheel_scale=(1.01, 1e-4),
+                 cornering_stiffness_front_n_per_rad=(90e3 + 1e3 * i, 5e3),
+                 cornering_stiffness_rear_n_per_rad=(140e3, 60e3)) for i in range(4)]
+    rows.append({"vehicle": "v", "drive": "broken", "status": "error", "error": "x"})
+    text = override_toml("v", rows)
+    path = tmp_path / "o.toml"
+    path.write_text(text)
+    cfg = config_mod.load(path)
+    assert cfg.gnss.delay_s == 0.415  # 4 drives of 0.02 s each: 0.01 s combined
+    assert cfg.vehicle.cornering_stiffness_front_n_per_rad == 91500.0  # 2.5 kN/rad: 2.7 % of the value
+    rear_default = config_mod.Config().vehicle.cornering_stiffness_rear_n_per_rad
+    assert cfg.vehicle.cornering_stiffness_rear_n_per_rad == rear_default  # 30 kN/rad: not set
+    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 5e-05" in text

@@ -72,13 +72,22 @@ def _num(v) -> float:
     return math.nan if v is None else float(v)
 
 
-#: decimals kept in the override (finer than any drive can tell)
-ROUND = {"gnss_delay_s": 4, "cornering_stiffness_front_n_per_rad": 0, "cornering_stiffness_rear_n_per_rad": 0}
+#: config parameters go into the override only when the combination knows them this well (issue
+#: 12's fleet targets): (absolute or relative, 1-sigma limit, decimals kept)
+RECOMMEND = {"gnss_delay_s": ("abs", 0.02, 4), "cornering_stiffness_front_n_per_rad": ("rel", 0.10, 0),
+             "cornering_stiffness_rear_n_per_rad": ("rel", 0.10, 0)}
+
+
+def _known(name: str, p: dict) -> bool:
+    kind, limit, _ = RECOMMEND[name]
+    if not (math.isfinite(p["value"]) and math.isfinite(p["std"])):
+        return False
+    return p["std"] <= (limit if kind == "abs" else limit * abs(p["value"]))
 
 
 def override_toml(vehicle: str, rows: list[dict]) -> str:
-    """The config override (the keys :data:`PARAMS` maps to the config), commented with the
-    learned-state-only parameters, which have no config key."""
+    """The config override (the keys :data:`PARAMS` maps to the config, those known well enough),
+    commented with every parameter's combination, including the learned-state-only ones."""
     params, flagged = vehicle_parameters(rows)
     ok = sum(r.get("status") == "ok" for r in rows)
     lines = [f"# ecu-daemon fleet calibrate --vehicle {vehicle}: {ok} of {len(rows)} drive(s) usable,"
@@ -86,9 +95,9 @@ def override_toml(vehicle: str, rows: list[dict]) -> str:
     doc: dict = {}
     for name, (unit, key) in PARAMS.items():
         p = params[name]
+        note = " (learned state, no config key)" if not key else "" if _known(name, p) else " (not set: too uncertain)"
         lines.append(f"# {name}: {p['value']:.6g} +- {p['std']:.3g} {unit} from {p['drives']} drive(s),"
-                     f" spread {p['spread']:.3g}, {p['outliers']} outlier(s)" + ("" if key else " (learned state, no config key)"))
-        if key and math.isfinite(p["value"]):
-            value = round(p["value"], ROUND[name])
-            doc.setdefault(key[0], {})[key[1]] = float(value)
+                     f" spread {p['spread']:.3g}, {p['outliers']} outlier(s){note}")
+        if key and _known(name, p):
+            doc.setdefault(key[0], {})[key[1]] = float(round(p["value"], RECOMMEND[name][2]))
     return "\n".join(lines) + "\n" + tomli_w.dumps(doc)
