@@ -26,6 +26,7 @@ SUBCOMMANDS = {
     "evaluate": ("ecu_daemon.evaluate", "score a replay CSV against simulator truth, with plots"),
     "simulate": ("ecu_daemon.sim.cli", "simulate a drive: CAN log, GNSS capture, truth CSV"),
     "monitor": ("ecu_daemon.monitor", "live terminal view of a running daemon, decoded from its CAN outputs"),
+    "fleet": ("ecu_daemon.fleet.cli", "replay, score and calibrate a fleet's drives (local pool or Dask)"),
 }
 
 

@@ -275,7 +275,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     wall = time.perf_counter() - wall0
     dur = (t_last - t_first) if t_first is not None else 0.0
     counters.update(duration_s=dur, wall_s=wall, realtime_factor=dur / wall if wall > 0 else math.inf,
-                    late_inputs=est.late_inputs, learned=est.learned_state(), gaps=est.gaps,
+                    late_inputs=est.late_inputs, learned=est.learned_state(),
+                    learned_std=est.learned_std(), gaps=est.gaps,
                     gnss_parse=sum(sum(p.stats.values()) for p in pl.parsers.values()),
                     inputs=input_table(pl.decoder, pl if gnss_path else None, est))
     for line in format_input_table(counters["inputs"]):

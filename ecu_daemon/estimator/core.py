@@ -194,6 +194,21 @@ class Estimator:
             "gnss_delay_std_s": float(self.latency.std_s),
         }
 
+    def learned_std(self) -> dict:
+        """1-sigma of the learned values, from what already carries it: the filter covariance
+        (biases, wheel scale), the RLS covariance (cornering compliances kappa = m / C) and the
+        latency estimator; empty before initialisation. The steering offset is a plain running
+        mean with no uncertainty, so it has none here."""
+        if not self.initialized:
+            return {}
+        P = self.hist.P[self.hist.slot(self.hist.last)]
+        sd = lambda i: float(math.sqrt(max(P[i, i], 0.0)))  # noqa: E731
+        return {"yaw_rate_bias_radps": sd(BR), "accel_x_bias_mps2": sd(BAX), "accel_y_bias_mps2": sd(BAY),
+                "wheel_scale": sd(KW), "accel_y_gain": sd(GAY),
+                "kappa_r": float(math.sqrt(self.single_track.rear.P[0, 0])),
+                "kappa_f": float(math.sqrt(self.single_track.front.P[0, 0])),
+                "gnss_delay_s": float(self.latency.std_s)}
+
     # ----------------------------------------------------------------------------------------
     @staticmethod
     def _check_learned(learned: dict | None) -> dict:

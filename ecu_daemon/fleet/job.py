@@ -1,0 +1,170 @@
+"""One drive: replay it, score it, read what the estimator learned; one flat record.
+
+The only place the fleet calls the replay (:func:`_replay`). A drive whose files cannot be read,
+whose config is bad or whose required inputs never decoded becomes a record with ``status`` =
+``error`` and the reason, so one bad drive never stops the fleet. Records of finished drives (ok or
+a deterministic input error) are stored under :func:`content_key`; a later run returns them as they
+are (``cached``) without replaying.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from .. import config as config_mod
+from ..cli import UserError
+from ..evaluate import ESTIMATE_REQUIRED, TRUTH_REQUIRED, EvaluationError, _evaluate, read_csv
+from .manifest import Drive
+from .store import ResultStore
+
+#: learned parameter -> (unit, its key in the config or None when it is learned state only)
+PARAMS = {
+    "gnss_delay_s": ("s", ("gnss", "delay_s")),
+    "wheel_scale": ("", None),
+    "cornering_stiffness_front_n_per_rad": ("N/rad", ("vehicle", "cornering_stiffness_front_n_per_rad")),
+    "cornering_stiffness_rear_n_per_rad": ("N/rad", ("vehicle", "cornering_stiffness_rear_n_per_rad")),
+    "steering_offset_rad": ("rad", None),
+    "yaw_rate_bias_radps": ("rad/s", None),
+}
+#: parameters the estimator learns without an uncertainty (a running mean): their std column is NaN
+NO_STD = ("steering_offset_rad",)
+VALIDITY = ("sideslip_valid", "heading_valid", "velocity_valid", "biases_valid")
+#: quantity scored against truth -> record column prefix
+SCORED = {"sideslip": "sideslip", "heading": "heading", "vx": "vx"}
+SETTLE_S = 10.0  # as the scenario suite: the first seconds of a drive are convergence, not error
+INPUT_ERRORS = (UserError, config_mod.ConfigError, EvaluationError)
+
+
+def content_key(drive: Drive) -> str:
+    """Hash of everything that decides the result: project version, the effective config (and
+    its DBC files), the CAN log, the GNSS capture(s) and the truth."""
+    h = hashlib.sha256(f"ecu-daemon {__version__}\n".encode())
+    cfg = config_mod.load(drive.config)
+    h.update(config_mod.to_toml(cfg).encode())
+    files = [cfg.dbc_path(), cfg.output_dbc_path(), drive.can, *drive.gnss] + ([drive.truth] if drive.truth else [])
+    for f in files:
+        h.update(f"\n{Path(f).name}\n".encode())
+        with open(f, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+    return h.hexdigest()[:40]
+
+
+def run_drive(drive: Drive, store_dir: str) -> dict:
+    """The drive's record: stored, or computed now (and stored unless the failure was unexpected)."""
+    store = ResultStore(store_dir)
+    base = {"vehicle": drive.vehicle, "drive": drive.drive}
+    try:
+        key = content_key(drive)
+    except (OSError, *INPUT_ERRORS) as e:
+        return {**base, "status": "error", "error": _one_line(e), "cached": False, "wall_s": 0.0}
+    done = store.load(key)
+    if done is not None:
+        return {**done, **base, "cached": True}
+    started = time.perf_counter()
+    keep = True
+    try:
+        with _replay_log_quiet():
+            rec = {**base, "status": "ok", "error": "", **replay_and_score(drive)}
+    except INPUT_ERRORS as e:
+        rec = {**base, "status": "error", "error": _one_line(e)}
+    except Exception as e:  # noqa: BLE001 - a bug on one drive is that drive's row, not the fleet's end
+        rec = {**base, "status": "error", "error": _one_line(e)}
+        keep = False
+    rec.update(key=key, version=__version__, wall_s=time.perf_counter() - started)
+    if keep:
+        store.save(key, rec)
+    return {**rec, "cached": False}
+
+
+def _one_line(e: BaseException) -> str:
+    text = str(e).splitlines()[0] if str(e) else ""
+    return f"{e.__class__.__name__}: {text}" if not isinstance(e, UserError) else text
+
+
+@contextlib.contextmanager
+def _replay_log_quiet():
+    """Without the replay's per-drive input table (INFO): thousands of drives, warnings only."""
+    rlog = logging.getLogger("ecu_daemon.replay")
+    level = rlog.level
+    if rlog.getEffectiveLevel() == logging.INFO:
+        rlog.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        rlog.setLevel(level)
+
+
+def _replay(cfg, drive: Drive, est_csv: str) -> dict:
+    from ..replay import run_replay
+
+    if len(drive.gnss) > 1:
+        raise UserError(f"{len(drive.gnss)} GNSS captures: the replay takes one per drive")
+    return run_replay(cfg, drive.can, drive.gnss[0] if drive.gnss else None, est_csv, config_path=drive.config)
+
+
+def replay_and_score(drive: Drive) -> dict:
+    """Summary counts, validity fractions, learned parameters with 1-sigma, and (with truth) the
+    errors and the true parameters; SI, NaN where a figure does not exist."""
+    cfg = config_mod.load(drive.config)
+    with tempfile.TemporaryDirectory(prefix="ecu-fleet-") as tmp:
+        est_csv = str(Path(tmp) / "estimate.csv")
+        summary = _replay(cfg, drive, est_csv)
+        est = read_csv(est_csv, ESTIMATE_REQUIRED + VALIDITY[2:], "estimate CSV")
+    gnss = summary["inputs"].get("gnss", {})
+    out = {"duration_s": float(summary["duration_s"]), "frames": int(summary["frames"]),
+           "gnss_samples": int(summary["gnss_samples"]), "gnss_fused": int(gnss.get("fused", 0)),
+           "gnss_rejected": int(gnss.get("rejected", 0)), "gaps": int(summary["gaps"]),
+           "late_inputs": int(summary["late_inputs"]), "steps": int(summary["steps"])}
+    for v in VALIDITY:
+        out[f"{v}_fraction"] = float(np.mean(est[v] > 0.5)) if len(est[v]) else math.nan
+    out.update(learned_parameters(summary["learned"], summary.get("learned_std", {}), cfg))
+    if drive.truth:
+        out.update(truth_scores(read_csv(drive.truth, TRUTH_REQUIRED, "truth CSV"), est))
+    return out
+
+
+def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict:
+    """The :data:`PARAMS` and their ``_std`` from the estimator's learned state; the cornering
+    stiffness from its compliance kappa = m / C (std by first-order propagation). A value still
+    bit-identical to the config's prior was never learned on this drive: its std is NaN, so the
+    calibration does not count the same prior once per drive."""
+    out = {}
+    for name in ("gnss_delay_s", "wheel_scale", "steering_offset_rad", "yaw_rate_bias_radps"):
+        out[name] = float(learned.get(name, math.nan))
+        out[f"{name}_std"] = float(std.get(name, math.nan))
+    if out["gnss_delay_s"] == cfg.gnss.delay_s:
+        out["gnss_delay_s_std"] = math.nan
+    m = cfg.vehicle.mass_kg
+    for axle, k in (("front", "kappa_f"), ("rear", "kappa_r")):
+        c = f"cornering_stiffness_{axle}_n_per_rad"
+        kappa = float(learned.get(k, math.nan))
+        out[c] = m / kappa
+        out[f"{c}_std"] = m * float(std.get(k, math.nan)) / kappa ** 2 if kappa != m / getattr(cfg.vehicle, c) \
+            else math.nan
+    return out
+
+
+def truth_scores(truth: dict, est: dict) -> dict:
+    """RMS errors and 3-sigma coverage of the valid rows (``evaluate``'s figures), and ``true_*``
+    for every learned parameter the truth file carries."""
+    try:
+        r = _evaluate(truth, est, SETTLE_S)
+    except EvaluationError:
+        r = {}
+    out = {}
+    for q, col in SCORED.items():
+        s = r.get(q, {})
+        out[f"{col}_rms"] = float(s.get("rms", math.nan))
+        out[f"{col}_coverage_3sigma"] = float(s.get("validity", {}).get("coverage_3sigma", math.nan))
+    for name in PARAMS:
+        out[f"true_{name}"] = float(truth[name][-1]) if name in truth else math.nan
+    return out

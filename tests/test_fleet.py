@@ -1,0 +1,242 @@
+"""``ecu-daemon fleet``: a small simulated fleet through the real replay, on every backend.
+
+The fleet is 3 vehicles x 3 short drives written by ``fleet simulate`` (the real simulator). The
+Dask test starts a real ``LocalCluster`` with two worker processes and requires the same table
+bytes as the run in this process.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ecu_daemon import config as config_mod
+from ecu_daemon.cli import main as cli_main
+from ecu_daemon.fleet import job as job_mod
+from ecu_daemon.fleet.calibrate import combine, outliers, override_toml
+from ecu_daemon.fleet.cli import run_fleet
+from ecu_daemon.fleet.manifest import discover, load_drives
+from ecu_daemon.fleet.simfleet import write_fleet
+from ecu_daemon.fleet.tables import read_drives
+
+TABLES = ("drives.parquet", "drives.csv", "vehicles.parquet", "vehicles.csv")
+
+
+@pytest.fixture(scope="module")
+def fleet(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("fleet") / "fleet"
+    write_fleet(root, vehicles=3, drives=3, seed=5, duration_s=14.0, jobs=1)
+    return root
+
+
+@pytest.fixture(scope="module")
+def serial(fleet, tmp_path_factory) -> tuple[Path, list[dict]]:
+    out = tmp_path_factory.mktemp("serial")
+    return out, run_fleet(str(fleet), out, jobs=1, report=True)
+
+
+def _bytes(out: Path) -> dict[str, bytes]:
+    return {n: (out / n).read_bytes() for n in TABLES}
+
+
+def test_simulated_fleet_has_known_different_vehicles(fleet):
+    drives = discover(fleet)
+    assert [(d.vehicle, d.drive) for d in drives][:2] == [("car01", "drive001"), ("car01", "drive002")]
+    assert len(drives) == 9 and all(d.truth and len(d.gnss) == 1 for d in drives)
+    assert all(d.config == str(fleet / d.vehicle / "config.toml") for d in drives)
+    latencies = {config_mod.load(d.config).gnss.delay_s for d in drives}
+    assert latencies == {0.3}  # the nominal prior; the truth differs per vehicle
+    truth = [job_mod.read_csv(d.truth, ("t", "gnss_delay_s", "wheel_scale"), "truth") for d in drives[::3]]
+    assert len({round(float(t["gnss_delay_s"][0]), 3) for t in truth}) == 3
+    assert len({round(float(t["wheel_scale"][0]), 4) for t in truth}) == 3
+
+
+def test_serial_run_scores_and_learns_every_drive(fleet, serial):
+    out, records = serial
+    assert [r["status"] for r in records] == ["ok"] * 9
+    rows = read_drives(out)
+    assert len(rows) == 9
+    for r in rows:
+        assert r["duration_s"] == pytest.approx(14.0, abs=0.1)
+        assert 0.0 <= r["sideslip_valid_fraction"] <= 1.0
+        assert math.isfinite(r["wheel_scale"]) and 0 < r["wheel_scale_std"] < 0.05
+        truth = json.loads((fleet / r["vehicle"] / "vehicle.json").read_text())
+        assert r["true_wheel_scale"] == truth["wheel_scale"]
+        assert r["true_gnss_delay_s"] == pytest.approx(truth["gnss_latency_s"])
+        assert math.isfinite(r["sideslip_rms"])
+    report = (out / "report.md").read_text()
+    pngs = [line.split("(")[1].rstrip(")") for line in report.splitlines() if line.startswith("![")]
+    assert set(pngs) == {"validity.png", "latency.png", "params_car01.png", "params_car02.png", "params_car03.png"}
+    assert all((out / p).stat().st_size > 1000 for p in pngs)
+
+
+def test_dask_local_cluster_gives_the_same_bytes(fleet, serial, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster:
+        recs = run_fleet(str(fleet), tmp_path, scheduler=cluster.scheduler_address, report=False)
+    assert not any(r["cached"] for r in recs)  # really replayed on the workers
+    assert _bytes(tmp_path) == _bytes(serial[0])
+
+
+def test_local_process_pool_gives_the_same_bytes(fleet, serial, tmp_path):
+    recs = run_fleet(str(fleet), tmp_path, jobs=2, report=False)
+    assert not any(r["cached"] for r in recs)
+    assert _bytes(tmp_path) == _bytes(serial[0])
+
+
+def test_rerun_skips_stored_drives_and_redoes_a_missing_one(fleet, serial, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(serial[0], out)
+    stored = sorted((out / "results").rglob("*.json"))
+    assert len(stored) == 9
+    mtimes = [p.stat().st_mtime_ns for p in stored]
+    stored[4].unlink()  # as if the run had been killed before this drive finished
+    recs = run_fleet(str(fleet), out, jobs=1, report=False)
+    assert sum(not r["cached"] for r in recs) == 1
+    assert [p.stat().st_mtime_ns for i, p in enumerate(stored) if i != 4] == mtimes[:4] + mtimes[5:]
+    assert _bytes(out) == _bytes(serial[0])
+    assert all(r["cached"] for r in run_fleet(str(fleet), out, jobs=1, report=False))
+
+
+def test_content_key_follows_inputs_config_and_version(fleet, tmp_path, monkeypatch):
+    d = discover(fleet)[0]
+    key = job_mod.content_key(d)
+    cfg = tmp_path / "config.toml"
+    cfg.write_text(Path(d.config).read_text().replace("delay_s = 0.3", "delay_s = 0.31"))
+    assert job_mod.content_key(type(d)(**{**d.__dict__, "config": str(cfg)})) != key
+    monkeypatch.setattr(job_mod, "__version__", "9.9.9")
+    assert job_mod.content_key(d) != key
+
+
+def test_bad_drives_are_rows_with_their_error_and_the_rest_finish(fleet, tmp_path, capsys):
+    root = tmp_path / "fleet"
+    shutil.copytree(fleet, root)
+    bad = root / "car02" / "drive004"
+    bad.mkdir()
+    (bad / "drive.log").write_bytes(b"\x00\xffnot a candump log\n" * 50)
+    gone = root / "car03" / "drive002" / "drive_gnss.log"
+    gone.chmod(0)
+    unreadable = not os.access(gone, os.R_OK)  # root reads anything: then the drive is just fine
+    out = tmp_path / "out"
+    rc = cli_main(["fleet", "run", str(root), "--out", str(out), "--jobs", "2", "--no-progress"])
+    rows = {(r["vehicle"], r["drive"]): r for r in read_drives(out)}
+    assert rc == 1
+    assert rows[("car02", "drive004")]["status"] == "error"
+    assert "drive004" in capsys.readouterr().err
+    err = rows[("car02", "drive004")]["error"]
+    assert err and "Traceback" not in err
+    if unreadable:
+        assert rows[("car03", "drive002")]["status"] == "error"
+        assert "ermission" in rows[("car03", "drive002")]["error"]
+    ok = [r for r in rows.values() if r["status"] == "ok"]
+
+    assert len(ok) == 9 - unreadable
+    assert "car02/drive004" in (out / "report.md").read_text()
+
+
+def test_manifest_and_record_layout(fleet, tmp_path):
+    """A manifest names the files; a ``--record`` folder (can.log + gnss.log) is found as it is."""
+    from ecu_daemon.canlog import read_can_log
+    from ecu_daemon.gnss.logfile import read_gnss_log
+    from ecu_daemon.io.recorder import Recorder
+
+    import can
+
+    src = discover(fleet)[0]
+    rec_dir = tmp_path / "tree" / "car01" / "2026-12-01"
+    rec = Recorder(rec_dir)
+    for t, fid, ext, err, data in read_can_log(src.can):
+        rec.on_can(t, can.Message(arbitration_id=fid, data=data, is_extended_id=ext, is_error_frame=err))
+    for t, _, payload in read_gnss_log(src.gnss[0]):
+        rec.on_gnss(t, payload)
+    rec.close()
+    shutil.copy(src.config, tmp_path / "tree" / "car01" / "config.toml")
+    (d,) = load_drives(tmp_path / "tree")
+    assert (d.vehicle, d.drive, Path(d.can).name, [Path(g).name for g in d.gnss]) == \
+        ("car01", "2026-12-01", "can.log", ["gnss.log"])
+    manifest = tmp_path / "fleet.toml"
+    manifest.write_text(f'[[drive]]\nvehicle = "car01"\ndrive = "m1"\nconfig = "{src.config}"\ncan = "{src.can}"\n'
+                        f'gnss = "{src.gnss[0]}"\n')
+    (m,) = load_drives(manifest)
+    recorded = job_mod.run_drive(d, str(tmp_path / "r1"))
+    listed = job_mod.run_drive(m, str(tmp_path / "r2"))
+    assert recorded["status"] == listed["status"] == "ok"
+    for k in ("wheel_scale", "gnss_delay_s", "yaw_rate_bias_radps", "sideslip_valid_fraction"):
+        assert recorded[k] == listed[k]
+
+
+def test_calibrate_prints_an_override_the_config_loader_reads(serial, tmp_path, capsys):
+    out, _ = serial
+    assert cli_main(["fleet", "calibrate", "--out", str(out), "--vehicle", "car02"]) == 0
+    text = capsys.readouterr().out
+    path = tmp_path / "override.toml"
+    path.write_text(text)
+    cfg = config_mod.load(path)
+    doc = tomllib.loads(text)
+    rows = [r for r in read_drives(out) if r["vehicle"] == "car02"]
+    learned = [r["gnss_delay_s"] for r in rows if math.isfinite(r["gnss_delay_s_std"])]
+    if "gnss" in doc:  # set only when the drives know it to 0.02 s
+        assert cfg.gnss.delay_s == doc["gnss"]["delay_s"]
+        assert min(learned) - 1e-4 <= cfg.gnss.delay_s <= max(learned) + 1e-4
+    assert "wheel_scale" in text and "learned state, no config key" in text
+    assert override_toml("car02", rows) == text
+    assert cli_main(["fleet", "calibrate", "--out", str(out), "--vehicle", "nope"]) == 2
+
+
+def test_combine_weights_by_information_and_skips_the_uninformed():
+    r = combine(np.array([1.0, 2.0, 50.0]), np.array([0.1, 0.2, math.nan]))
+    w = np.array([100.0, 25.0])
+    assert r["value"] == pytest.approx((w @ [1.0, 2.0]) / w.sum())
+    assert r["std"] == pytest.approx(1 / math.sqrt(w.sum()))
+    assert r["drives"] == 2
+    plain = combine(np.array([1.0, 3.0]), None)  # no uncertainty model: mean and its standard error
+    assert plain["value"] == 2.0 and plain["std"] == pytest.approx(math.sqrt(2) / math.sqrt(2))
+    assert math.isnan(combine(np.array([1.0]), np.array([math.nan]))["value"])
+
+
+def test_outliers_need_a_robust_and_an_own_sigma_excess():
+    v = np.array([1.00, 1.01, 0.99, 1.02, 0.98, 1.5])
+    assert outliers(v, np.full(6, 0.01)).tolist() == [False] * 5 + [True]
+    assert not outliers(v, np.full(6, 0.3)).any()  # within its own 3 sigma: not flagged
+    assert not outliers(v[:3], np.full(3, 0.01)).any()  # too few drives to say
+
+
+def test_progress_counts_failures_and_only_the_drives_replayed_now():
+    from ecu_daemon.fleet.progress import FleetProgress
+
+    with FleetProgress(3, enabled=False) as bar:
+        bar.done({"status": "ok", "duration_s": 3600.0, "cached": False})
+        bar.done({"status": "ok", "duration_s": 7200.0, "cached": True})  # stored earlier: no work now
+        bar.done({"status": "error", "cached": False})
+    assert (bar.drive_s, bar.failed) == (3600.0, 1)
+    assert bar.progress.tasks[0].completed == 3
+
+
+def _row(i: int, **values) -> dict:
+    row = {"vehicle": "v", "drive": f"d{i}", "status": "ok"}
+    for name in job_mod.PARAMS:
+        row[name], row[f"{name}_std"] = values.get(name, (math.nan, math.nan))
+    return row
+
+
+def test_override_sets_only_well_known_config_parameters_and_loads(tmp_path):
+    rows = [_row(i, gnss_delay_s=(0.41 + 0.01 * (i % 2), 0.02), wheel_scale=(1.01, 1e-4),
+                 cornering_stiffness_front_n_per_rad=(90e3 + 1e3 * i, 5e3),
+                 cornering_stiffness_rear_n_per_rad=(140e3, 60e3)) for i in range(4)]
+    rows.append({"vehicle": "v", "drive": "broken", "status": "error", "error": "x"})
+    text = override_toml("v", rows)
+    path = tmp_path / "o.toml"
+    path.write_text(text)
+    cfg = config_mod.load(path)
+    assert cfg.gnss.delay_s == 0.415  # 4 drives of 0.02 s each: 0.01 s combined
+    assert cfg.vehicle.cornering_stiffness_front_n_per_rad == 91500.0  # 2.5 kN/rad: 2.7 % of the value
+    rear_default = config_mod.Config().vehicle.cornering_stiffness_rear_n_per_rad
+    assert cfg.vehicle.cornering_stiffness_rear_n_per_rad == rear_default  # 30 kN/rad: not set
+    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 5e-05" in text

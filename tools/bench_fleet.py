@@ -1,0 +1,115 @@
+#!/usr/bin/env python3
+"""Benchmark the fleet runner on a simulated fleet (numbers, no asserts).
+
+    .venv/bin/python tools/bench_fleet.py [--work /tmp/bench_fleet] [--vehicles 20] [--drives 20]
+                                          [--scaling-drives 12] [--skip-scaling]
+
+1. ``fleet simulate`` writes the fleet (reused when ``WORK/fleet`` exists): per vehicle its own
+   GNSS latency, wheel scale and cornering stiffness, each drive a 45-70 s manoeuvre.
+2. Scaling: the first ``--scaling-drives`` drives on a real ``dask.distributed.LocalCluster`` with 1
+   and then 2 single-threaded worker processes (fresh result stores): drive-hours per wall-hour.
+3. The whole fleet on the default local process pool (all cores): drive-hours per wall-hour and
+   the replay cost per drive-hour (CPU seconds in the jobs).
+4. Calibration against the truth: per vehicle the combined latency, wheel scale and front/rear
+   cornering stiffness vs ``vehicle.json``; how many vehicles meet issue 12's targets (0.02 s,
+   0.2 %, 10 %).
+Load averages are printed before and after each timed run (the machine is shared).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from ecu_daemon.fleet.calibrate import vehicle_parameters  # noqa: E402
+from ecu_daemon.fleet.cli import run_fleet  # noqa: E402
+from ecu_daemon.fleet.manifest import discover  # noqa: E402
+from ecu_daemon.fleet.simfleet import write_fleet  # noqa: E402
+from ecu_daemon.fleet.tables import read_drives  # noqa: E402
+
+TARGETS = {"gnss_delay_s": ("abs", 0.02), "wheel_scale": ("rel", 0.002),
+           "cornering_stiffness_front_n_per_rad": ("rel", 0.10), "cornering_stiffness_rear_n_per_rad": ("rel", 0.10)}
+
+
+def load() -> str:
+    return "load %.2f %.2f %.2f" % os.getloadavg()
+
+
+def timed(label: str, fn) -> tuple[float, list]:
+    print(f"{label}: {load()} before", flush=True)
+    t0 = time.perf_counter()
+    recs = fn()
+    wall = time.perf_counter() - t0
+    hours = sum(r.get("duration_s") or 0.0 for r in recs if r["status"] == "ok" and not r.get("cached")) / 3600
+    cpu = sum(r.get("wall_s") or 0.0 for r in recs if not r.get("cached"))
+    failed = sum(r["status"] != "ok" for r in recs)
+    print(f"{label}: {len(recs)} drives ({failed} failed), {hours:.3f} drive-h in {wall:.1f} s wall ="
+          f" {hours / (wall / 3600):.0f} drive-h/h; job time {cpu:.0f} s = {cpu / hours if hours else 0:.0f} s per"
+          f" drive-hour; {load()} after", flush=True)
+    return wall, recs
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--work", default="/tmp/bench_fleet")
+    ap.add_argument("--vehicles", type=int, default=20)
+    ap.add_argument("--drives", type=int, default=20)
+    ap.add_argument("--scaling-drives", type=int, default=12)
+    ap.add_argument("--skip-scaling", action="store_true")
+    args = ap.parse_args()
+    work = Path(args.work)
+    fleet = work / "fleet"
+    if not fleet.exists():
+        t0 = time.perf_counter()
+        write_fleet(fleet, args.vehicles, args.drives)
+        print(f"simulated {args.vehicles} x {args.drives} drives in {time.perf_counter() - t0:.0f} s", flush=True)
+    drives = discover(fleet)
+    if not args.skip_scaling:
+        from distributed import LocalCluster
+
+        sub = work / "scaling_manifest.toml"
+        sub.write_text("".join(f'[[drive]]\nvehicle = "{d.vehicle}"\ndrive = "{d.drive}"\nconfig = "{d.config}"\n'
+                               f'can = "{d.can}"\ngnss = {json.dumps(list(d.gnss))}\ntruth = "{d.truth}"\n\n'
+                               for d in drives[:args.scaling_drives]))
+        walls = {}
+        for n in (1, 2):
+            out = work / f"scaling_{n}"
+            shutil.rmtree(out, ignore_errors=True)
+            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl:
+                walls[n], _ = timed(f"LocalCluster {n} worker(s), {args.scaling_drives} drives",
+                                    lambda: run_fleet(str(sub), out, scheduler=cl.scheduler_address, report=False))
+        print(f"scaling 1 -> 2 workers: x{walls[1] / walls[2]:.2f}", flush=True)
+    out = work / "run"
+    shutil.rmtree(out, ignore_errors=True)
+    timed(f"local pool ({os.cpu_count()} processes), whole fleet", lambda: run_fleet(str(fleet), out))
+    t0 = time.perf_counter()
+    run_fleet(str(fleet), out, report=False)
+    print(f"rerun with every drive stored: {time.perf_counter() - t0:.1f} s", flush=True)
+    rows = read_drives(out)
+    hits = {k: 0 for k in TARGETS}
+    vehicles = sorted({r["vehicle"] for r in rows})
+    print(f"{'vehicle':8s} " + " ".join(f"{k[:28]:>30s}" for k in TARGETS))
+    for v in vehicles:
+        truth = json.loads((fleet / v / "vehicle.json").read_text())
+        params, _ = vehicle_parameters([r for r in rows if r["vehicle"] == v])
+        cells = []
+        for k, (kind, tol) in TARGETS.items():
+            t = truth["gnss_latency_s" if k == "gnss_delay_s" else k]
+            est = params[k]["value"]
+            err = est - t if kind == "abs" else (est - t) / t
+            hits[k] += abs(err) <= tol
+            cells.append(f"{est:12.5g} ({t:10.5g}) {err:+8.4f}"[:30].rjust(30))
+        print(f"{v:8s} " + " ".join(cells))
+    for k, (kind, tol) in TARGETS.items():
+        print(f"{k}: {hits[k]} of {len(vehicles)} vehicles within {tol:g}{' (relative)' if kind == 'rel' else ' s'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
