@@ -9,8 +9,8 @@ over the steps so that no step sends a burst (CAN interfaces queue only ~10 fram
 
 Per frame: values outside a signal's range are saturated and non-finite ones sent as 0; either
 clears the frame's validity bit. Only a value the estimate claims to be valid is a problem worth a
-(rate-limited) log line: NaN in a field whose estimator flag is already false is the normal way of
-saying "unknown" (e.g. at every start, before the filter initialises). Then
+(rate-limited) log line: NaN in a field whose estimator flag is already false is a way of saying
+"unknown" (the pipeline's estimate before the first input is finite and all-invalid). Then
 ``Message.encode(strict=False)`` (the range check already happened here), a 4-bit COUNTER per
 message and the E2E profile-2 CRC in byte 0.
 """

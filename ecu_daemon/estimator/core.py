@@ -144,11 +144,6 @@ class Estimator:
     def push_gnss(self, g: GnssSample) -> None:
         self.queue.append(g)
 
-    @property
-    def next_step_t(self) -> float:
-        """Time of the next step to run (inf before the first sample)."""
-        return math.inf if self.k is None else self.k * self.dt
-
     def no_estimate(self, t: float) -> Estimate:
         """What a step before the first sample publishes: finite, every validity bit false."""
         return self._invalid(t)

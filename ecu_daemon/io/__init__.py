@@ -3,8 +3,9 @@
 ``can_bus``   python-can bus, asyncio reception, kernel time -> monotonic, error frames, bus-off TX gate
 ``serial_port``  GNSS tty in the event loop, receive timestamps, unplug / reconnect
 ``tick``      the 6 ms thread on absolute deadlines, lateness statistics
-``health``    the Diagnostics snapshot assembled from all the parts
-``recorder``  ``--record DIR``: replayable capture of what was received
+``health``    the Diagnostics snapshot assembled from all the parts (the host's part, then on the step grid)
+``recorder``  ``--record DIR``: what was received, published and sent, and the tick record that replays it
+``player``    the one real-time player: CAN frames and GNSS bytes on absolute deadlines (tools, demo)
 ``state_store``  atomic persistence of the learned quantities
 ``notify``    systemd READY / WATCHDOG / STATUS / STOPPING
 ``logging_setup``  journald-friendly stderr logging for every command, the one rate limiter
