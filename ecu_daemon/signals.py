@@ -86,15 +86,58 @@ class _Binding:
         self.sign = sign  # sign-magnitude: the sign signal's name, else None
 
 
+def _layout(message) -> tuple | None:
+    """The message's bit layout precompiled for :func:`_unpack`: per signal (name, little-endian,
+    shift from the payload integer's LSB, mask, sign bit, cantools' own raw-to-scaled conversion);
+    None for multiplexed or float signals, or a layout cantools itself cannot unpack (overlapping
+    signals in a third-party DBC): those frames keep ``Message.decode_simple`` and its errors."""
+    if message.is_multiplexed():
+        return None
+    try:
+        message.decode_simple(bytes(message.length), False)
+    except Exception:
+        return None
+    nbits = 8 * message.length
+    out = []
+    for sig in message.signals:
+        n = sig.length
+        if sig.is_float:
+            return None
+        if sig.byte_order == "little_endian":
+            little, shift = True, sig.start
+        else:  # Motorola: the MSB's position counted from the first byte's MSB (cantools' start_bit)
+            little, shift = False, nbits - (8 * (sig.start // 8) + 7 - sig.start % 8) - n
+        if shift < 0 or shift + n > nbits:
+            return None
+        out.append((sig.name, little, shift, (1 << n) - 1, 1 << (n - 1) if sig.is_signed else 0,
+                    sig.conversion.raw_to_scaled))
+    return tuple(out)
+
+
+def _unpack(layout: tuple, data) -> dict:
+    """What ``Message.decode_simple(data, decode_choices=False)`` returns (tests/test_signals.py
+    checks them equal on every DBC we ship), without its per-call generality."""
+    le = int.from_bytes(data, "little")
+    be = int.from_bytes(data, "big")
+    values = {}
+    for name, little, shift, mask, sign, to_scaled in layout:
+        raw = ((le if little else be) >> shift) & mask
+        if raw & sign:
+            raw -= sign << 1
+        values[name] = to_scaled(raw, False)
+    return values
+
+
 class _FramePlan:
     """Per frame id: the message, its checks and the inputs it carries."""
 
-    __slots__ = ("message", "decode", "frame_id", "length", "label", "checksum", "checksum_of",
+    __slots__ = ("message", "decode", "layout", "frame_id", "length", "label", "checksum", "checksum_of",
                  "counters", "bindings", "fast")
 
     def __init__(self, message, label: str):
         self.message = message
         self.decode = message.decode_simple
+        self.layout = _layout(message)
         self.frame_id = message.frame_id
         self.length = message.length
         self.label = label
@@ -234,7 +277,7 @@ class SignalDecoder:
         checksum = plan.checksum
         intact = checksum is None or checksum.check(data)
         try:
-            values = plan.decode(data, False)
+            values = plan.decode(data, False) if plan.layout is None else _unpack(plan.layout, data)
         except Exception as e:  # cantools: bad multiplexer id and the like
             self._fail_all(plan, t, "decode", f"{plan.label}: cannot decode {bytes(data).hex().upper()}: {e}")
             return []

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 
 import sympy as sp
@@ -121,6 +122,7 @@ def _arg_names(args) -> list[str]:
 
 def py_function(name: str, args, exprs, doc: str) -> str:
     subs, red = _cse(list(exprs))
+    doc = textwrap.fill(doc, 96, initial_indent="    ", subsequent_indent="    ").lstrip()
     lines = [f"def {name}({', '.join(_arg_names(args))}):", f'    """{doc}"""']
     lines += [f"    {s} = {_py(e)}" for s, e in subs]
     body = ", ".join(_py(e) for e in red)
@@ -184,9 +186,9 @@ def render() -> tuple[str, str]:
     c.append(c_function("gen_kinematic_f", f_args, [f[i] for i in moving], "moved rows of x after one step"))
     c.append(c_function("gen_kinematic_F_const", (dt,), [e for *_, e in const], "values of GEN_F_CONST"))
     c.append(c_function("gen_kinematic_F_var", f_args, [e for *_, e in var], "values of GEN_F_VAR"))
-    for name, (h, inputs, doc) in measurements().items():
-        h = h.applyfunc(_subs_r)
-        rows = [(i, j, _subs_r(e)) for i, j, e in _rows(measurements()[name][0])]
+    for name, (h_of_r_m, inputs, doc) in measurements().items():
+        h = h_of_r_m.applyfunc(_subs_r)
+        rows = [(i, j, _subs_r(e)) for i, j, e in _rows(h_of_r_m)]  # d/d b_r through r_m - b_r
         args = (*STATE, *inputs)
         cols = tuple((i, j) for i, j, _ in rows)
         py += ["", "", f"{name.upper()}_H = {cols!r}  # nonzero (row, col) of {name}_H, in order", "", ""]

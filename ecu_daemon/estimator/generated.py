@@ -74,7 +74,8 @@ WHEEL_SPEED_H = ((0, 0), (0, 1), (0, 3), (0, 6))  # nonzero (row, col) of wheel_
 
 
 def wheel_speed(vx, vy, psi, b_r, b_ax, b_ay, k_w, g_ay, r, lf, frac, delta):
-    """Wheel-derived speed at the configured radius: a front-pair share ``frac`` sees vx cos(delta) + (vy + lf r) sin(delta), the rear pair vx."""
+    """Wheel-derived speed at the configured radius: a front-pair share ``frac`` sees vx cos(delta)
+    + (vy + lf r) sin(delta), the rear pair vx."""
     return ((frac*(lf*r + vy)*sin(delta) + vx*(frac*cos(delta) - frac + 1))/k_w,)
 
 
