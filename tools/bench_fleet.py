@@ -62,6 +62,7 @@ def main() -> int:
     ap.add_argument("--drives", type=int, default=20)
     ap.add_argument("--scaling-drives", type=int, default=12)
     ap.add_argument("--skip-scaling", action="store_true")
+    ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/run)")
     args = ap.parse_args()
     work = Path(args.work)
     fleet = work / "fleet"
@@ -86,11 +87,12 @@ def main() -> int:
                                     lambda: run_fleet(str(sub), out, scheduler=cl.scheduler_address, report=False))
         print(f"scaling 1 -> 2 workers: x{walls[1] / walls[2]:.2f}", flush=True)
     out = work / "run"
-    shutil.rmtree(out, ignore_errors=True)
-    timed(f"local pool ({os.cpu_count()} processes), whole fleet", lambda: run_fleet(str(fleet), out))
-    t0 = time.perf_counter()
-    run_fleet(str(fleet), out, report=False)
-    print(f"rerun with every drive stored: {time.perf_counter() - t0:.1f} s", flush=True)
+    if not args.skip_full:
+        shutil.rmtree(out, ignore_errors=True)
+        timed(f"local pool ({os.cpu_count()} processes), whole fleet", lambda: run_fleet(str(fleet), out))
+        t0 = time.perf_counter()
+        run_fleet(str(fleet), out, report=False)
+        print(f"rerun with every drive stored: {time.perf_counter() - t0:.1f} s", flush=True)
     rows = read_drives(out)
     hits = {k: 0 for k in TARGETS}
     vehicles = sorted({r["vehicle"] for r in rows})
