@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from ...samples import GnssSample
+from ..gnss_noise import GnssNoiseLearner
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
 from ..kinematic import NX, VX, VY, antenna_velocity_ne, gnss_jacobian
 
@@ -54,12 +55,18 @@ class GnssVelocityFusion:
         self.late = 0
         self.consecutive_rejects = 0
         self.last_reason = ""
+        self.noise = GnssNoiseLearner()
 
-    def sigma(self, g: GnssSample) -> float:
+    def reported_sigma(self, g: GnssSample) -> float:
         acc = g.speed_acc_mps
         if not math.isfinite(acc):
             acc = self.nmea_speed_acc
         return max(acc, 0.02)
+
+    def sigma(self, g: GnssSample) -> float:
+        """Per-axis velocity noise of this fix: the receiver's figure, or less where the wheels
+        have shown its scatter to be smaller (``gnss_noise``)."""
+        return self.noise.sigma(self.reported_sigma(g))
 
     def usable(self, g: GnssSample) -> bool:
         if not (g.fix_ok and g.fix_type >= self.min_fix_type and g.fix_type != 5):
@@ -105,6 +112,7 @@ class GnssVelocityFusion:
             self.rejected += 1
             self.last_reason = "speed innovation gate"
             return False
+        self.noise.observe(y)
         K = Ph / S
         hist.correct(s, K * y, np.outer(K, Ph))
         self.consecutive_rejects = 0
@@ -149,6 +157,7 @@ class GnssVelocityFusion:
             self.rejected += 1
             self.last_reason = f"innovation gate (NIS {nis:.1f})"
             return False
+        self.noise.observe(u[0] * y[0] + u[1] * y[1])
         K = PHt @ Sinv
         hist.correct(s, K @ y, K @ PHt.T)
         self.consecutive_rejects = 0
