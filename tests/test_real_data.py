@@ -67,11 +67,11 @@ def test_revs_sideslip_and_heading(revs):
 def test_revs_sideslip_valid_where_right(revs):
     _, r, _ = revs
     b, h = r["sideslip"]["validity"], r["heading"]["validity"]
-    # measured (seed 1, 200 s): sideslip valid on 89.5 % of the rows above 5 m/s (70.6 % with the
-    # receiver's sAcc of 0.3 m/s for 0.05 m/s of scatter, see estimator/gnss_noise.py; 83.5 %
-    # with the cornering stiffness learned only below a vy std of 0.06 m/s), and the flags still
-    # keep their promise: 100 % of valid sideslip and heading rows within 3 sigma
-    assert b["valid_fraction_above_5mps"] > 0.85
+    # measured (seed 1, 200 s): sideslip valid on 83.5 % of the rows above 5 m/s (70.6 % with the
+    # receiver's sAcc of 0.3 m/s for 0.05 m/s of scatter, see estimator/gnss_noise.py), and the
+    # flags still keep their promise: 100 % of valid sideslip and heading rows within 3 sigma
+    # (heading 98.6 % without the course floor under its std, core.COURSE_FLOOR_RAD)
+    assert b["valid_fraction_above_5mps"] > 0.80
     assert b["coverage_3sigma"] >= 0.99 and h["coverage_3sigma"] >= 0.99
 
 

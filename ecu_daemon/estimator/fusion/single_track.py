@@ -133,20 +133,18 @@ class SingleTrackFusion:
                    delta: float) -> None:
         """RLS step for both axles from a well-estimated (GNSS-fused) kinematic vy."""
         # Learn only from a sideslip the kinematic filter really observes: a steady circle with
-        # free accelerometer biases is not (heading error and rotated biases trade off), and its
-        # vy std says so. Observed means known better than the model predicts it: then the vy
-        # is GNSS's and the gyro's, not the model's own pseudo-measurement fed back to it.
-        if not self.adapt or vx < 8.0:
+        # free accelerometer biases is not (heading error and rotated biases trade off).
+        if not self.adapt or vx < 8.0 or var_vy > 0.06 ** 2:
             return
         n2 = (ay / G) ** 2
         rv = var_vy + 0.05 ** 2
         phi = self.regressor_rear(vx, ay, rdot)
-        if abs(phi) > 0.05 and rv < self.rear.predict(phi, n2)[1]:
+        if abs(phi) > 0.05:
             self.rear.update(phi, n2, vy - self.lr * r, rv)
         if not math.isfinite(delta):
             return
         phf = self.regressor_front(vx, ay, rdot)
-        if abs(phf) > 0.05 and rv < self.front.predict(phf, n2)[1]:
+        if abs(phf) > 0.05:
             # alpha_f = (vy + lf r)/vx - delta = -F_yf / C_f  ->  vy + lf r - vx delta = kappa_f phf
             self.front.update(phf, n2, vy + self.lf * r - vx * delta, rv)
 
