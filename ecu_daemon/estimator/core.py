@@ -492,7 +492,10 @@ class Estimator:
         # A latency error dd turns every GNSS velocity by r * dd while turning: a bias, not noise,
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
-        psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
+        # The heading is GNSS course less sideslip, so it is never better than the course's own
+        # error floor either (multipath; sideslip model errors that last a whole corner): a
+        # filter that has fused hundreds of fixes believes 0.09 deg where Revs shows 0.3.
+        psi_std = math.sqrt(sd[PSI] ** 2 + (self.turn_lp * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))

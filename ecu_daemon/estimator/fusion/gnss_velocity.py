@@ -23,6 +23,7 @@ import numpy as np
 from ...samples import GnssSample
 from .. import generated as gen
 from .. import kalman
+from ..gnss_noise import GnssNoiseLearner
 from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
 from ..kinematic import NX, VX
 
@@ -65,12 +66,18 @@ class GnssVelocityFusion:
         self._R1, self._R2 = np.zeros((1, 1)), np.zeros((2, 2))
         self._y1, self._y2 = np.zeros(1), np.zeros(2)
         self._dx, self._M = np.zeros(NX), np.zeros((NX, NX))
+        self.noise = GnssNoiseLearner()
 
-    def sigma(self, g: GnssSample) -> float:
+    def reported_sigma(self, g: GnssSample) -> float:
         acc = g.speed_acc_mps
         if not math.isfinite(acc):
             acc = self.nmea_speed_acc
         return max(acc, 0.02)
+
+    def sigma(self, g: GnssSample) -> float:
+        """Per-axis velocity noise of this fix: the receiver's figure, or less where the wheels
+        have shown its scatter to be smaller (``gnss_noise``)."""
+        return self.noise.sigma(self.reported_sigma(g))
 
     def usable(self, g: GnssSample) -> bool:
         if not (g.fix_ok and g.fix_type >= self.min_fix_type and g.fix_type != 5):
@@ -112,6 +119,7 @@ class GnssVelocityFusion:
             self.rejected += 1
             self.last_reason = "speed innovation gate"
             return False
+        self.noise.observe(float(self._y1[0]))
         if not self._correct(hist, s, self._dx, self._M):
             return False
         self.consecutive_rejects = 0
@@ -149,6 +157,7 @@ class GnssVelocityFusion:
             self.rejected += 1
             self.last_reason = f"innovation gate (NIS {nis:.1f})"
             return False
+        self.noise.observe(u0 * self._y2[0] + u1 * self._y2[1])
         if not self._correct(hist, s, self._dx, self._M):
             return False
         self.consecutive_rejects = 0

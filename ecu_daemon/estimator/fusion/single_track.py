@@ -65,8 +65,9 @@ class AxleRls:
         Ph = self.P @ h
         g = Ph / (h @ Ph + rv)
         e = y - h @ self.k
-        rel = max(e * e - rv, 0.0) / (phi * phi)
-        self.rel_var += 0.02 * (rel - self.rel_var)
+        if phi * phi * self.k10 * self.k10 > rv:  # the slip stands out of the vy noise: a model error
+            rel = max(e * e - rv, 0.0) / (phi * phi)
+            self.rel_var += 0.02 * (rel - self.rel_var)
         self.k += g * e
         self.P = (self.P - np.outer(g, Ph)) / lam
         # forgetting must not inflate beyond the prior (no information -> back to the prior)
