@@ -270,6 +270,18 @@ def test_diagnostics_summary_is_one_line_naming_problems():
     assert "1/8 fresh" in line and "wheel_speed_fl" in line and "yaw_rate," not in line
 
 
+def _random_values(rng, signals) -> dict:
+    """Random raw values over each signal's whole bit range, as the scaled values the encoder feeds."""
+    values = {}
+    for sig in signals:
+        n = sig.length
+        lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
+        raw = rng.choice((lo, hi, 0, rng.randint(lo, hi)))
+        v = raw * sig.scale + sig.offset
+        values[sig.name] = v + rng.uniform(-0.49, 0.49) * sig.scale if isinstance(v, float) else v
+    return values
+
+
 def test_precompiled_layout_packs_exactly_what_cantools_encodes(enc):
     """The per-frame fast path (outputs._pack) against ``Message.encode`` on every output message:
     random raw values over each signal's whole bit range, as the scaled values the encoder feeds."""
@@ -282,19 +294,33 @@ def test_precompiled_layout_packs_exactly_what_cantools_encodes(enc):
     for msg in enc.db.messages:
         layout = _layout(msg)
         if msg.is_multiplexed():
-            continue  # EST_DIAG keeps cantools' multiplexing
+            continue  # EST_DIAG: per page, below
         assert layout is not None, msg.name  # our DBC is all Intel integers
         for _ in range(300):
-            values = {}
-            for sig in msg.signals:
-                n = sig.length
-                lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
-                raw = rng.choice((lo, hi, 0, rng.randint(lo, hi)))
-                v = raw * sig.scale + sig.offset
-                values[sig.name] = v + rng.uniform(-0.49, 0.49) * sig.scale if isinstance(v, float) else v
+            values = _random_values(rng, msg.signals)
             assert _pack(layout, values, msg.length) == msg.encode(values, True, False, False), msg.name
             checked += 1
     assert checked >= 300 * 5
+
+
+def test_each_page_of_est_diag_packs_exactly_what_cantools_encodes(enc):
+    """The multiplexed EST_DIAG: a page's layout (selector + the page's signals) gives the bytes
+    ``Message.encode`` gives for that page, on random values of every page."""
+    import random
+
+    from ecu_daemon.outputs import _page_layout, _pack
+
+    rng = random.Random(6)
+    msg = enc.db.get_message_by_name("EST_DIAG")
+    pages = sorted(next(n for n in msg.signal_tree if isinstance(n, dict))["DIAG_PAGE"])
+    assert len(pages) >= 2
+    for page in pages:
+        layout = _page_layout(msg, page)
+        sigs = [s for s in msg.signals if s.multiplexer_ids is None or page in s.multiplexer_ids]
+        for _ in range(200):
+            values = _random_values(rng, sigs)
+            values["DIAG_PAGE"] = page
+            assert _pack(layout, values, msg.length) == msg.encode(values, True, False, False), page
 
 
 def test_a_big_endian_message_keeps_cantools_encode(tmp_path):
