@@ -231,6 +231,11 @@ class OutputEncoder:
         self._plans = [self._plan(m) for m in self.db.messages]
         self._stagger()
         self.schedule = [(p.name, p.frame_id, p.period, p.phase) for p in self._plans]
+        # the plans due at each step of one hyperperiod (the schedule repeats), so a step looks
+        # only at its own messages; none when the hyperperiod is too long to tabulate
+        hyper = math.lcm(*(p.period for p in self._plans)) if self._plans else 1
+        self._due = ([[p for p in self._plans if k % p.period == p.phase] for k in range(hyper)]
+                     if hyper <= 10000 else None)
         self.frame_ids = sorted(p.frame_id for p in self._plans)
 
     # ----------------------------------------------------------------------------- set-up
@@ -310,8 +315,9 @@ class OutputEncoder:
         """The frames due at estimator step ``step_index`` (``est.t`` is their timestamp)."""
         out = []
         t = est.t
-        for p in self._plans:
-            if step_index % p.period != p.phase:
+        due = self._due
+        for p in self._plans if due is None else due[step_index % len(due)]:
+            if due is None and step_index % p.period != p.phase:
                 continue
             if p.pages:
                 if diag is None:
