@@ -30,6 +30,11 @@ from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import data_id_for, e2e_p2_crc, next_counter
 from .io.logging_setup import RateLimitedLog
 
+try:
+    from ._frames import pack as _pack_compiled  # setup.py builds it; optional
+except ImportError:
+    _pack_compiled = None
+
 log = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * math.pi
@@ -152,16 +157,17 @@ class _Field:
 
 def _layout(message, signals=None):
     """The message's bit layout precompiled for :func:`_pack`: per signal (name, offset, scale,
-    shift, mask, raw range); None if a signal is big-endian or float (those frames keep
-    ``Message.encode``). ``signals``: a subset (one page of a multiplexed message)."""
+    shift, mask, raw range); None if a signal is big-endian, float or wider than 52 bits (a
+    double no longer holds every raw value; those frames keep ``Message.encode``). ``signals``: a
+    subset (one page of a multiplexed message)."""
     out = []
     for sig in message.signals if signals is None else signals:
-        if sig.byte_order != "little_endian" or sig.is_float:
+        if sig.byte_order != "little_endian" or sig.is_float or sig.length > 52:
             return None
         n = sig.length
         lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
         out.append((sig.name, sig.offset, sig.scale, sig.start, (1 << n) - 1, lo, hi))
-    return out
+    return tuple(out)
 
 
 def _page_layout(message, page: int):
@@ -172,13 +178,23 @@ def _page_layout(message, page: int):
 
 
 def _pack(layout, values: dict, length: int) -> bytearray | None:
+    """:func:`_pack_reference`, compiled (``_frames.c``) where built and the layout fits it."""
+    if _pack_compiled is not None:
+        out = _pack_compiled(layout, values, length)
+        if out is not NotImplemented:
+            return out
+    return _pack_reference(layout, values, length)
+
+
+def _pack_reference(layout, values: dict, length: int) -> bytearray | None:
     """The payload ``Message.encode(values, scaling=True, padding=False, strict=False)`` gives,
     without its per-call generality (tests/test_outputs.py checks them equal); None if a raw value
     does not fit its bits.
 
     ``round((v - offset) / scale)`` is cantools' scaled-to-raw conversion of every integer signal
-    (its identity and integer-scale variants give the same integer for values under 2**53),
-    inlined: the method call per signal was most of the cost.
+    (its identity and integer-scale variants give the same integer for values under 2**53, which
+    is why :func:`_layout` takes no wider signal), inlined: the method call per signal was most of
+    the cost.
     """
     acc = 0
     for name, offset, scale, shift, mask, lo, hi in layout:
