@@ -1,4 +1,4 @@
-"""Only the compiled estimator kernels; everything else is in pyproject.toml.
+"""Only the compiled estimator kernels and output frame packing; everything else is in pyproject.toml.
 
 Ahead-of-time C (no JIT: the service runs with MemoryDenyWriteExecute=yes). ``optional``: a
 machine without a compiler still installs, and the estimator says so once and runs its
@@ -10,6 +10,11 @@ setup(ext_modules=[Extension(
     "ecu_daemon.estimator._kernels",
     sources=["ecu_daemon/estimator/_kernels.c"],
     depends=["ecu_daemon/estimator/_generated.h"],
+    extra_compile_args=["-O2", "-ffp-contract=off"],
+    optional=True,
+), Extension(  # output frame packing (ecu_daemon/outputs.py falls back to its Python reference)
+    "ecu_daemon._frames",
+    sources=["ecu_daemon/_frames.c"],
     extra_compile_args=["-O2", "-ffp-contract=off"],
     optional=True,
 )])

@@ -365,6 +365,13 @@ class CandumpWriter:
 
     def write(self, msg: can.Message) -> None:
         """Append one python-can message (data, remote, error or CAN FD frame)."""
+        if not (msg.is_error_frame or msg.is_extended_id or msg.is_remote_frame or msg.is_fd):
+            # the common case (every output frame) in one formatting step
+            if self._f is None:
+                raise ValueError("CandumpWriter is closed")
+            self._f.write(f"({msg.timestamp:.6f}) {self.channel} {msg.arbitration_id:03X}#{msg.data.hex().upper()}\n")
+            self.frames += 1
+            return
         if msg.is_error_frame:
             head = f"{CAN_ERR_FLAG | (msg.arbitration_id & CAN_EFF_MASK):08X}#"
         elif msg.is_extended_id:

@@ -30,6 +30,11 @@ from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import data_id_for, e2e_p2_crc, next_counter
 from .io.logging_setup import RateLimitedLog
 
+try:
+    from ._frames import pack as _pack_compiled  # setup.py builds it; optional
+except ImportError:
+    _pack_compiled = None
+
 log = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * math.pi
@@ -150,27 +155,50 @@ class _Field:
         self.modulus = 1 << signal.length
 
 
-def _layout(message):
-    """The message's bit layout precompiled for :func:`_pack`: per signal (name, cantools' own
-    scaled-to-raw conversion, shift, mask, raw range); None if a signal is big-endian or float
-    (those frames keep ``Message.encode``)."""
+def _layout(message, signals=None):
+    """The message's bit layout precompiled for :func:`_pack`: per signal (name, offset, scale,
+    shift, mask, raw range); None if a signal is big-endian, float or wider than 52 bits (a
+    double no longer holds every raw value; those frames keep ``Message.encode``). ``signals``: a
+    subset (one page of a multiplexed message)."""
     out = []
-    for sig in message.signals:
-        if sig.byte_order != "little_endian" or sig.is_float:
+    for sig in message.signals if signals is None else signals:
+        if sig.byte_order != "little_endian" or sig.is_float or sig.length > 52:
             return None
         n = sig.length
         lo, hi = (-(1 << (n - 1)), (1 << (n - 1)) - 1) if sig.is_signed else (0, (1 << n) - 1)
-        out.append((sig.name, sig.conversion.numeric_scaled_to_raw, sig.start, (1 << n) - 1, lo, hi))
-    return out
+        out.append((sig.name, sig.offset, sig.scale, sig.start, (1 << n) - 1, lo, hi))
+    return tuple(out)
+
+
+def _page_layout(message, page: int):
+    """:func:`_layout` of one page of a message multiplexed by one selector: the selector, the
+    signals of no page and the page's own (what ``Message.encode`` packs for that page)."""
+    sigs = [s for s in message.signals if s.multiplexer_ids is None or page in s.multiplexer_ids]
+    return _layout(message, sigs)
 
 
 def _pack(layout, values: dict, length: int) -> bytearray | None:
+    """:func:`_pack_reference`, compiled (``_frames.c``) where built and the layout fits it."""
+    if _pack_compiled is not None:
+        out = _pack_compiled(layout, values, length)
+        if out is not NotImplemented:
+            return out
+    return _pack_reference(layout, values, length)
+
+
+def _pack_reference(layout, values: dict, length: int) -> bytearray | None:
     """The payload ``Message.encode(values, scaling=True, padding=False, strict=False)`` gives,
     without its per-call generality (tests/test_outputs.py checks them equal); None if a raw value
-    does not fit its bits."""
+    does not fit its bits.
+
+    ``round((v - offset) / scale)`` is cantools' scaled-to-raw conversion of every integer signal
+    (its identity and integer-scale variants give the same integer for values under 2**53, which
+    is why :func:`_layout` takes no wider signal), inlined: the method call per signal was most of
+    the cost.
+    """
     acc = 0
-    for name, to_raw, shift, mask, lo, hi in layout:
-        raw = to_raw(values[name])
+    for name, offset, scale, shift, mask, lo, hi in layout:
+        raw = round((values[name] - offset) / scale)
         if raw < lo or raw > hi:
             return None
         acc |= (raw & mask) << shift
@@ -179,7 +207,7 @@ def _pack(layout, values: dict, length: int) -> bytearray | None:
 
 class _MessagePlan:
     __slots__ = ("name", "message", "encode", "layout", "length", "frame_id", "data_id", "period", "phase",
-                 "counter", "values", "fields", "valid", "status", "pages")
+                 "counter", "values", "fields", "valid", "status", "pages", "ok")
 
     def __init__(self, message, period: int):
         self.name = message.name
@@ -196,7 +224,9 @@ class _MessagePlan:
         self.fields: list[_Field] = []
         self.valid: list[tuple[str, int | None]] = []  # (validity signal, Estimate index of its flag)
         self.status: list[tuple[str, int]] = []  # (status-bit signal, mask)
-        self.pages: list[tuple[int, dict, list[_Field]]] = []  # multiplexed: (page, values, fields)
+        self.pages: list[tuple[int, dict, list[_Field], list | None]] = []  # multiplexed: (page, values,
+        # fields, layout)
+        self.ok: dict[str, bool] = {}  # every validity signal -> True: the start of each frame's check
 
 
 class OutputEncoder:
@@ -217,6 +247,11 @@ class OutputEncoder:
         self._plans = [self._plan(m) for m in self.db.messages]
         self._stagger()
         self.schedule = [(p.name, p.frame_id, p.period, p.phase) for p in self._plans]
+        # the plans due at each step of one hyperperiod (the schedule repeats), so a step looks
+        # only at its own messages; none when the hyperperiod is too long to tabulate
+        hyper = math.lcm(*(p.period for p in self._plans)) if self._plans else 1
+        self._due = ([[p for p in self._plans if k % p.period == p.phase] for k in range(hyper)]
+                     if hyper <= 10000 else None)
         self.frame_ids = sorted(p.frame_id for p in self._plans)
 
     # ----------------------------------------------------------------------------- set-up
@@ -250,6 +285,7 @@ class OutputEncoder:
             if name in _VALID_FLAGS:
                 flag = _VALID_FLAGS[name]
                 p.valid.append((name, None if flag is None else ESTIMATE_FIELDS.index(flag)))
+                p.ok[name] = True
             elif name.startswith("STATUS_") and isinstance(getattr(estimate_module, name, None), int):
                 p.status.append((name, getattr(estimate_module, name)))
             elif name in _ESTIMATE_SOURCES:
@@ -275,7 +311,7 @@ class OutputEncoder:
                     raise ConfigError(f"{where}: signal {name} has no source in ecu_daemon/outputs.py")
                 values[name] = 0
                 fields.append(_Field(msg.get_signal_by_name(name), src[0], src[1]))
-            p.pages.append((page, values, fields))
+            p.pages.append((page, values, fields, _page_layout(msg, page)))
 
     def _stagger(self) -> None:
         """Give each slower message the phase with the fewest frames already due (greedy)."""
@@ -295,22 +331,20 @@ class OutputEncoder:
         """The frames due at estimator step ``step_index`` (``est.t`` is their timestamp)."""
         out = []
         t = est.t
-        any_valid = None  # validity claimed for frames without an estimator flag; computed once, if needed
-        for p in self._plans:
-            if step_index % p.period != p.phase:
+        due = self._due
+        for p in self._plans if due is None else due[step_index % len(due)]:
+            if due is None and step_index % p.period != p.phase:
                 continue
             if p.pages:
                 if diag is None:
                     continue
-                page, values, fields = p.pages[(step_index // p.period) % len(p.pages)]
+                page, values, fields, layout = p.pages[(step_index // p.period) % len(p.pages)]
                 self._fill(p.name, values, fields, diag, None, None)
             else:
                 values = p.values
-                if any_valid is None:
-                    any_valid = est.sideslip_valid or est.heading_valid or est.velocity_valid or est.biases_valid
-                ok = {v: True for v, _ in p.valid}
-                claimed = {v: (any_valid if flag is None else est[flag]) for v, flag in p.valid}
-                self._fill(p.name, values, p.fields, est, ok, claimed)
+                layout = p.layout
+                ok = p.ok.copy()
+                self._fill(p.name, values, p.fields, est, ok, p.valid)
                 for vsig, flag in p.valid:
                     values[vsig] = 1 if ok[vsig] and (flag is None or est[flag]) else 0
                 if p.status:
@@ -319,7 +353,7 @@ class OutputEncoder:
                         values[ssig] = 1 if status & mask else 0
             values["COUNTER"] = p.counter
             p.counter = (p.counter + 1) & 0xF
-            payload = None if p.layout is None else _pack(p.layout, values, p.length)
+            payload = None if layout is None else _pack(layout, values, p.length)
             if payload is None:
                 payload = bytearray(p.encode(values, True, False, False))
             payload[0] = e2e_p2_crc(payload, p.data_id)
@@ -328,12 +362,12 @@ class OutputEncoder:
         return out
 
     def _fill(self, msg_name: str, values: dict, fields: list[_Field], src, ok: dict | None,
-              claimed: dict | None) -> None:
+              valid: list | None) -> None:
         """Bring every field of ``src`` into range; ``ok`` (Estimate frames only) collects validity.
 
-        ``claimed``: per validity signal, whether the estimate says its values are valid. A value
-        saturated or not finite there is reported; where it is not, the value is encoded the same
-        way but silently (the validity bit is already 0).
+        ``valid``: the frame's (validity signal, Estimate flag index); a value saturated or not
+        finite where the estimate claims validity (:func:`_claimed`) is reported; where it does
+        not, the value is encoded the same way but silently (the validity bit is already 0).
         """
         isfinite = math.isfinite
         for f in fields:
@@ -350,7 +384,7 @@ class OutputEncoder:
                 values[f.signal] = f.zero
                 if ok is not None:
                     ok[f.valid] = False
-                    if claimed[f.valid]:
+                    if _claimed(src, valid, f.valid):
                         self._count("non_finite", msg_name, f, v)
                 continue
             if mode == _ANGLE:
@@ -361,7 +395,7 @@ class OutputEncoder:
                 clamped = f.lo if v < f.lo else f.hi
                 if ok is not None and mode == _SAT:
                     ok[f.valid] = False
-                    if claimed[f.valid]:
+                    if _claimed(src, valid, f.valid):
                         self._count("saturated", msg_name, f, v)
                 v = clamped
             values[f.signal] = v
@@ -372,6 +406,15 @@ class OutputEncoder:
         what = f"not finite, sent as {f.zero:g}" if kind == "non_finite" else f"saturated to [{f.lo:g}, {f.hi:g}]"
         self._log.report((f.signal, kind), logging.WARNING,
                          f"output {msg_name}.{f.signal} = {float(v):.6g} {what}; {f.valid} cleared")
+
+
+def _claimed(est: Estimate, valid: list, vsig: str) -> bool:
+    """Whether ``est`` claims the values behind validity signal ``vsig`` valid: its flag, or for a
+    signal without one, any of the four flags (the filter runs). Asked only for a bad value."""
+    flag = next(f for v, f in valid if v == vsig)
+    if flag is None:
+        return bool(est.sideslip_valid or est.heading_valid or est.velocity_valid or est.biases_valid)
+    return bool(est[flag])
 
 
 def decode_output_frame(db, msg: can.Message, prev_counter: int | None = None) -> dict:

@@ -219,7 +219,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
                 gaps_said = est.gaps
                 gap_log.report("gap", logging.WARNING, gap_line(est))
             if csv_out:
-                _write(csv_file, csv_out.writelines, [fmt % tuple(st.estimate) for st in steps])
+                _write(csv_file, csv_out.writelines, [fmt % st.estimate for st in steps])
             if can_out is not None:
                 _write(can_file, write_frames, steps)
             counters["steps"] += len(steps)

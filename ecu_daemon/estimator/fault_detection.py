@@ -211,15 +211,16 @@ class FaultDetector:
         if self.gnss.active:
             iso |= GNSS
         self.new_isolation = iso & ~before
-        for bit, states in FROZEN_STATES.items():
-            if iso & bit and not before & bit:
-                self.frozen.update((j, x[j]) for j in states)
-            elif before & bit and not iso & bit:
-                for j in states:
-                    self.frozen.pop(j, None)
-        for name, bit in SOURCE_BITS.items():
-            if self.new_isolation & bit:
-                self.events[name] += 1
+        if iso != before:  # (the loops below do nothing while the mask stays)
+            for bit, states in FROZEN_STATES.items():
+                if iso & bit and not before & bit:
+                    self.frozen.update((j, x[j]) for j in states)
+                elif before & bit and not iso & bit:
+                    for j in states:
+                        self.frozen.pop(j, None)
+            for name, bit in SOURCE_BITS.items():
+                if self.new_isolation & bit:
+                    self.events[name] += 1
         self.isolated = iso
         return iso
 
