@@ -241,3 +241,14 @@ def test_override_sets_only_well_known_config_parameters_and_loads(tmp_path):
     rear_default = config_mod.Config().vehicle.cornering_stiffness_rear_n_per_rad
     assert cfg.vehicle.cornering_stiffness_rear_n_per_rad == rear_default  # 30 kN/rad: not set
     assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 5e-05" in text
+
+
+def test_an_unreachable_scheduler_is_one_line(fleet, tmp_path, capsys):
+    pytest.importorskip("distributed")
+    import dask
+
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        rc = cli_main(["fleet", "run", str(fleet), "--out", str(tmp_path), "--scheduler", "tcp://127.0.0.1:9",
+                       "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err and "Traceback" not in err
