@@ -252,3 +252,20 @@ def test_an_unreachable_scheduler_is_one_line(fleet, tmp_path, capsys):
                        "--no-progress"])
     err = capsys.readouterr().err
     assert rc == 2 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err and "Traceback" not in err
+
+
+def test_calibrate_state_file_is_what_the_estimator_restores(serial, tmp_path, capsys):
+    from ecu_daemon.estimator import Estimator
+    from ecu_daemon.fleet.calibrate import vehicle_parameters
+    from ecu_daemon.io.state_store import load_state
+
+    out, _ = serial
+    state = tmp_path / "state.json"
+    assert cli_main(["fleet", "calibrate", "--out", str(out), "--vehicle", "car03", "--state", str(state)]) == 0
+    capsys.readouterr()
+    rows = [r for r in read_drives(out) if r["vehicle"] == "car03"]
+    params, _ = vehicle_parameters(rows)
+    cfg = config_mod.load(None)
+    restored = Estimator(cfg, load_state(state)).learned_state()  # before the first sample: what it starts from
+    assert restored["wheel_scale"] == params["wheel_scale"]["value"]
+    assert restored["yaw_rate_bias_radps"] == params["yaw_rate_bias_radps"]["value"]
