@@ -106,7 +106,7 @@ def main() -> int:
             est = params[k]["value"]
             err = est - t if kind == "abs" else (est - t) / t
             hits[k] += abs(err) <= tol
-            cells.append(f"{est:12.5g} ({t:10.5g}) {err:+8.4f}"[:30].rjust(30))
+            cells.append(f"{est:.5g} ({t:.5g}) {err:+.4f}".rjust(30))
         print(f"{v:8s} " + " ".join(cells))
     for k, (kind, tol) in TARGETS.items():
         print(f"{k}: {hits[k]} of {len(vehicles)} vehicles within {tol:g}{' (relative)' if kind == 'rel' else ' s'}")

@@ -47,17 +47,21 @@ def _pool(drives, store_dir, jobs, done) -> list[dict]:
 
 
 def _dask(drives, store_dir, address, done) -> list[dict]:
+    from ..cli import UserError
+
     try:
         from distributed import Client
         from distributed import as_completed as dask_completed
     except ImportError as e:
-        from ..cli import UserError
-
         raise UserError(f"--scheduler needs Dask (pip install 'ecu-daemon[fleet]'): {e}") from None
     run = uuid.uuid4().hex[:8]
     keys = [f"fleet-{run}-{i}" for i in range(len(drives))]
     out: list = [None] * len(drives)
-    with Client(address) as client:
+    try:
+        client = Client(address)
+    except (OSError, TimeoutError, ValueError) as e:
+        raise UserError(f"cannot reach the Dask scheduler at {address}: {e}") from None
+    with client:
         futures = client.map(run_drive, drives, [store_dir] * len(drives), key=keys, retries=RETRIES, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         for fut in dask_completed(futures):

@@ -101,3 +101,22 @@ def override_toml(vehicle: str, rows: list[dict]) -> str:
         if key and _known(name, p):
             doc.setdefault(key[0], {})[key[1]] = float(round(p["value"], RECOMMEND[name][2]))
     return "\n".join(lines) + "\n" + tomli_w.dumps(doc)
+
+
+#: the learned-state keys a vehicle's drives agree on (the rest the estimator relearns each start)
+STATE_KEYS = ("wheel_scale", "steering_offset_rad", "yaw_rate_bias_radps", "gnss_delay_s")
+
+
+def learned_state(rows: list[dict]) -> dict:
+    """The combined values as the estimator's learned state (``[daemon] state_file``,
+    ``replay --state``): where the parameters without a config key can go."""
+    from ..estimator.core import LEARNED_VERSION
+
+    params, _ = vehicle_parameters(rows)
+    out: dict = {"version": LEARNED_VERSION}
+    for name in STATE_KEYS:
+        if math.isfinite(params[name]["value"]):
+            out[name] = params[name]["value"]
+    if "gnss_delay_s" in out and math.isfinite(params["gnss_delay_s"]["std"]):
+        out["gnss_delay_std_s"] = params["gnss_delay_s"]["std"]
+    return out

@@ -1,7 +1,7 @@
 """``ecu-daemon fleet run | calibrate | simulate``.
 
     ecu-daemon fleet run INPUT --out DIR [--jobs N | --scheduler ADDRESS] [--no-report]
-    ecu-daemon fleet calibrate --out DIR --vehicle V > overrides.toml
+    ecu-daemon fleet calibrate --out DIR --vehicle V [--state FILE] > overrides.toml
     ecu-daemon fleet simulate --out DIR [--vehicles 20] [--drives 20] [--duration S] [--seed N]
 
 ``run`` writes ``DIR/drives.{parquet,csv}``, ``DIR/vehicles.{parquet,csv}``, ``DIR/report.md`` with
@@ -34,6 +34,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     c = sub.add_parser("calibrate", help="print a vehicle's config override (TOML) from a fleet run")
     c.add_argument("--out", "-o", required=True, help="the folder a 'fleet run' wrote")
     c.add_argument("--vehicle", "-V", required=True)
+    c.add_argument("--state", metavar="FILE", help="also write the combination as a learned-state file"
+                   " (the daemon's [daemon] state_file, replay --state): wheel scale, offsets, latency")
     s = sub.add_parser("simulate", help="write a simulated fleet with known per-vehicle parameters")
     s.add_argument("--out", "-o", required=True)
     s.add_argument("--vehicles", type=int, default=20)
@@ -101,6 +103,14 @@ def _calibrate(args) -> int:
         known = ", ".join(sorted({r["vehicle"] for r in rows}))
         raise UserError(f"no drives of vehicle {args.vehicle!r} in {args.out}; vehicles: {known}")
     sys.stdout.write(override_toml(args.vehicle, mine))
+    if args.state:
+        from ..io.state_store import save_state
+        from .calibrate import learned_state
+
+        try:
+            save_state(args.state, learned_state(mine))
+        except OSError as e:
+            raise UserError(f"cannot write state file {args.state}: {e.strerror or e}") from None
     return 0
 
 

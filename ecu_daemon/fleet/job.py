@@ -86,7 +86,10 @@ def run_drive(drive: Drive, store_dir: str) -> dict:
 
 
 def _one_line(e: BaseException) -> str:
+    """The error as one line, the same wherever it ran: without the replay's note of where it kept
+    the partial estimate (a temporary folder of this job, removed with it)."""
     text = str(e).splitlines()[0] if str(e) else ""
+    text = text.split("; output so far kept in ")[0]
     return f"{e.__class__.__name__}: {text}" if not isinstance(e, UserError) else text
 
 

@@ -46,13 +46,16 @@ def _vehicle_plot(plt, vehicle: str, rows: list[dict], out: Path) -> Path:
         if bad.any():
             ax.plot(x[bad], v[bad], "rx", ms=8, label="outlier")
         p = params[name]
+        lines = []
         if math.isfinite(p["value"]):
-            ax.axhline(show(p["value"]), color="C1", label="combined")
+            lines.append(show(p["value"]))
+            ax.axhline(lines[-1], color="C1", label="combined")
         truth = {r.get(f"true_{name}") for r in ok} - {None}
         truth = {t for t in truth if math.isfinite(t)}
         if len(truth) == 1:
-            ax.axhline(show(truth.pop()), color="k", ls="--", label="truth")
-        fin = v[np.isfinite(v)]
+            lines.append(show(truth.pop()))
+            ax.axhline(lines[-1], color="k", ls="--", label="truth")
+        fin = np.concatenate([v[np.isfinite(v)], lines])
         if len(fin):  # a drive that learned nothing has a prior-wide bar: keep the values readable
             lo, hi = fin.min(), fin.max()
             pad = max(hi - lo, abs(hi) * 0.02, 1e-6)
