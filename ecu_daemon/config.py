@@ -78,6 +78,12 @@ class GnssSettings:
     max_speed_acc_mps: float = 1.0
     nmea_speed_acc_mps: float = 0.15  # assumed 1-sigma when the protocol gives none (NMEA)
     timeout_s: float = 2.0
+    # dual-antenna heading (NAV-RELPOSNED, HDT, THS), used whenever the receiver sends it
+    heading_offset_deg: float = 0.0  # baseline heading minus vehicle heading, clockwise (antennas across, left to right: 90)
+    baseline_m: float = 0.0  # antenna distance as mounted; 0: not checked
+    baseline_tol_m: float = 0.05  # a measured baseline further off is a wrong carrier fix: not used
+    max_heading_acc_deg: float = 2.0  # headings the receiver rates worse than this are not used
+    nmea_heading_acc_deg: float = 0.3  # assumed 1-sigma when the protocol gives none (NMEA)
 
 
 @dataclass
@@ -237,6 +243,11 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("gnss", "max_speed_acc_mps"): (0.001, 100.0, "m/s"),
     ("gnss", "nmea_speed_acc_mps"): (0.001, 100.0, "m/s"),
     ("gnss", "timeout_s"): (0.01, 3600.0, "s"),
+    ("gnss", "heading_offset_deg"): (-360.0, 360.0, "deg"),
+    ("gnss", "baseline_m"): (0.0, 100.0, "m"),
+    ("gnss", "baseline_tol_m"): (0.001, 10.0, "m"),
+    ("gnss", "max_heading_acc_deg"): (0.001, 180.0, "deg"),
+    ("gnss", "nmea_heading_acc_deg"): (0.001, 180.0, "deg"),
     ("vehicle", "mass_kg"): (10.0, 100_000.0, "kg"),
     ("vehicle", "yaw_inertia_kgm2"): (1.0, 10_000_000.0, "kg m^2"),
     ("vehicle", "cg_to_front_axle_m"): (0.05, 20.0, "m"),

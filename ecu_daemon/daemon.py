@@ -326,7 +326,8 @@ class Daemon:
 
     def _on_gnss_bytes(self, t: float, data: bytes) -> None:
         for s in self.parser.feed(t, data):
-            self._gnss_last = s
+            if type(s) is GnssSample:  # the velocity solution: what the diagnostics describe
+                self._gnss_last = s
             self._samples.append(s)
 
     async def _housekeeping(self) -> None:

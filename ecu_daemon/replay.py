@@ -33,7 +33,7 @@ from .io.health import build_diagnostics, gap_line
 from .io.logging_setup import RateLimitedLog
 from .io.output_file import OutputFile, OutputPathError, check_output_paths
 from .replay_input import check_time_base, choose_channel, report_other_channels
-from .samples import INPUT_NAMES
+from .samples import INPUT_NAMES, GnssHeadingSample
 from .signals import SignalDecoder
 from .time_order import TimeOrder, TimeOrderError
 
@@ -259,16 +259,19 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         for t, kind, s in merged:
             if not math.isfinite(t):
                 continue
+            heading = type(s) is GnssHeadingSample
             if kind:
                 est.push_gnss(s)
-                gnss_last = s
+                if not heading:  # the velocity solution: what the diagnostics describe
+                    gnss_last = s
                 counters["gnss_samples"] += 1
             else:
                 est.push_input(s)
             if inputs is not None:
-                ts, vs = inputs.setdefault("gnss_speed" if kind else INPUT_NAMES[s.index], ([], []))
+                name = ("gnss_heading" if heading else "gnss_speed") if kind else INPUT_NAMES[s.index]
+                ts, vs = inputs.setdefault(name, ([], []))
                 ts.append(t)
-                vs.append(s.speed_mps if kind else s.value)
+                vs.append((s.heading_rad if heading else s.speed_mps) if kind else s.value)
             if t_first is None:
                 t_first = t
             if t_last is None or t > t_last:

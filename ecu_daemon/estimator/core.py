@@ -8,7 +8,9 @@ Design (one filter, several aiding sources, see the package docstring for the co
   whose weight follows its conditioning, and adapts the cornering stiffness;
 * ``fusion/standstill.py`` zero-velocity and gyro-bias-at-rest updates;
 * ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
-  history (``history.py``), and ``latency.py`` identifies the latency online.
+  history (``history.py``), and ``latency.py`` identifies the latency online;
+* ``fusion/gnss_heading.py`` fuses a dual-antenna heading the same way (and sets the heading
+  directly when the filter has none, at standstill too).
 
 Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
 the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
@@ -27,10 +29,11 @@ from collections import deque
 import numpy as np
 
 from ..config import Config
-from ..samples import INPUT_INDEX, GnssSample, InputSample
+from ..samples import INPUT_INDEX, GnssHeadingSample, GnssSample, InputSample
 from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
+from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
@@ -87,6 +90,9 @@ class Estimator:
                                         prior_std_s=learned.get("gnss_delay_std_s", math.inf))
         self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
                                        gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
+        self.heading = GnssHeadingFusion(gn.heading_offset_deg, gn.baseline_m, gn.baseline_tol_m,
+                                         gn.max_heading_acc_deg, gn.nmea_heading_acc_deg, es.gnss_gate_sigma)
+        self.last_heading_fused_t = -math.inf
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
         self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
         self.single_track = SingleTrackFusion(
@@ -218,6 +224,8 @@ class Estimator:
                 self.wheel_new = True
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
+        elif type(s) is GnssHeadingSample:
+            self._on_heading(s, k)
 
     def _skip_gap(self, k: int, t_next: float, to_sample: bool) -> int:
         """Nothing arrives from step k until ``t_next``, longer than every input timeout (a logging
@@ -271,6 +279,7 @@ class Estimator:
         self.wheel_reject_t = math.inf
         self.wheels.consecutive_rejects = 0
         self.gnss.consecutive_rejects = 0
+        self.heading.consecutive_rejects = 0
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -469,6 +478,8 @@ class Estimator:
             status |= est_mod.STATUS_HEADING_ALIGNED
         if self.last_gnss_rejected:
             status |= est_mod.STATUS_GNSS_REJECTED
+        if t - self.last_heading_fused_t <= GNSS_FRESH_S:
+            status |= est_mod.STATUS_GNSS_HEADING
         if self._reset_flag:
             status |= est_mod.STATUS_RESET
             self._reset_flag = False
@@ -494,7 +505,7 @@ class Estimator:
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and gn.consecutive_rejects == 0,
+            and gn.consecutive_rejects == 0 and self.heading.consecutive_rejects < 2,
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, gn.fused, gn.rejected, gn.late)
@@ -532,7 +543,8 @@ class Estimator:
         if late:
             fus.late += 1
         if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
-                and self.wheels.consecutive_rejects == 0 and g.course_known:
+                and self.wheels.consecutive_rejects == 0 and g.course_known \
+                and k * self.dt - self.last_heading_fused_t > GNSS_FRESH_S:  # a baseline outranks a course
             # GNSS and the wheels agree with each other and not with the filter: its heading
             # (or vy) has diverged. Drop the heading and align again from this fix's course.
             # A GNSS that disagrees with the wheels stays rejected instead (a glitch).
@@ -557,6 +569,32 @@ class Estimator:
         if ok:
             self.last_gnss_fused_t = k * self.dt
             self.last_gnss_speed = speed
+
+    def _on_heading(self, g: GnssHeadingSample, k: int) -> None:
+        """Fuse a dual-antenna heading received just before step k, at its time of validity (the
+        receiver's latency: the same as its velocity's); set the heading when the filter has
+        none, or when a run of rejections says the filter's heading, not the baseline, is wrong."""
+        fus = self.heading
+        h = self.hist
+        if not self.initialized or h.last < h.first:
+            return
+        if not fus.usable(g):
+            fus.rejected += 1
+            return
+        delay = self.latency.delay_s if self.delay_compensation else 0.0
+        s, _ = h.clamp_step(round((g.t - delay) / self.dt))
+        std = self.latency.std_s
+        if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS:
+            self.realignments += 1
+            self.aligned = False
+        if self.aligned:
+            if not fus.fuse(h, s, g, std):
+                return
+        else:
+            fus.align(h, s, g, std)
+            self.aligned = True
+            self.gnss.consecutive_rejects = 0
+        self.last_heading_fused_t = k * self.dt
 
     def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
         """GNSS speed against the wheel speed at its time of validity (scaled by the learned

@@ -1,4 +1,5 @@
-"""One serial byte stream (UBX + NMEA + RTCM3 interleaved, split anywhere, with garbage) -> GnssSamples.
+"""One serial byte stream (UBX + NMEA + RTCM3 interleaved, split anywhere, with garbage) -> GnssSamples
+(velocity) and GnssHeadingSamples (dual-antenna heading: NAV-RELPOSNED, HDT, THS).
 
 The framing is done here rather than by pyubx2's ``UBXReader`` because a reader that trusts a
 corrupted length field swallows the good frames behind it. Rules:
@@ -26,7 +27,7 @@ from typing import Callable
 import numpy as np
 
 from ..io.logging_setup import RateLimitedLog
-from ..samples import GnssSample
+from ..samples import GnssHeadingSample, GnssSample
 from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
 from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError, ubx_checksum
 
@@ -161,6 +162,7 @@ class GnssStreamParser:
         self._junk = bytearray()  # rejected bytes not yet handed to raw_sink
         self._junk_t = 0.0
         self._last_pvt_t: float | None = None
+        self._last_ubx_heading_t: float | None = None
         self._checks: _RangeChecks | None = None
 
     # ------------------------------------------------------------------------------ public API
@@ -345,7 +347,11 @@ class GnssStreamParser:
 
     def _emit_ubx(self, samples: list[GnssSample], out: list) -> None:
         for sample in samples:
-            self._last_pvt_t = sample.t  # a UBX velocity: the same receiver's NMEA copy is not used
+            # a UBX velocity (heading): the same receiver's NMEA copy of it is not used
+            if type(sample) is GnssHeadingSample:
+                self._last_ubx_heading_t = sample.t
+            else:
+                self._last_pvt_t = sample.t
             self.stats["samples"] += 1
             out.append(sample)
 
@@ -382,8 +388,9 @@ class GnssStreamParser:
 
     def _emit_nmea(self, samples: list[GnssSample], out: list) -> None:
         for smp in samples:
-            if (self.protocol == "auto" and self._last_pvt_t is not None
-                    and abs(smp.t - self._last_pvt_t) <= self._prefer_ubx_s):
+            last_ubx = self._last_ubx_heading_t if type(smp) is GnssHeadingSample else self._last_pvt_t
+            if (self.protocol == "auto" and last_ubx is not None
+                    and abs(smp.t - last_ubx) <= self._prefer_ubx_s):
                 self.stats["suppressed"] += 1
                 continue
             self.stats["samples"] += 1

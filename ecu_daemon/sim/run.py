@@ -132,6 +132,9 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     g = cfg.gnss
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
+    if scenario.gnss.dual_antenna:
+        g.heading_offset_deg = scenario.gnss.baseline_offset_deg
+        g.baseline_m = scenario.gnss.baseline_m
     lat = scenario.gnss.latency_s
     prior = lat if scenario.latency_prior_s is None else scenario.latency_prior_s
     if wrong:

@@ -1,0 +1,111 @@
+"""Dual-antenna GNSS heading (u-blox moving base + rover NAV-RELPOSNED, NMEA HDT / THS), fused at
+its time of validity.
+
+Why a source of its own: the baseline between two antennas gives the heading directly, at any
+speed and at standstill, instead of through the course of a moving car (which carries the
+sideslip). With it the velocity's direction pins the sideslip: course - heading.
+
+Quality first (the receiver's flags, its heading accuracy, the measured baseline against the
+mounted one: a wrong carrier-phase fix shows as a wrong length before it shows as a wrong
+heading), then the time of validity (same receiver, same latency as its velocity), then a scalar
+innovation gate and the update at the stored step, shifted to the present
+(``history.StepHistory.correct``). A heading the filter does not yet have (start-up, reset) is
+set directly (:meth:`GnssHeadingFusion.align`). The latency's uncertainty turns into heading noise
+while turning (r * delay std), as for the velocity.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...samples import GnssHeadingSample
+from ..history import AUX_R, StepHistory
+from ..kinematic import PSI, wrap_pi
+
+HEADING_ACC_FLOOR_RAD = math.radians(0.05)  # below what any receiver's accHeading is honest about
+#: consecutive gate rejections after which the filter, not the baseline, is taken to be wrong
+REALIGN_REJECTS = 5
+
+
+class GnssHeadingFusion:
+    def __init__(self, offset_deg: float, baseline_m: float, baseline_tol_m: float, max_acc_deg: float,
+                 nmea_acc_deg: float, gate_sigma: float):
+        self.offset = math.radians(offset_deg)
+        self.baseline_m = baseline_m
+        self.baseline_tol_m = baseline_tol_m
+        self.max_acc = math.radians(max_acc_deg)
+        self.nmea_acc = math.radians(nmea_acc_deg)
+        self.gate_sigma = gate_sigma
+        self.fused = 0
+        self.rejected = 0
+        self.consecutive_rejects = 0
+        self.last_reason = ""
+
+    def sigma(self, g: GnssHeadingSample) -> float:
+        acc = g.heading_acc_rad if math.isfinite(g.heading_acc_rad) else self.nmea_acc
+        return max(acc, HEADING_ACC_FLOOR_RAD)
+
+    def usable(self, g: GnssHeadingSample) -> bool:
+        """The receiver's verdict, its accuracy and the baseline length; the reason in ``last_reason``."""
+        if not g.valid or not math.isfinite(g.heading_rad):
+            self.last_reason = "no valid heading solution"
+            return False
+        if math.isfinite(g.heading_acc_rad) and g.heading_acc_rad > self.max_acc:
+            self.last_reason = f"heading accuracy {math.degrees(g.heading_acc_rad):.2f} deg above limit"
+            return False
+        if self.baseline_m > 0.0 and math.isfinite(g.baseline_m) \
+                and abs(g.baseline_m - self.baseline_m) > self.baseline_tol_m:
+            self.last_reason = (f"baseline {g.baseline_m:.3f} m, mounted {self.baseline_m:.3f} m"
+                                " (wrong carrier fix)")
+            return False
+        return True
+
+    def vehicle_heading(self, g: GnssHeadingSample) -> float:
+        """The vehicle's heading, clockwise from north in [0, 2pi), from the baseline's."""
+        return (g.heading_rad - self.offset) % (2.0 * math.pi)
+
+    def variance(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> float:
+        r = hist.aux[hist.slot(s), AUX_R]
+        return self.sigma(g) ** 2 + (r * delay_std_s) ** 2
+
+    def fuse(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> bool:
+        """Scalar heading update at stored step s; False (counted) when gated out."""
+        i = hist.slot(s)
+        P = hist.P[i]
+        Ph = P[:, PSI].copy()
+        S = Ph[PSI] + self.variance(hist, s, g, delay_std_s)
+        y = wrap_pi(self.vehicle_heading(g) - hist.X[i, PSI])
+        if not S > 0.0 or y * y > self.gate_sigma ** 2 * S:
+            self.consecutive_rejects += 1
+            self.rejected += 1
+            self.last_reason = f"heading innovation gate ({math.degrees(y):+.2f} deg)"
+            return False
+        K = Ph / S
+        hist.correct(s, K * y, np.outer(K, Ph))
+        self.consecutive_rejects = 0
+        self.fused += 1
+        return True
+
+    def align(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> None:
+        """Set the heading of every stored step from this measurement at step s.
+
+        Each step keeps the heading change it integrated since s, so the history stays consistent
+        for later (late) samples; the heading's variance is the measurement's plus what the steps
+        after s added, and its correlation with the other states starts at zero (it came from
+        none of them).
+        """
+        i = hist.slot(s)
+        dpsi = self.vehicle_heading(g) - hist.X[i, PSI]
+        var0 = self.variance(hist, s, g, delay_std_s)
+        p_s = hist.P[i, PSI, PSI]
+        idx = np.arange(hist.oldest(), hist.last + 1) % hist.n
+        hist.X[idx, PSI] = (hist.X[idx, PSI] + dpsi) % (2.0 * math.pi)
+        P = hist.P[idx]
+        grown = np.maximum(P[:, PSI, PSI] - p_s, 0.0)
+        P[:, PSI, :] = 0.0
+        P[:, :, PSI] = 0.0
+        P[:, PSI, PSI] = var0 + grown
+        hist.P[idx] = P
+        self.consecutive_rejects = 0
+        self.fused += 1
