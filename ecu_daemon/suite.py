@@ -16,6 +16,11 @@ Targets (issue 7), each a short code in the table when it fails:
 * ``ttv-b`` / ``ttv-h``: valid within 3 s of the first good GNSS fix above 5 m/s;
 * ``lat``: final GNSS latency estimate within 0.03 s of the truth;
 * ``rms-b`` (low-speed cases only): sideslip RMS <= 0.30 deg and <= 0.6 x the single-track observer.
+
+Issue 11 (more aiding sources), per family:
+
+* ``dual_antenna`` (moving-base pair, 1.2 m baseline): ``rms-h`` heading RMS <= 0.15 deg over every
+  row after settling, standstill included; ``rms-b5`` sideslip RMS above 5 m/s <= 0.1 deg.
 """
 from __future__ import annotations
 
@@ -48,6 +53,8 @@ TARGETS = {
     "latency_error_s": 0.03,
     "low_speed_sideslip_rms_deg": 0.30,
     "low_speed_ratio_to_baseline": 0.6,
+    "dual_antenna_heading_rms_deg": 0.15,
+    "dual_antenna_sideslip_rms_above_5mps_deg": 0.1,
 }
 
 
@@ -152,6 +159,7 @@ def summarise(case: SuiteCase, r: dict, baseline_rms: float) -> dict:
     row = {
         "scenario": case.name, "family": case.family,
         "sideslip_rms_deg": b["rms"] * DEG, "heading_rms_deg": h["rms"] * DEG,
+        "sideslip_rms_above_5mps_deg": b.get("rms_above_5mps", math.nan) * DEG,
         "baseline_sideslip_rms_deg": baseline_rms * DEG,
         "ratio_to_baseline": b["rms"] / baseline_rms if baseline_rms > 0 else math.nan,
         "sideslip_valid_above_5mps": g(bv, "valid_fraction_above_5mps"),
@@ -197,6 +205,11 @@ def failed_targets(row: dict, case: SuiteCase) -> list[str]:
     if case.low_speed and (bad(row["sideslip_rms_deg"], T["low_speed_sideslip_rms_deg"])
                            or bad(row["ratio_to_baseline"], T["low_speed_ratio_to_baseline"])):
         fails.append("rms-b")
+    if case.family == "dual_antenna":
+        if bad(row["heading_rms_deg"], T["dual_antenna_heading_rms_deg"]):
+            fails.append("rms-h")
+        if bad(row["sideslip_rms_above_5mps_deg"], T["dual_antenna_sideslip_rms_above_5mps_deg"]):
+            fails.append("rms-b5")
     return fails
 
 
@@ -204,6 +217,7 @@ COLUMNS = (  # header, key, format
     ("scenario", "scenario", "{}"),
     ("b rms", "sideslip_rms_deg", "{:.2f}"),
     ("h rms", "heading_rms_deg", "{:.2f}"),
+    ("b rms>5", "sideslip_rms_above_5mps_deg", "{:.2f}"),
     ("base b", "baseline_sideslip_rms_deg", "{:.2f}"),
     ("ratio", "ratio_to_baseline", "{:.2f}"),
     ("b val>5", "sideslip_valid_above_5mps", "{:.0%}"),

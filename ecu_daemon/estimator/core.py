@@ -591,7 +591,7 @@ class Estimator:
             if not fus.fuse(h, s, g, std):
                 return
         else:
-            fus.align(h, s, g, std)
+            fus.align(h, s, g, std, self.model.Qd[PSI, PSI])
             self.aligned = True
             self.gnss.consecutive_rejects = 0
         self.last_heading_fused_t = k * self.dt

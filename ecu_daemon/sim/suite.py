@@ -5,7 +5,7 @@ Each :class:`SuiteCase` is a :class:`~ecu_daemon.sim.scenario.Scenario` plus how
 apply. ``ecu-daemon evaluate --suite`` (:mod:`ecu_daemon.suite`) runs them. The families follow
 issue 7: flying starts, a restart mid-drive, reversing, GNSS outage / rate / latency / faults,
 road bank and grade, low friction, wrong vehicle parameters in the config, a sign-magnitude DBC,
-faults on every CAN input, and low-speed handling.
+faults on every CAN input, and low-speed handling; and from issue 11, a dual-antenna receiver.
 """
 from __future__ import annotations
 
@@ -121,8 +121,27 @@ def _low_speed() -> list[SuiteCase]:
     return out
 
 
+def _dual_antenna() -> list[SuiteCase]:
+    """A moving-base pair (1.2 m baseline) on the same receiver as the velocity: standstill
+    included, antennas along, across and reversed on the car, UBX and NMEA, low friction, an outage."""
+    out = []
+    for name, kind, offset, protocol, extra in (
+            ("dual_straight_standstill", "straight", 0.0, "ubx", {}),
+            ("dual_dlc_across", "dlc_dry", 90.0, "ubx", {}),
+            ("dual_circle", "circle_dry", 180.0, "ubx", {}),
+            ("dual_slalom_nmea", "slalom_dry", -90.0, "nmea", {}),
+            ("dual_mu03_dlc", "dlc_mu03", 0.0, "ubx", {}),
+            ("dual_outage_30s", "demo", 0.0, "ubx", {"gnss_faults": (Fault("gnss", "dropout", 25.0, 30.0),)})):
+        # an outage takes the heading away too: scored on honesty, not on the dual-antenna accuracy
+        family = "gnss" if "outage" in name else "dual_antenna"
+        out.append(SuiteCase(name, family, _base(
+            name, kind, gnss_dual_antenna=True, gnss_baseline_m=1.2, gnss_baseline_offset_deg=offset,
+            gnss_protocol=protocol, **extra)))
+    return out
+
+
 def build_suite() -> list[SuiteCase]:
-    return _flying() + _conditions() + _sensor_faults() + _low_speed()
+    return _flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna()
 
 
 SUITE: list[SuiteCase] = build_suite()

@@ -87,25 +87,25 @@ class GnssHeadingFusion:
         self.fused += 1
         return True
 
-    def align(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> None:
+    def align(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float, q_step: float) -> None:
         """Set the heading of every stored step from this measurement at step s.
 
         Each step keeps the heading change it integrated since s, so the history stays consistent
-        for later (late) samples; the heading's variance is the measurement's plus what the steps
-        after s added, and its correlation with the other states starts at zero (it came from
-        none of them).
+        for later (late) samples. The heading's variance is the measurement's, growing by the
+        model's per-step process noise ``q_step`` after s (what propagating it through the stored
+        transitions gives; a later sample's correction is carried forward on that assumption), and
+        its correlation with the other states starts at zero: it came from none of them.
         """
         i = hist.slot(s)
         dpsi = self.vehicle_heading(g) - hist.X[i, PSI]
         var0 = self.variance(hist, s, g, delay_std_s)
-        p_s = hist.P[i, PSI, PSI]
-        idx = np.arange(hist.oldest(), hist.last + 1) % hist.n
+        steps = np.arange(hist.oldest(), hist.last + 1)
+        idx = steps % hist.n
         hist.X[idx, PSI] = (hist.X[idx, PSI] + dpsi) % (2.0 * math.pi)
         P = hist.P[idx]
-        grown = np.maximum(P[:, PSI, PSI] - p_s, 0.0)
         P[:, PSI, :] = 0.0
         P[:, :, PSI] = 0.0
-        P[:, PSI, PSI] = var0 + grown
+        P[:, PSI, PSI] = var0 + q_step * np.maximum(steps - s, 0)
         hist.P[idx] = P
         self.consecutive_rejects = 0
         self.fused += 1
