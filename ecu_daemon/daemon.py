@@ -403,7 +403,9 @@ class Daemon:
             gnss_last=self._gnss_last, gnss_connected=bool(self.serial and self.serial.connected),
             gnss_delay_s=delay, bus=self.canio.health, tick=self.tick_stats.snapshot(),
             cpu_pct=self.cpu.update(), status=est.status if est is not None else 0,
-            isolation_events=dict(self.estimator.fdi.events) if self.estimator is not None else None)
+            isolation_events=dict(self.estimator.fdi.events) if self.estimator is not None else None,
+            gnss_heading=self.estimator.heading if self.estimator is not None else None,
+            gnss_timeout_s=self.cfg.gnss.timeout_s)
 
     def _check_gnss(self, now: float) -> None:
         if self.serial is None or not self.serial.connected:

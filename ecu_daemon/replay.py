@@ -240,7 +240,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
                         e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
                         gnss_connected=gnss_path is not None, gnss_delay_s=e.gnss_delay_s, bus=None,
                         tick=None, cpu_pct=math.nan, error_frames=counters["error_frames"], status=e.status,
-                        isolation_events=dict(est.fdi.events))
+                        isolation_events=dict(est.fdi.events), gnss_heading=est.heading,
+                        gnss_timeout_s=cfg.gnss.timeout_s)
                 for msg in encoder.frames(k, with_stale_mask(e, stale_mask), diag):
                     can_out.write(msg)
 

@@ -202,3 +202,36 @@ def test_a_baseline_that_does_not_match_the_mounted_one_is_never_used():
     rows, _, speed, est = _standstill_run(dual=True, baseline_cfg=1.5)
     assert est.heading.fused == 0 and est.heading.rejected > 10
     assert not any(e.heading_valid for e, v in zip(rows, speed) if v < 0.01)
+
+
+def test_replay_reads_the_heading_from_the_capture_and_reports_it_on_can(tmp_path):
+    """The whole offline path: simulate -> capture files -> replay -> EST_DIAG heading page on CAN."""
+    import cantools
+
+    from ecu_daemon import config as config_mod
+    from ecu_daemon.canlog import read_can_log
+    from ecu_daemon.replay import run_replay
+    from ecu_daemon.sim import writer
+    from ecu_daemon.sim.run import simulate, vehicle_config
+    from ecu_daemon.sim.scenario import SCENARIOS
+
+    sc = SCENARIOS["straight"].with_(name="s", duration_s=4.0, gnss_dual_antenna=True, gnss_baseline_m=1.2,
+                                     gnss_baseline_offset_deg=-90.0)
+    cfg = vehicle_config(sc)
+    paths = writer.write_all(tmp_path, simulate(sc, cfg), cfg)
+    rcfg = config_mod.load(paths["config"])  # the written config carries the mounting and the baseline
+    assert (rcfg.gnss.heading_offset_deg, rcfg.gnss.baseline_m) == (-90.0, 1.2)
+    out = tmp_path / "out.log"
+    run_replay(rcfg, str(paths["can"]), str(paths["gnss"]), out_can=str(out))
+    db = cantools.database.load_file(rcfg.output_dbc_path())
+    pages = {}
+    for t, fid, ext, err, data in read_can_log(out):
+        if fid == 0x320:
+            d = db.decode_message(fid, data, decode_choices=False)
+            pages[d["DIAG_PAGE"]] = d
+        elif fid == 0x302:
+            heading_frame = db.decode_message(fid, data, decode_choices=False)
+    assert pages[36]["GNSS_HEADING_STATE"] == 1 and pages[36]["GNSS_HEADING_CARR_SOLN"] == 2
+    assert pages[36]["GNSS_HEADING_BASELINE"] == pytest.approx(1.2, abs=2e-3)
+    assert pages[37]["GNSS_HEADING_FUSED"] > 10 and pages[37]["GNSS_HEADING_REJECTED"] == 0
+    assert heading_frame["STATUS_GNSS_HEADING"] == 1 and heading_frame["HEADING_VALID"] == 1

@@ -12,6 +12,7 @@ import time
 
 from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics
 from ..estimator.fault_detection import SOURCE_BITS
+from ..estimator.fusion.gnss_heading import STATE_STALE
 from ..samples import GnssSample
 from . import can_bus
 from .tick import TickSnapshot
@@ -51,12 +52,14 @@ def thread_cpu_s(native_id: int | None) -> float:
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
                       gnss_connected: bool, gnss_delay_s: float, bus: can_bus.BusHealth | None,
                       tick: TickSnapshot | None, cpu_pct: float, error_frames: int = 0, status: int = 0,
-                      isolation_events: dict | None = None) -> Diagnostics:
+                      isolation_events: dict | None = None, gnss_heading=None,
+                      gnss_timeout_s: float = math.inf) -> Diagnostics:
     """The snapshot at time ``t``. Offline (replay) there is no bus, tick or CPU to speak of:
     ``bus``/``tick`` None and ``cpu_pct`` NaN give the "not available" values, and the log's
     own ``error_frames`` are counted. ``status``: the latest Estimate.status (its isolation
     bits); ``isolation_events``: the estimator's per-source isolation counts
-    (``FaultDetector.events``)."""
+    (``FaultDetector.events``); ``gnss_heading``: the estimator's ``GnssHeadingFusion`` (its last
+    sample and what became of it), silent for longer than ``gnss_timeout_s`` reads as stale."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     for name, src in d.sources.items():
@@ -73,6 +76,14 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.gnss_parse_errors = (gnss_stats.get("malformed", 0) + gnss_stats.get("truncated", 0)
                                + gnss_stats.get("garbage_bytes", 0))
     d.gnss_serial_connected = gnss_connected
+    if gnss_heading is not None and gnss_heading.last is not None:
+        g = gnss_heading.last
+        d.gnss_heading_state = STATE_STALE if t - g.t > gnss_timeout_s else gnss_heading.state
+        d.gnss_heading_carr_soln = g.carr_soln if 0 <= g.carr_soln <= 2 else 3
+        d.gnss_heading_acc_rad = g.heading_acc_rad
+        d.gnss_heading_baseline_m = g.baseline_m
+        d.gnss_heading_fused = gnss_heading.fused
+        d.gnss_heading_rejected = gnss_heading.rejected
     if bus is None:
         d.can_bus_state = BUS_NOT_AVAILABLE
         d.can_error_frames = error_frames

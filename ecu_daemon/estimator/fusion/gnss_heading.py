@@ -23,6 +23,14 @@ from ...samples import GnssHeadingSample
 from ..history import AUX_R, StepHistory
 from ..kinematic import PSI, wrap_pi
 
+# what happened to the last heading sample (EST_DIAG.GNSS_HEADING_STATE)
+STATE_NONE = 0  # no heading received yet
+STATE_FUSED = 1
+STATE_INVALID = 2  # the receiver's flags or its accuracy say it is no good
+STATE_BASELINE = 3  # measured baseline far from the mounted one
+STATE_GATE = 4  # disagreed with the filter
+STATE_STALE = 5  # none received for longer than the GNSS timeout (set by whoever knows the time)
+
 HEADING_ACC_FLOOR_RAD = math.radians(0.05)  # below what any receiver's accHeading is honest about
 #: consecutive gate rejections after which the filter, not the baseline, is taken to be wrong
 REALIGN_REJECTS = 5
@@ -41,6 +49,8 @@ class GnssHeadingFusion:
         self.rejected = 0
         self.consecutive_rejects = 0
         self.last_reason = ""
+        self.state = STATE_NONE
+        self.last: GnssHeadingSample | None = None  # the last sample received, usable or not
 
     def sigma(self, g: GnssHeadingSample) -> float:
         acc = g.heading_acc_rad if math.isfinite(g.heading_acc_rad) else self.nmea_acc
@@ -48,6 +58,8 @@ class GnssHeadingFusion:
 
     def usable(self, g: GnssHeadingSample) -> bool:
         """The receiver's verdict, its accuracy and the baseline length; the reason in ``last_reason``."""
+        self.last = g
+        self.state = STATE_INVALID
         if not g.valid or not math.isfinite(g.heading_rad):
             self.last_reason = "no valid heading solution"
             return False
@@ -58,7 +70,9 @@ class GnssHeadingFusion:
                 and abs(g.baseline_m - self.baseline_m) > self.baseline_tol_m:
             self.last_reason = (f"baseline {g.baseline_m:.3f} m, mounted {self.baseline_m:.3f} m"
                                 " (wrong carrier fix)")
+            self.state = STATE_BASELINE
             return False
+        self.state = STATE_FUSED  # unless the gate says otherwise
         return True
 
     def vehicle_heading(self, g: GnssHeadingSample) -> float:
@@ -80,6 +94,7 @@ class GnssHeadingFusion:
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = f"heading innovation gate ({math.degrees(y):+.2f} deg)"
+            self.state = STATE_GATE
             return False
         K = Ph / S
         hist.correct(s, K * y, np.outer(K, Ph))
