@@ -2,7 +2,7 @@
 
 The contract outside tools rely on::
 
-    ecu-daemon replay --config CFG.toml --can INPUT.log [--gnss GNSS.log]
+    ecu-daemon replay --config CFG.toml --can INPUT.log [--gnss GNSS.log [--gnss GNSS2.log ...]]
                       [--out-can OUTPUT.log] [--out-csv OUTPUT.csv]
 
 No second estimator path: frames go through ``signals.SignalDecoder`` and GNSS bytes through
@@ -50,7 +50,9 @@ _INT_FIELDS = {"status", "gnss_fused", "gnss_rejected", "gnss_late"}
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", "-C", help="TOML configuration (default: built-in defaults)")
     p.add_argument("--can", required=True, help="input CAN log: candump -L (.log), ASC or BLF")
-    p.add_argument("--gnss", help="GNSS capture log: '(seconds.micros) PORT PAYLOAD' per line")
+    p.add_argument("--gnss", action="append", metavar="GNSS.log",
+                   help="GNSS capture log: '(seconds.micros) PORT PAYLOAD' per line; once per receiver, in the"
+                        " order of the config's [[gnss.receiver]] tables")
     p.add_argument("--can-channel", metavar="NAME", help="replay only the frames of this log channel"
                    " (canplayer's IF=NAME works too); needed for a log of several channels")
     p.add_argument("--can-time-offset", type=float, metavar="SECONDS", help="add SECONDS to every CAN log time"
@@ -89,12 +91,15 @@ def format_row(est) -> str:
     return ROW_FORMAT % tuple(est)
 
 
-def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict, order: TimeOrder):
-    """(t, sample) for every GNSS sample in a capture, one parser per port."""
+def _gnss_samples(path: str, cfg: config_mod.Config, parsers: dict, order: TimeOrder, receiver: int = 0):
+    """(t, sample) for every GNSS sample in the capture of receiver number ``receiver`` (its
+    protocol, its index on the samples), one parser per port."""
+    rx = cfg.gnss.receivers()[receiver]
     for t, port, payload in order(read_gnss_log(path)):
-        p = parsers.get(port)
+        key = port if receiver == 0 else f"{port} #{receiver + 1}"
+        p = parsers.get(key)
         if p is None:
-            p = parsers[port] = GnssStreamParser(cfg.gnss.protocol, name=f"gnss {port}")
+            p = parsers[key] = GnssStreamParser(rx.protocol, name=f"gnss {key}", source=receiver)
         for s in p.feed(t, payload):
             yield s.t, 1, s
     for p in parsers.values():
@@ -160,7 +165,7 @@ class _Progress:
             sys.stderr.write("\n")
 
 
-def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
+def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str] | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
                config_path: str | None = None, inputs: dict | None = None, can_channel: str | None = None,
                can_time_offset: float | None = None, learned: dict | None = None) -> dict:
@@ -172,18 +177,27 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     :class:`~ecu_daemon.cli.UnusableInputError` when a required input never gave a usable sample.
     ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
     GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
-    :mod:`ecu_daemon.replay_input`.
+    :mod:`ecu_daemon.replay_input`. ``gnss_path``: one capture, or one per receiver of the config
+    (``[[gnss.receiver]]``, in order).
     """
-    for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log")):
+    gnss_paths = [gnss_path] if isinstance(gnss_path, (str, Path)) else list(gnss_path or [])
+    n_rx = len(cfg.gnss.receivers())
+    if len(gnss_paths) > n_rx:
+        raise UserError(f"{len(gnss_paths)} GNSS captures given but the config has {n_rx} receiver"
+                        f"{'s' if n_rx > 1 else ''}: one --gnss per [[gnss.receiver]], in order")
+    for p, what in [(can_path, "CAN log")] + [(g, "GNSS log") for g in gnss_paths]:
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
     try:
         check_output_paths({"--out-csv": out_csv, "--out-can": out_can},
-                           {"--can": can_path, "--gnss": gnss_path, "--config": config_path})
+                           {"--can": can_path, "--config": config_path,
+                            **{"--gnss" + (f" #{i + 1}" if i else ""): g for i, g in enumerate(gnss_paths)}})
     except OutputPathError as e:
         raise UserError(str(e)) from None
     channel = choose_channel(can_path, can_channel, cfg.can.channel)
-    check_time_base(can_path, gnss_path, channel, can_time_offset)
+    for g in gnss_paths:
+        check_time_base(can_path, g, channel, can_time_offset)
+    gnss_path = gnss_paths[0] if gnss_paths else None
     decoder = SignalDecoder(cfg)
     est = Estimator(cfg, learned)
     encoder = None
@@ -207,9 +221,9 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     parsers: dict = {}
     orders = [TimeOrder(f"CAN log {can_path}", est.gap_s)]
     streams = [_can_samples(can_path, decoder, counters, orders[0], channel, can_time_offset or 0.0)]
-    if gnss_path:
-        orders.append(TimeOrder(f"GNSS log {gnss_path}", est.gap_s))
-        streams.append(_gnss_samples(gnss_path, cfg, parsers, orders[1]))
+    for i, g in enumerate(gnss_paths):
+        orders.append(TimeOrder(f"GNSS log {g}", est.gap_s))
+        streams.append(_gnss_samples(g, cfg, parsers, orders[-1], i))
     merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
     bar = _Progress(_count_lines(can_path), progress)
     dt = cfg.estimator.dt_s
@@ -374,7 +388,8 @@ def input_table(decoder: SignalDecoder, parsers: dict | None, est: Estimator) ->
     if parsers is not None:
         st = _sum_stats(parsers)
         rows["gnss"] = {"frames": st.get("ubx_frames", 0) + st.get("nmea_sentences", 0),
-                        "samples": st.get("samples", 0), "fused": est.gnss.fused, "rejected": est.gnss.rejected,
+                        "samples": st.get("samples", 0), "fused": est.gnss_counts()[0],
+                        "rejected": est.gnss_counts()[1],
                         "checksum": st.get("checksum_errors", 0),
                         "decode": st.get("malformed", 0) + st.get("truncated", 0)}
     return rows

@@ -75,6 +75,7 @@ class GnssSample:
     h_acc_m: float = float("nan")
     course_known: bool = True
     ground_speed_mps: float = float("nan")  # only when course_known is False
+    source: int = 0  # index of the receiver in the config's receiver list
 
     @property
     def speed_mps(self) -> float:
@@ -104,3 +105,4 @@ class GnssHeadingSample:
     carr_soln: int = -1
     protocol: str = ""  # "ubx" | "nmea"
     fix_time_utc_s: float = float("nan")
+    source: int = 0  # index of the receiver in the config's receiver list

@@ -113,7 +113,7 @@ def _heading(deg: float, acc: float = 0.3, baseline: float = 1.2, valid: bool = 
 
 
 def test_fusion_applies_the_mounting_offset_and_carries_the_update_to_the_present():
-    fus = GnssHeadingFusion(90.0, 1.2, 0.05, 2.0, 0.3, 5.0)  # antennas across the car, left to right
+    fus = GnssHeadingFusion([(90.0, 1.2)], 0.05, 2.0, 0.3, 5.0)  # antennas across the car, left to right
     h = _hist(psi_deg=10.0)
     assert fus.fuse(h, 5, _heading(101.0), 0.0)  # vehicle heading 11 deg, the filter says 10
     last = h.slot(h.last)
@@ -122,7 +122,7 @@ def test_fusion_applies_the_mounting_offset_and_carries_the_update_to_the_presen
 
 
 def test_fusion_wraps_through_north_and_gates_a_wrong_heading():
-    fus = GnssHeadingFusion(0.0, 0.0, 0.05, 2.0, 0.3, 5.0)
+    fus = GnssHeadingFusion([(0.0, 0.0)], 0.05, 2.0, 0.3, 5.0)
     h = _hist(psi_deg=359.5, psi_std_deg=0.5)
     assert fus.fuse(h, 3, _heading(0.3), 0.0)  # +0.8 deg across north, not -359.2
     assert math.degrees(h.X[h.slot(h.last), PSI]) % 360 == pytest.approx(0.2, abs=0.15)
@@ -138,12 +138,12 @@ def test_fusion_wraps_through_north_and_gates_a_wrong_heading():
     (_heading(10.0, valid=False), "no valid heading"),
 ])
 def test_unusable_headings_say_why(sample, reason):
-    fus = GnssHeadingFusion(0.0, 1.2, 0.05, 2.0, 0.3, 5.0)
+    fus = GnssHeadingFusion([(0.0, 1.2)], 0.05, 2.0, 0.3, 5.0)
     assert not fus.usable(sample) and reason in fus.last_reason
 
 
 def test_align_sets_every_stored_step_keeping_what_was_integrated_since():
-    fus = GnssHeadingFusion(0.0, 0.0, 0.05, 2.0, 0.3, 5.0)
+    fus = GnssHeadingFusion([(0.0, 0.0)], 0.05, 2.0, 0.3, 5.0)
     h = _hist(psi_deg=0.0, psi_std_deg=180.0)
     for k in range(20):
         h.X[h.slot(k), PSI] = math.radians(0.1 * k)  # the car turned 0.1 deg per step

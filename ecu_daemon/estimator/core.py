@@ -73,6 +73,14 @@ SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pul
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 
 
+MAX_RECEIVERS = 8  # learned latencies kept per receiver index
+
+
+def _learned_key(key: str, receiver: int) -> str:
+    """Learned-state key of a receiver's value: the primary keeps the single-receiver name."""
+    return key if receiver == 0 else f"{key}_{receiver}"
+
+
 class Estimator:
     def __init__(self, cfg: Config, learned: dict | None = None):
         es = cfg.estimator
@@ -85,13 +93,22 @@ class Estimator:
         self.hist = StepHistory(int(math.ceil((gn.max_delay_s + 0.3) / dt)) + 2)
         self.delay_compensation = es.delay_compensation
         learned = self._check_learned(learned)
-        self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
-                                        gn.max_delay_s, gn.estimate_delay,
-                                        prior_std_s=learned.get("gnss_delay_std_s", math.inf))
-        self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
-                                       gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
-        self.heading = GnssHeadingFusion(gn.heading_offset_deg, gn.baseline_m, gn.baseline_tol_m,
-                                         gn.max_heading_acc_deg, gn.nmea_heading_acc_deg, es.gnss_gate_sigma)
+        # one velocity fusion and one latency per receiver (GnssSample.source), each at its own
+        # time of validity through the same history; the first is the primary one (published latency)
+        receivers = gn.receivers()
+        self.uses_velocity = [rx.role == "velocity" for rx in receivers]
+        self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
+                                           gn.max_delay_s, gn.estimate_delay,
+                                           prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf))
+                          for i, rx in enumerate(receivers)]
+        self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
+                                             gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
+                          for rx in receivers]
+        self.latency = self.latencies[0]
+        self.gnss = self.receivers[0]
+        self.heading = GnssHeadingFusion([(rx.heading_offset_deg, rx.baseline_m) for rx in receivers],
+                                         gn.baseline_tol_m, gn.max_heading_acc_deg, gn.nmea_heading_acc_deg,
+                                         es.gnss_gate_sigma)
         self.last_heading_fused_t = -math.inf
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
         self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
@@ -188,8 +205,8 @@ class Estimator:
             "accel_y_gain": float(x[GAY]),
             **self.single_track.learned(),
             "steering_offset_rad": float(self.steer_offset),
-            "gnss_delay_s": float(self.latency.delay_s),
-            "gnss_delay_std_s": float(self.latency.std_s),
+            **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
+               for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
         }
 
     # ----------------------------------------------------------------------------------------
@@ -203,6 +220,9 @@ class Estimator:
                   "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
                   "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0),
                   "gnss_delay_std_s": (0.0, 1.0)}
+        for i in range(1, MAX_RECEIVERS):
+            limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
+            limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]
         out = {"version": LEARNED_VERSION}
         for key, lim in limits.items():
             v = learned.get(key)
@@ -278,7 +298,8 @@ class Estimator:
         self._reset_flag = True
         self.wheel_reject_t = math.inf
         self.wheels.consecutive_rejects = 0
-        self.gnss.consecutive_rejects = 0
+        for fus in self.receivers:
+            fus.consecutive_rejects = 0
         self.heading.consecutive_rejects = 0
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
@@ -450,7 +471,7 @@ class Estimator:
                         self.latency.delay_s, L.get("wheel_scale", 1.0), self.steer_offset,
                         self.single_track.cornering_stiffness_front,
                         self.single_track.cornering_stiffness_rear, False, False, False, False, status,
-                        self.gnss.fused, self.gnss.rejected, self.gnss.late)
+                        *self.gnss_counts())
 
     def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok, iso) -> Estimate:
         """x: state as a list, pd: covariance diagonal as a list (Python floats are cheaper)."""
@@ -487,7 +508,7 @@ class Estimator:
         # A latency error dd turns every GNSS velocity by r * dd while turning: a bias, not noise,
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
-        psi_std = math.hypot(sd[PSI], self.turn_lp * self.latency.std_s)
+        psi_std = math.hypot(sd[PSI], self.turn_lp * self._latency_std())
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
@@ -498,25 +519,37 @@ class Estimator:
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
         imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
         st = self.single_track
-        gn = self.gnss
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and gn.consecutive_rejects == 0 and self.heading.consecutive_rejects < 2,
+            and all(f.consecutive_rejects == 0 for f in self.receivers) and self.heading.consecutive_rejects < 2,
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
-            status, gn.fused, gn.rejected, gn.late)
+            status, *self.gnss_counts())
+
+    def gnss_counts(self) -> tuple[int, int, int]:
+        """GNSS velocity samples fused, rejected and late, over every receiver."""
+        return (sum(f.fused for f in self.receivers), sum(f.rejected for f in self.receivers),
+                sum(f.late for f in self.receivers))
+
+    def _latency_std(self) -> float:
+        """The largest latency uncertainty of the velocity receivers (the heading error it causes
+        while turning is a bias, whichever receiver it comes from)."""
+        return max(lat.std_s for lat, v in zip(self.latencies, self.uses_velocity) if v)
 
     # ----------------------------------------------------------------------------------------
     def _on_gnss(self, g: GnssSample, k: int) -> None:
-        """Fuse a GNSS sample received just before step k (history holds steps up to k-1)."""
-        fus = self.gnss
+        """Fuse a GNSS sample received just before step k (history holds steps up to k-1), with
+        the lever arm and latency of the receiver it came from."""
         h = self.hist
-        if not self.initialized or h.last < h.first:
+        if not self.initialized or h.last < h.first or g.source >= len(self.receivers) \
+                or not self.uses_velocity[g.source]:
             return
+        fus = self.receivers[g.source]
+        lat = self.latencies[g.source]
         if not fus.usable(g):
             fus.rejected += 1
             self.last_gnss_rejected = True
@@ -524,7 +557,7 @@ class Estimator:
                 self.fdi.gnss_implausible()
             return
         speed = g.speed_mps  # NaN course: speed only (GnssSample.course_known)
-        delay = self.latency.delay_s if self.delay_compensation else 0.0
+        delay = lat.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
@@ -539,7 +572,7 @@ class Estimator:
             return
         agree = agree and not self.fdi.isolated & WHEELS
         if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
-            self.latency.observe(k, speed, h)
+            lat.observe(k, speed, h)
         if late:
             fus.late += 1
         if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
@@ -551,14 +584,14 @@ class Estimator:
             self.aligned = False
             self.realignments += 1
         if not self.aligned or not g.course_known:  # heading unknown, or no course: |v| only
-            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=self.latency.std_s)
+            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=lat.std_s)
             if not agree:
                 fus.rejected += 1
                 fus.last_reason = "speed disagrees with the wheels"
             if ok and speed >= ALIGN_SPEED and g.course_known:
-                self._align(s, g)
+                self._align(s, g, fus, lat)
         else:
-            ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
+            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s)
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
@@ -581,9 +614,10 @@ class Estimator:
         if not fus.usable(g):
             fus.rejected += 1
             return
-        delay = self.latency.delay_s if self.delay_compensation else 0.0
+        lat = self.latencies[min(g.source, len(self.latencies) - 1)]
+        delay = lat.delay_s if self.delay_compensation else 0.0
         s, _ = h.clamp_step(round((g.t - delay) / self.dt))
-        std = self.latency.std_s
+        std = lat.std_s
         if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS:
             self.realignments += 1
             self.aligned = False
@@ -593,7 +627,8 @@ class Estimator:
         else:
             fus.align(h, s, g, std, self.model.Qd[PSI, PSI])
             self.aligned = True
-            self.gnss.consecutive_rejects = 0
+            for f in self.receivers:
+                f.consecutive_rejects = 0
         self.last_heading_fused_t = k * self.dt
 
     def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
@@ -606,7 +641,7 @@ class Estimator:
         self.gnss_checked_t = s * self.dt
         return agree
 
-    def _align(self, s: int, g: GnssSample) -> None:
+    def _align(self, s: int, g: GnssSample, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Set the heading from the GNSS course at stored step s and carry it to the present.
 
         psi = course + beta_antenna(x): the new heading is a function of the velocity states, so
@@ -620,13 +655,13 @@ class Estimator:
         i = h.slot(s)
         x = h.X[i]
         r = h.aux[i, AUX_R]
-        lx, ly = self.gnss.lever_x, self.gnss.lever_y
+        lx, ly = fus.lever_x, fus.lever_y
         vax = x[VX] - r * ly
         vay = x[VY] + r * lx
-        psi = (self.gnss.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
+        psi = (fus.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
         dpsi = psi - x[PSI]
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        var_course = (self.gnss.sigma(g) / speed) ** 2 + (r * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
+        var_course = (fus.sigma(g) / speed) ** 2 + (r * lat.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
         old = h.oldest()
         idx = np.arange(old, h.last + 1) % h.n
         X = h.X[idx]
@@ -647,4 +682,5 @@ class Estimator:
         P[:, PSI, PSI] = var
         h.P[idx] = P
         self.aligned = True
-        self.gnss.consecutive_rejects = 0
+        for f in self.receivers:
+            f.consecutive_rejects = 0

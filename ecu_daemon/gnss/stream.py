@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import re
 from collections import deque
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -137,16 +138,19 @@ class GnssStreamParser:
     emitting both does not double every epoch), ``"ubx"`` or ``"nmea"`` (frames of the other
     protocol are framed and counted as ``ignored``). RTCM3 frames are always skipped.
 
+    ``source``: the receiver's index in the config, stamped on every sample (``GnssSample.source``).
+
     ``raw_sink(t, data)``: optional; receives every accepted frame (NMEA with its line ending when
     present) and every run of rejected bytes, in stream order -- what ``GnssLogWriter`` records.
     """
 
     def __init__(self, protocol: str = "auto", *,
                  name: str = "gnss", raw_sink: Callable[[float, bytes], None] | None = None,
-                 log_interval_s: float = 10.0, prefer_ubx_s: float = 2.0) -> None:
+                 log_interval_s: float = 10.0, prefer_ubx_s: float = 2.0, source: int = 0) -> None:
         if protocol not in ("auto", "ubx", "nmea"):
             raise ValueError(f"protocol must be auto, ubx or nmea, got {protocol!r}")
         self.protocol = protocol
+        self.source = source
         self.stats: dict[str, int] = dict.fromkeys(STAT_KEYS, 0)
         self.last_error = ""
         self._name = name
@@ -353,7 +357,7 @@ class GnssStreamParser:
             else:
                 self._last_pvt_t = sample.t
             self.stats["samples"] += 1
-            out.append(sample)
+            out.append(replace(sample, source=self.source) if self.source else sample)
 
     def _nmea_sentence(self, t: float, sentence: bytes, out: list) -> bool:
         """Check and use one sentence; False when its checksum rejects it."""
@@ -394,7 +398,7 @@ class GnssStreamParser:
                 self.stats["suppressed"] += 1
                 continue
             self.stats["samples"] += 1
-            out.append(smp)
+            out.append(replace(smp, source=self.source) if self.source else smp)
 
     # ------------------------------------------------------------------------------ bookkeeping
 

@@ -24,6 +24,7 @@ class SuiteCase:
     restart_at_s: float | None = None  # replay up to here, save the learned state, replay the rest from it
     encoding: str = ""  # "" = our chassis DBC; else a key of ecu_daemon.suite.ENCODINGS
     low_speed: bool = False  # the low-speed accuracy targets apply
+    compare_single: bool = False  # also run it with the first receiver only: two must be no worse
 
 
 def _flying() -> list[SuiteCase]:
@@ -140,8 +141,21 @@ def _dual_antenna() -> list[SuiteCase]:
     return out
 
 
+def _two_receivers() -> list[SuiteCase]:
+    """Two velocity receivers front and rear, 2.5 m apart, 5 Hz, unsynchronised (0.4 and 0.33 s
+    latency, each identified on its own; the config's priors are 0.1 s off); turning, and straight
+    (where their velocity difference says nothing and two must be no worse than one)."""
+    out = []
+    for name, kind in (("two_rx_dlc", "dlc_dry"), ("two_rx_slalom", "slalom_dry"), ("two_rx_jturn", "jturn_dry"),
+                       ("two_rx_straight", "straight")):
+        sc = _base(name, kind, gnss_lever_arm_m=(1.5, 0.0), gnss_latency_s=0.4, latency_prior_s=0.3,
+                   gnss2_lever_arm_m=(-1.0, 0.0), gnss2_latency_s=0.33)
+        out.append(SuiteCase(name, "two_receivers", sc, compare_single=kind == "straight"))
+    return out
+
+
 def build_suite() -> list[SuiteCase]:
-    return _flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna()
+    return _flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna() + _two_receivers()
 
 
 SUITE: list[SuiteCase] = build_suite()

@@ -37,10 +37,12 @@ REALIGN_REJECTS = 5
 
 
 class GnssHeadingFusion:
-    def __init__(self, offset_deg: float, baseline_m: float, baseline_tol_m: float, max_acc_deg: float,
+    def __init__(self, mounts: list[tuple[float, float]], baseline_tol_m: float, max_acc_deg: float,
                  nmea_acc_deg: float, gate_sigma: float):
-        self.offset = math.radians(offset_deg)
-        self.baseline_m = baseline_m
+        """``mounts``: per receiver (``GnssHeadingSample.source``), the baseline's heading offset from
+        the vehicle's (deg, clockwise) and its mounted length (m, 0: not checked)."""
+        self.offsets = [math.radians(o) for o, _ in mounts]
+        self.baselines = [b for _, b in mounts]
         self.baseline_tol_m = baseline_tol_m
         self.max_acc = math.radians(max_acc_deg)
         self.nmea_acc = math.radians(nmea_acc_deg)
@@ -66,9 +68,12 @@ class GnssHeadingFusion:
         if math.isfinite(g.heading_acc_rad) and g.heading_acc_rad > self.max_acc:
             self.last_reason = f"heading accuracy {math.degrees(g.heading_acc_rad):.2f} deg above limit"
             return False
-        if self.baseline_m > 0.0 and math.isfinite(g.baseline_m) \
-                and abs(g.baseline_m - self.baseline_m) > self.baseline_tol_m:
-            self.last_reason = (f"baseline {g.baseline_m:.3f} m, mounted {self.baseline_m:.3f} m"
+        if not 0 <= g.source < len(self.offsets):
+            self.last_reason = f"no receiver #{g.source + 1} configured"
+            return False
+        mounted = self.baselines[g.source]
+        if mounted > 0.0 and math.isfinite(g.baseline_m) and abs(g.baseline_m - mounted) > self.baseline_tol_m:
+            self.last_reason = (f"baseline {g.baseline_m:.3f} m, mounted {mounted:.3f} m"
                                 " (wrong carrier fix)")
             self.state = STATE_BASELINE
             return False
@@ -77,7 +82,7 @@ class GnssHeadingFusion:
 
     def vehicle_heading(self, g: GnssHeadingSample) -> float:
         """The vehicle's heading, clockwise from north in [0, 2pi), from the baseline's."""
-        return (g.heading_rad - self.offset) % (2.0 * math.pi)
+        return (g.heading_rad - self.offsets[g.source]) % (2.0 * math.pi)
 
     def variance(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> float:
         r = hist.aux[hist.slot(s), AUX_R]
