@@ -53,7 +53,7 @@ from .config import Config, ConfigError
 from .diagnostics import Diagnostics
 from .estimator import Estimate, Estimator
 from .estimator.estimate import STATUS_INPUT_STALE
-from .gnss.stream import GnssStreamParser
+from .gnss.stream import GnssStreamParser, sum_stats
 from .io import health as health_mod
 from .io.can_bus import CanIO, resolve_bus_config
 from .io.logging_setup import setup_logging
@@ -140,11 +140,21 @@ class Daemon:
         self.decoder = None
         self.encoder = None
         self.canio: CanIO | None = None
-        self.serial: GnssSerial | None = None
-        self.parser: GnssStreamParser | None = None
+        # one serial port and parser per GNSS receiver ([[gnss.receiver]], in order)
+        self.serials: list[GnssSerial] = []
+        self.parsers: list[GnssStreamParser] = []
         self.recorder = None
         self.tick: TickThread | None = None
         self.cpu = health_mod.CpuMeter()
+
+    @property
+    def serial(self) -> GnssSerial | None:
+        """The first receiver's port (the one a single-receiver config has)."""
+        return self.serials[0] if self.serials else None
+
+    @property
+    def parser(self) -> GnssStreamParser | None:
+        return self.parsers[0] if self.parsers else None
 
     # ----------------------------------------------------------------------------- lifecycle
     def request_stop(self) -> None:
@@ -176,7 +186,7 @@ class Daemon:
             self.ready.set()
             self.notifier.ready(f"running on {self._bus_name()}")
             log.info("ecu-daemon running: CAN %s, GNSS %s, %d Hz estimator%s", self._bus_name(),
-                     self.cfg.gnss.port or "off", round(1 / self.dt),
+                     ", ".join(p.port for p in self._gnss_ports()) or "off", round(1 / self.dt),
                      f", recording into {self.record_dir}" if self.recorder else "")
             await self._housekeeping()
         finally:
@@ -213,14 +223,20 @@ class Daemon:
         self.decoder = SignalDecoder(cfg)
         self.encoder = OutputEncoder(cfg)
         self.estimator = Estimator(cfg, learned)
+        receivers = self._gnss_ports()
         if self.record_dir:
             from .io.recorder import Recorder
-            port = Path(cfg.gnss.port or "gnss")
+
+            def short(port: str) -> str:
+                p = Path(port or "gnss")
+                return p.parent.name + p.name if p.name.isdigit() else p.name
+
             self.recorder = Recorder(self.record_dir, can_channel=str(self.bus_config.get("channel") or "can0"),
-                                     gnss_port=port.parent.name + port.name if port.name.isdigit() else port.name)
-        if cfg.gnss.port:
-            self.parser = GnssStreamParser(cfg.gnss.protocol, name=f"GNSS {cfg.gnss.port}",
-                                           raw_sink=self.recorder.on_gnss if self.recorder else None)
+                                     gnss_port=short(receivers[0].port if receivers else ""),
+                                     extra_gnss_ports=[short(rx.port) for rx in receivers[1:]])
+        for i, rx in enumerate(receivers):
+            sink = (lambda t, b, i=i: self.recorder.on_gnss(t, b, i)) if self.recorder else None
+            self.parsers.append(GnssStreamParser(rx.protocol, name=f"GNSS {rx.port}", raw_sink=sink, source=i))
         try:
             bus = can.Bus(**self.bus_config)
         except (can.CanError, OSError, ValueError, TypeError, ImportError) as e:
@@ -273,10 +289,11 @@ class Daemon:
     def _start(self, loop) -> None:
         self._raise_loop_priority()
         self.canio.start(loop)
-        if self.parser is not None:
-            self.serial = GnssSerial(self.cfg.gnss.port, self.cfg.gnss.baudrate, on_data=self._on_gnss_bytes,
-                                     clock=self.clock)
-            self.serial.start(loop)
+        for rx, parser in zip(self._gnss_ports(), self.parsers):
+            ser = GnssSerial(rx.port, rx.baudrate, on_data=lambda t, b, p=parser: self._on_gnss_bytes(t, b, p),
+                             clock=self.clock)
+            self.serials.append(ser)
+            ser.start(loop)
         self.tick = TickThread(self.dt, self._on_tick, offset_s=self.grace_s, clock=self.clock,
                                speed=self.speed, realtime_priority=self.cfg.daemon.realtime_priority,
                                stats=self.tick_stats)
@@ -289,11 +306,11 @@ class Daemon:
         if self.canio is not None:
             self.canio.stop()
             self.canio.drain()  # frames already received go into the recording too
-        if self.serial is not None:
-            self.serial.drain()  # what the receiver already delivered is not lost
-            self.serial.close()
-        if self.parser is not None:
-            self._samples.extend(self.parser.finish())
+        for ser in self.serials:
+            ser.drain()  # what the receiver already delivered is not lost
+            ser.close()
+        for parser in self.parsers:
+            self._samples.extend(parser.finish())
         self._drain_out()
         if self.recorder is not None:
             self.recorder.close()
@@ -324,8 +341,12 @@ class Daemon:
         if self.recorder is not None:  # BusHealth has counted it; the recording keeps it too
             self.recorder.on_can(t, msg)
 
-    def _on_gnss_bytes(self, t: float, data: bytes) -> None:
-        for s in self.parser.feed(t, data):
+    def _gnss_ports(self) -> list:
+        """The receivers to open (a single-receiver config with its port "off" has none)."""
+        return [rx for rx in self.cfg.gnss.receivers() if rx.port]
+
+    def _on_gnss_bytes(self, t: float, data: bytes, parser: GnssStreamParser) -> None:
+        for s in parser.feed(t, data):
             if type(s) is GnssSample:  # the velocity solution: what the diagnostics describe
                 self._gnss_last = s
             self._samples.append(s)
@@ -399,7 +420,7 @@ class Daemon:
         est = self.latest
         delay = est.gnss_delay_s if est is not None else self.cfg.gnss.delay_s
         self.diag = health_mod.build_diagnostics(
-            now, decoder=self.decoder, gnss_stats=self.parser.stats if self.parser else None,
+            now, decoder=self.decoder, gnss_stats=sum_stats(self.parsers) if self.parsers else None,
             gnss_last=self._gnss_last, gnss_connected=bool(self.serial and self.serial.connected),
             gnss_delay_s=delay, bus=self.canio.health, tick=self.tick_stats.snapshot(),
             cpu_pct=self.cpu.update(), status=est.status if est is not None else 0,
@@ -575,6 +596,8 @@ def explicit_can_keys(config_path: str | None) -> set[str]:
 def apply_overrides(cfg: Config, args: argparse.Namespace) -> None:
     if getattr(args, "gnss_port", None):
         cfg.gnss.port = config_mod.off_if_none(args.gnss_port)
+        if cfg.gnss.receiver:  # the first receiver's port
+            cfg.gnss.receiver[0].port = cfg.gnss.port
     if getattr(args, "state_file", None):
         cfg.daemon.state_file = config_mod.off_if_none(args.state_file)
     if getattr(args, "no_send", False):

@@ -417,13 +417,6 @@ class DemoSession:
         return "\n".join(lines)
 
 
-#: ``--gnss`` choices -> the scenario's GNSS receiver settings
-GNSS_KINDS = {
-    "velocity": {},
-    "dual-antenna": {"gnss_dual_antenna": True, "gnss_baseline_m": 1.2, "gnss_baseline_offset_deg": 90.0},
-}
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, metavar="S", help="play only the first S seconds of the drive")
     parser.add_argument("--speed", type=float, default=1.0, metavar="X",
@@ -431,7 +424,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-tui", action="store_true", help="periodic lines instead of the live view")
     parser.add_argument("--config", "-C", help="base configuration (DBC, mapping); the vehicle comes from the scenario")
     parser.add_argument("--record", metavar="DIR", help="record what the daemon received, as `run --record` does")
-    parser.add_argument("--gnss", choices=GNSS_KINDS, default="velocity",
+    parser.add_argument("--gnss", choices=("velocity", "dual-antenna"), default="velocity",
                         help="the simulated receiver: velocity only (default), or a dual-antenna moving-base pair"
                         " that adds the heading (UBX NAV-RELPOSNED, 1.2 m baseline across the car)")
     from can.cli import add_bus_arguments
@@ -443,6 +436,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from .cli import UserError
     from .sim import SCENARIOS, simulate, vehicle_config
+    from .sim.scenario import GNSS_SETUPS
 
     if not (args.speed > 0 and math.isfinite(args.speed)) or args.speed > 20:
         raise UserError("--speed must be a number between 0 and 20")
@@ -452,7 +446,7 @@ def main(args: argparse.Namespace) -> int:
             raise UserError(f"--speed must be 1 on a shared bus ({args.interface} stamps frames with real time)")
         bus_config = {k: v for k, v in bus_overrides(args).items() if v is not None}
         bus_config.setdefault("channel", "239.74.163.2" if args.interface == "udp_multicast" else "vcan0")
-    scenario = SCENARIOS["demo"].with_(**GNSS_KINDS[getattr(args, "gnss", None) or "velocity"])
+    scenario = SCENARIOS["demo"].with_(**GNSS_SETUPS[getattr(args, "gnss", None) or "velocity"])
     if args.duration is not None:
         if not args.duration > 1.0:
             raise UserError("--duration must be more than 1 second")

@@ -28,7 +28,7 @@ from .cli import UnusableInputError, UserError
 from .daemon import DIAG_S, stale_validity_mask, with_stale_mask
 from .estimator import ESTIMATE_FIELDS, Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
-from .gnss.stream import GnssStreamParser
+from .gnss.stream import GnssStreamParser, sum_stats
 from .io.health import build_diagnostics, gap_line
 from .io.logging_setup import RateLimitedLog
 from .io.output_file import OutputFile, OutputPathError, check_output_paths
@@ -118,15 +118,6 @@ def _can_samples(path: str, decoder: SignalDecoder, counters: dict, order: TimeO
             continue
         for s in decoder.decode(t, fid, data, ext):
             yield t, 0, s
-
-
-def _sum_stats(parsers: dict) -> dict:
-    """GNSS parser counters summed over the capture's ports (the daemon has one port)."""
-    total: dict = {}
-    for p in parsers.values():
-        for k, v in p.stats.items():
-            total[k] = total.get(k, 0) + v
-    return total
 
 
 def _count_lines(path: str) -> int:
@@ -251,7 +242,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
                     # what the daemon's housekeeping does every DIAG_S, on the step grid
                     stale_mask = stale_validity_mask(decoder.check_stale(e.t))
                     diag = build_diagnostics(
-                        e.t, decoder=decoder, gnss_stats=_sum_stats(parsers), gnss_last=gnss_last,
+                        e.t, decoder=decoder, gnss_stats=sum_stats(parsers), gnss_last=gnss_last,
                         gnss_connected=gnss_path is not None, gnss_delay_s=e.gnss_delay_s, bus=None,
                         tick=None, cpu_pct=math.nan, error_frames=counters["error_frames"], status=e.status,
                         isolation_events=dict(est.fdi.events), gnss_heading=est.heading,
@@ -386,7 +377,7 @@ def input_table(decoder: SignalDecoder, parsers: dict | None, est: Estimator) ->
     for name, h in decoder.health.items():
         rows[name] = {"frames": h.frames, "samples": h.samples, **{k: v for k, v in h.errors.items() if k != "stale"}}
     if parsers is not None:
-        st = _sum_stats(parsers)
+        st = sum_stats(parsers)
         rows["gnss"] = {"frames": st.get("ubx_frames", 0) + st.get("nmea_sentences", 0),
                         "samples": st.get("samples", 0), "fused": est.gnss_counts()[0],
                         "rejected": est.gnss_counts()[1],

@@ -32,7 +32,7 @@ from ..samples import GnssHeadingSample, GnssSample
 from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
 from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError, ubx_checksum
 
-__all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q"]
+__all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q", "sum_stats"]
 
 log = logging.getLogger("ecu_daemon.gnss")
 
@@ -435,3 +435,13 @@ class GnssStreamParser:
             self.stats[counter] += 1
         self.last_error = text
         self._report.report(kind, logging.WARNING, f"{self._name}: {text}", now=t)
+
+
+def sum_stats(parsers) -> dict:
+    """GNSS parser counters summed over parsers (a dict: its values), e.g. every port of every
+    capture, or the daemon's receivers."""
+    total: dict = {}
+    for p in (parsers.values() if isinstance(parsers, dict) else parsers):
+        for k, v in p.stats.items():
+            total[k] = total.get(k, 0) + v
+    return total

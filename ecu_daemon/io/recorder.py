@@ -5,7 +5,8 @@ Files (all stamped on the daemon's monotonic clock, the same one the estimator u
 * ``can.log``  -- every received input frame, candump ``-L`` format, timestamps already converted
   to the monotonic clock and rounded to 1 us exactly as the estimator saw them;
 * ``gnss.log`` -- every GNSS message (and every run of unframed bytes) as received, in the
-  GNSS capture format, stamped with the receive time the parser used;
+  GNSS capture format, stamped with the receive time the parser used; ``gnss2.log``, ... for the
+  further receivers of a ``[[gnss.receiver]]`` list (``replay --gnss gnss.log --gnss gnss2.log``);
 * ``estimates.csv`` -- the live estimates, one row per step, in the format of ``replay --out-csv``;
 * ``outputs.log`` -- the frames the daemon sent, candump ``-L``, stamped with the tick time.
 
@@ -29,13 +30,16 @@ log = logging.getLogger("ecu_daemon.record")
 
 
 class Recorder:
-    def __init__(self, directory: str | Path, *, can_channel: str = "can0", gnss_port: str = "ttyACM0") -> None:
+    def __init__(self, directory: str | Path, *, can_channel: str = "can0", gnss_port: str = "ttyACM0",
+                 extra_gnss_ports: list[str] = ()) -> None:
         self.dir = Path(directory)
         try:
             self.dir.mkdir(parents=True, exist_ok=True)
             self.can = CandumpWriter(self.dir / "can.log", channel=can_channel)
             self.outputs = CandumpWriter(self.dir / "outputs.log", channel=can_channel)
             self.gnss = GnssLogWriter(self.dir / "gnss.log", gnss_port)
+            self.gnss_extra = [GnssLogWriter(self.dir / f"gnss{i + 2}.log", port)
+                               for i, port in enumerate(extra_gnss_ports)]
             self._csv = open(self.dir / "estimates.csv", "w", encoding="ascii", newline="\n")
         except (OSError, CanLogError) as e:
             from ..cli import UserError
@@ -62,9 +66,9 @@ class Recorder:
         self._guard(self.can.write_frame, t, msg.arbitration_id, bytes(msg.data), msg.is_extended_id,
                     msg.is_error_frame)
 
-    def on_gnss(self, t: float, payload: bytes) -> None:
+    def on_gnss(self, t: float, payload: bytes, receiver: int = 0) -> None:
         self.gnss_messages += 1
-        self._guard(self.gnss.write, t, payload)
+        self._guard((self.gnss_extra[receiver - 1] if receiver else self.gnss).write, t, payload)
 
     def on_output(self, t: float, msg: can.Message) -> None:
         self._guard(self.outputs.write_frame, t, msg.arbitration_id, bytes(msg.data), False, False)
@@ -74,14 +78,14 @@ class Recorder:
         self._guard(self._csv.write, format_row(est))
 
     def flush(self) -> None:
-        for f in (self.can, self.outputs, self.gnss, self._csv):
+        for f in (self.can, self.outputs, self.gnss, *self.gnss_extra, self._csv):
             self._guard(f.flush)
 
     def close(self) -> None:
         if self._closed:
             return
         self.flush()
-        for f in (self.can, self.outputs, self.gnss, self._csv):
+        for f in (self.can, self.outputs, self.gnss, *self.gnss_extra, self._csv):
             self._guard(f.close)
         self._closed = True
 

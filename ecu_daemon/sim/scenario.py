@@ -67,6 +67,16 @@ class Scenario:
         return out
 
 
+#: GNSS set-ups a scenario can be given (``simulate --gnss``, ``demo --gnss``): Scenario.with_ changes
+GNSS_SETUPS = {
+    "velocity": {},  # one receiver: velocity only
+    # a moving-base pair, antennas across the car (left to right): the heading, at standstill too
+    "dual-antenna": {"gnss_dual_antenna": True, "gnss_baseline_m": 1.2, "gnss_baseline_offset_deg": 90.0},
+    # two velocity receivers front and rear, 2.5 m apart, unsynchronised (own latency each)
+    "front-rear": {"gnss_lever_arm_m": (1.5, 0.0), "gnss2_lever_arm_m": (-1.0, 0.0), "gnss2_latency_s": 0.33},
+}
+
+
 _KINDS = {
     "straight": ("straight", "straight driving with gentle speed changes, standstill at both ends"),
     "jturn": ("j_turn", "step steer left and right at constant speed (ISO 7401-like)"),

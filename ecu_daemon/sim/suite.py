@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .scenario import SCENARIOS, Scenario
+from .scenario import GNSS_SETUPS, SCENARIOS, Scenario
 from .sensors import CAN_FAULT_KINDS, Fault
 
 
@@ -148,8 +148,7 @@ def _two_receivers() -> list[SuiteCase]:
     out = []
     for name, kind in (("two_rx_dlc", "dlc_dry"), ("two_rx_slalom", "slalom_dry"), ("two_rx_jturn", "jturn_dry"),
                        ("two_rx_straight", "straight")):
-        sc = _base(name, kind, gnss_lever_arm_m=(1.5, 0.0), gnss_latency_s=0.4, latency_prior_s=0.3,
-                   gnss2_lever_arm_m=(-1.0, 0.0), gnss2_latency_s=0.33)
+        sc = _base(name, kind, gnss_latency_s=0.4, latency_prior_s=0.3, **GNSS_SETUPS["front-rear"])
         out.append(SuiteCase(name, "two_receivers", sc, compare_single=kind == "straight"))
     return out
 
