@@ -235,3 +235,27 @@ def test_replay_reads_the_heading_from_the_capture_and_reports_it_on_can(tmp_pat
     assert pages[36]["GNSS_HEADING_BASELINE"] == pytest.approx(1.2, abs=2e-3)
     assert pages[37]["GNSS_HEADING_FUSED"] > 10 and pages[37]["GNSS_HEADING_REJECTED"] == 0
     assert heading_frame["STATUS_GNSS_HEADING"] == 1 and heading_frame["HEADING_VALID"] == 1
+
+
+def test_a_wrong_carrier_fix_never_takes_the_heading_while_moving(tmp_path):
+    """8 deg off for 5 s with a plausible baseline: gated, and the run of rejections does not re-set
+    the heading because the GNSS course disagrees with the baseline; heading_valid drops meanwhile."""
+    from ecu_daemon import config as config_mod
+    from ecu_daemon.evaluate import ESTIMATE_REQUIRED, TRUTH_REQUIRED, read_csv
+    from ecu_daemon.replay import run_replay
+    from ecu_daemon.sim import writer
+    from ecu_daemon.sim.run import simulate, vehicle_config
+    from ecu_daemon.sim.suite import SUITE
+
+    sc = next(c.scenario for c in SUITE if c.name == "dual_heading_fault").with_(duration_s=32.0)
+    cfg = vehicle_config(sc)
+    paths = writer.write_all(tmp_path, simulate(sc, cfg), cfg)
+    run_replay(config_mod.load(paths["config"]), str(paths["can"]), str(paths["gnss"]), str(tmp_path / "out.csv"))
+    est = read_csv(tmp_path / "out.csv", ESTIMATE_REQUIRED, "estimate")
+    truth = read_csv(paths["truth"], TRUTH_REQUIRED, "truth")
+    psi = np.interp(est["t"], truth["t"], np.unwrap(truth["heading_rad"]))
+    err = np.degrees(np.abs((est["heading_rad"] - psi + np.pi) % (2 * np.pi) - np.pi))
+    valid = est["heading_valid"] > 0.5
+    fault = (est["t"] >= est["t"][0] + 24.5) & (est["t"] < est["t"][0] + 29.0)
+    assert err[fault].max() < 0.5 and err[valid].max() < 0.5  # never followed the wrong baseline
+    assert not valid[fault].all()  # said so: the two GNSS sources disagree

@@ -39,7 +39,7 @@ from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
-from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
+from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import LatencyEstimator
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
@@ -71,6 +71,7 @@ GNSS_CHECK_FRESH_S = 2.0
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
+COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
 
 
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
@@ -141,6 +142,7 @@ class Estimator:
         self.rdot = 0.0
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
+        self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
         self.last_gnss_rejected = False
         self.late_inputs = 0
         self.resets = 0
@@ -583,6 +585,8 @@ class Estimator:
             # A GNSS that disagrees with the wheels stays rejected instead (a glitch).
             self.aligned = False
             self.realignments += 1
+        if g.course_known and speed >= ALIGN_SPEED:
+            self.course_heading = (s, *self._course_heading(s, g, fus, lat))
         if not self.aligned or not g.course_known:  # heading unknown, or no course: |v| only
             ok = agree and fus.fuse_speed(h, s, g, delay_std_s=lat.std_s)
             if not agree:
@@ -618,7 +622,7 @@ class Estimator:
         delay = lat.delay_s if self.delay_compensation else 0.0
         s, _ = h.clamp_step(round((g.t - delay) / self.dt))
         std = lat.std_s
-        if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS:
+        if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS and self._course_confirms(s, g):
             self.realignments += 1
             self.aligned = False
         if self.aligned:
@@ -630,6 +634,38 @@ class Estimator:
             for f in self.receivers:
                 f.consecutive_rejects = 0
         self.last_heading_fused_t = k * self.dt
+
+    def _course_heading(self, s: int, g: GnssSample, fus: GnssVelocityFusion,
+                        lat: LatencyEstimator) -> tuple[float, float]:
+        """The heading a GNSS course implies at stored step s (course + the antenna's sideslip, as
+        in :meth:`_align`) and its variance (the course's, the timing's, the sideslip's)."""
+        h = self.hist
+        i = h.slot(s)
+        x = h.X[i]
+        P = h.P[i]
+        r = h.aux[i, AUX_R]
+        vax = x[VX] - r * fus.lever_y
+        vay = x[VY] + r * fus.lever_x
+        sp2 = max(vax * vax + vay * vay, 1.0)
+        jx, jy = -vay / sp2, vax / sp2
+        var_beta = jx * jx * P[VX, VX] + 2.0 * jx * jy * P[VX, VY] + jy * jy * P[VY, VY]
+        var = ((fus.sigma(g) / g.speed_mps) ** 2 + (r * lat.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
+               + max(var_beta, 0.0))
+        return (fus.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi), var
+
+    def _course_confirms(self, s: int, g: GnssHeadingSample) -> bool:
+        """Does a recent GNSS course (moving) agree with this baseline heading at step s? Only then
+        may a run of baseline rejections re-set the filter's heading: at standstill, or against
+        the course, the baseline (a wrong carrier fix) is the likelier culprit, and the heading
+        stays invalid while they disagree."""
+        c = self.course_heading
+        h = self.hist
+        if c is None or not h.oldest() <= c[0] <= h.last or abs(s - c[0]) * self.dt > GNSS_FRESH_S:
+            return False
+        cs, psi_c, var = c
+        psi_c += h.X[h.slot(s), PSI] - h.X[h.slot(cs), PSI]  # turned between the two instants
+        diff = abs(wrap_pi(self.heading.vehicle_heading(g) - psi_c))
+        return diff <= 3.0 * math.sqrt(var + self.heading.sigma(g) ** 2) + COURSE_CONFIRM_RAD
 
     def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
         """GNSS speed against the wheel speed at its time of validity (scaled by the learned

@@ -53,7 +53,8 @@ class Fault:
     ``scaled`` (x ``value``), ``noisy`` (+ white noise of 1-sigma ``value``), ``intermittent``
     (reads 0 for 0.1 s out of every 0.3 s: a loose connector). GNSS (``input`` = ``gnss``):
     ``scaled`` (velocity x ``value``, a glitch), ``constant`` (north and east velocity both
-    ``value``), ``dropout`` (no solutions). Every value stays what the receiver or the DBC can
+    ``value``), ``dropout`` (no solutions), ``heading_offset`` (a dual antenna's heading + ``value``
+    deg: a wrong carrier fix whose baseline length still looks right). Every value stays what the receiver or the DBC can
     carry: these are the implausible-but-in-range inputs only cross-checks can catch.
     """
 
@@ -68,7 +69,7 @@ class Fault:
 
 
 CAN_FAULT_KINDS = ("stuck", "zero", "offset", "scaled", "noisy", "intermittent")
-GNSS_FAULT_KINDS = ("scaled", "constant", "dropout")
+GNSS_FAULT_KINDS = ("scaled", "constant", "dropout", "heading_offset")
 
 
 def apply_fault(fault: Fault, t: np.ndarray, v: np.ndarray, t0: float, rng: np.random.Generator) -> np.ndarray:
@@ -257,9 +258,12 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
             vn[on] = ve[on] = f.value
         elif f.kind == "dropout":
             sent &= ~on
+        elif f.kind == "heading_offset":
+            head[on] = (head[on] + f.value) % 360.0
         else:
             raise ValueError(f"unknown GNSS fault kind {f.kind!r}; known: {', '.join(GNSS_FAULT_KINDS)}")
-        good &= ~on
+        if f.kind != "heading_offset":  # the velocity stays good
+            good &= ~on
     out = []
     for i in range(n):
         if t_rx[i] > t[-1]:

@@ -124,7 +124,8 @@ def _low_speed() -> list[SuiteCase]:
 
 def _dual_antenna() -> list[SuiteCase]:
     """A moving-base pair (1.2 m baseline) on the same receiver as the velocity: standstill
-    included, antennas along, across and reversed on the car, UBX and NMEA, low friction, an outage."""
+    included, antennas along, across and reversed on the car, UBX and NMEA, low friction, a wrong
+    carrier fix, an outage."""
     out = []
     for name, kind, offset, protocol, extra in (
             ("dual_straight_standstill", "straight", 0.0, "ubx", {}),
@@ -132,6 +133,9 @@ def _dual_antenna() -> list[SuiteCase]:
             ("dual_circle", "circle_dry", 180.0, "ubx", {}),
             ("dual_slalom_nmea", "slalom_dry", -90.0, "nmea", {}),
             ("dual_mu03_dlc", "dlc_mu03", 0.0, "ubx", {}),
+            # a wrong carrier fix with a plausible baseline: 8 deg off for 5 s in the lane change
+            ("dual_heading_fault", "dlc_dry", 0.0, "ubx",
+             {"gnss_faults": (Fault("gnss", "heading_offset", 24.0, 5.0, 8.0),)}),
             ("dual_outage_30s", "demo", 0.0, "ubx", {"gnss_faults": (Fault("gnss", "dropout", 25.0, 30.0),)})):
         # an outage takes the heading away too: scored on honesty, not on the dual-antenna accuracy
         family = "gnss" if "outage" in name else "dual_antenna"
