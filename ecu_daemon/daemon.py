@@ -134,7 +134,8 @@ class Daemon:
         self._wd_next = 0.0
         self._wd_interval = self.notifier.watchdog_s / 3.0 if self.notifier.watchdog_s > 0 else 0.0
         self._gnss_last: GnssSample | None = None
-        self._gnss_silent = False
+        self._gnss_rx_t: dict[int, float] = {}  # receiver index -> receive time of its last sample
+        self._gnss_silent: set[int] = set()  # receivers reported silent
         self._stale_mask: dict = {}
         self.estimator = None
         self.decoder = None
@@ -347,6 +348,7 @@ class Daemon:
 
     def _on_gnss_bytes(self, t: float, data: bytes, parser: GnssStreamParser) -> None:
         for s in parser.feed(t, data):
+            self._gnss_rx_t[s.source] = s.t
             if type(s) is GnssSample:  # the velocity solution: what the diagnostics describe
                 self._gnss_last = s
             self._samples.append(s)
@@ -429,16 +431,21 @@ class Daemon:
             gnss_timeout_s=self.cfg.gnss.timeout_s)
 
     def _check_gnss(self, now: float) -> None:
-        if self.serial is None or not self.serial.connected:
-            return
-        last = self._gnss_last.t if self._gnss_last is not None else None
-        silent = last is None or now - last > self.cfg.gnss.timeout_s
-        if silent and not self._gnss_silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s:
-            log.warning("GNSS: no velocity solution from %s for more than %.1f s", self.cfg.gnss.port,
-                        self.cfg.gnss.timeout_s)
-        elif self._gnss_silent and not silent:
-            log.info("GNSS: receiving velocity solutions again")
-        self._gnss_silent = silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s
+        """One line when a connected receiver goes silent (no solution for ``timeout_s``), one when
+        it speaks again; each receiver on its own."""
+        timeout = self.cfg.gnss.timeout_s
+        started = self.tick_stats.ticks * self.dt > timeout
+        for i, ser in enumerate(self.serials):
+            if not ser.connected:
+                continue
+            last = self._gnss_rx_t.get(i)
+            silent = (last is None or now - last > timeout) and started
+            if silent and i not in self._gnss_silent:
+                log.warning("GNSS: no solution from %s for more than %.1f s", ser.port, timeout)
+                self._gnss_silent.add(i)
+            elif not silent and i in self._gnss_silent:
+                log.info("GNSS: receiving solutions from %s again", ser.port)
+                self._gnss_silent.discard(i)
 
     def _save(self, learned: dict) -> None:
         path = self.cfg.daemon.state_file

@@ -361,6 +361,31 @@ def test_two_receivers_open_two_ports_each_parsed_and_recorded_on_its_own(tmp_pa
     assert f"GNSS {links[0]}, {links[1]}" in log_buffer.getvalue()
 
 
+def test_a_silent_receiver_is_reported_on_its_own(tmp_path, log_buffer):
+    links = [str(tmp_path / "ttyFRONT"), str(tmp_path / "ttyREAR")]
+    masters = [plug_pty(link) for link in links]
+    cfg = make_cfg(tmp_path)
+    cfg.gnss.timeout_s = 0.3
+    cfg.gnss.receiver = [config_mod.GnssReceiver(port=links[0], protocol="nmea"),
+                         config_mod.GnssReceiver(port=links[1], protocol="nmea")]
+    try:
+        with LiveDaemon(cfg) as live:
+            d = live.daemon
+            wait_until(lambda: f"no solution from {links[1]}" in log_buffer.getvalue(), what="rear reported silent")
+            k = itertools.count()
+
+            def speaks():  # the rear receiver talks again, an epoch per poll
+                os.write(masters[1], nmea_epoch(next(k)))
+                return f"receiving solutions from {links[1]} again" in log_buffer.getvalue()
+
+            wait_until(speaks, what="rear back")
+            assert d.running
+    finally:
+        for m in masters:
+            os.close(m)
+    assert log_buffer.getvalue().count(f"no solution from {links[1]}") == 1
+
+
 def test_corrupt_state_file_is_reported_once_and_ignored_then_rewritten(tmp_path, log_buffer):
     cfg = make_cfg(tmp_path)
     state = tmp_path / "state.json"
