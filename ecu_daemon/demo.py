@@ -416,6 +416,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-tui", action="store_true", help="periodic lines instead of the live view")
     parser.add_argument("--config", "-C", help="base configuration (DBC, mapping); the vehicle comes from the scenario")
     parser.add_argument("--record", metavar="DIR", help="record what the daemon received, as `run --record` does")
+    parser.add_argument("--gnss", choices=("velocity", "dual-antenna"), default="velocity",
+                        help="the simulated receiver: velocity only (default), or a dual-antenna moving-base pair"
+                        " that adds the heading (UBX NAV-RELPOSNED, 1.2 m baseline across the car)")
     from can.cli import add_bus_arguments
 
     add_bus_arguments(parser, group_title="CAN bus (default: an in-process virtual bus; to watch the demo with"
@@ -425,6 +428,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from .errors import UserError
     from .sim import SCENARIOS, simulate, vehicle_config
+    from .sim.scenario import GNSS_SETUPS
 
     if not (args.speed > 0 and math.isfinite(args.speed)) or args.speed > 20:
         raise UserError("--speed must be a number between 0 and 20")
@@ -434,7 +438,7 @@ def main(args: argparse.Namespace) -> int:
             raise UserError(f"--speed must be 1 on a shared bus ({args.interface} stamps frames with real time)")
         bus_config = {k: v for k, v in bus_overrides(args).items() if v is not None}
         bus_config.setdefault("channel", "239.74.163.2" if args.interface == "udp_multicast" else "vcan0")
-    scenario = SCENARIOS["demo"]
+    scenario = SCENARIOS["demo"].with_(**GNSS_SETUPS[getattr(args, "gnss", None) or "velocity"])
     if args.duration is not None:
         if not args.duration > 1.0:
             raise UserError("--duration must be more than 1 second")
