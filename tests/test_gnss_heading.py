@@ -132,6 +132,18 @@ def test_fusion_wraps_through_north_and_gates_a_wrong_heading():
     assert np.array_equal(h.X, x_before)
 
 
+def test_a_correction_the_history_refuses_is_a_rejection_and_changes_nothing():
+    """StepHistory.correct refuses a correction that leaves a stored covariance not positive
+    definite (here a later step's, already broken): the heading is then not fused."""
+    fus = GnssHeadingFusion([(0.0, 0.0)], 0.05, 2.0, 0.3, 5.0)
+    h = _hist(psi_deg=10.0)
+    h.P[h.slot(15), 0, 0] = -1.0
+    x_before, p_before = h.X.copy(), h.P.copy()
+    assert not fus.fuse(h, 5, _heading(11.0), 0.0)
+    assert (fus.fused, fus.rejected) == (0, 1) and "positive definite" in fus.last_reason
+    assert np.array_equal(h.X, x_before) and np.array_equal(h.P, p_before)
+
+
 @pytest.mark.parametrize("sample, reason", [
     (_heading(10.0, baseline=1.31), "baseline"),  # a wrong carrier fix shows in the length
     (_heading(10.0, acc=2.5), "accuracy"),

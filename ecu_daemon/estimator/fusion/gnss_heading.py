@@ -20,8 +20,10 @@ import math
 import numpy as np
 
 from ...samples import GnssHeadingSample
+from .. import kalman
 from ..history import AUX_R, StepHistory
-from ..kinematic import PSI, wrap_pi
+from ..kinematic import NX, PSI, wrap_pi
+from .gnss_velocity import NOT_PD
 
 # what happened to the last heading sample (EST_DIAG.GNSS_HEADING_STATE)
 STATE_NONE = 0  # no heading received yet
@@ -53,6 +55,11 @@ class GnssHeadingFusion:
         self.last_reason = ""
         self.state = STATE_NONE
         self.last: GnssHeadingSample | None = None  # the last sample received, usable or not
+        # preallocated update operands (fusion is not re-entrant: one estimator, one thread)
+        self._H = np.zeros((1, NX))
+        self._H[0, PSI] = 1.0
+        self._R, self._y = np.zeros((1, 1)), np.zeros(1)
+        self._dx, self._M = np.zeros(NX), np.zeros((NX, NX))
 
     def sigma(self, g: GnssHeadingSample) -> float:
         acc = g.heading_acc_rad if math.isfinite(g.heading_acc_rad) else self.nmea_acc
@@ -89,20 +96,24 @@ class GnssHeadingFusion:
         return self.sigma(g) ** 2 + (r * delay_std_s) ** 2
 
     def fuse(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> bool:
-        """Scalar heading update at stored step s; False (counted) when gated out."""
+        """Scalar heading update at stored step s (Joseph form, through ``kalman.late_update`` as
+        the velocity's); False (counted) when gated out, or when the corrected covariance would
+        not be positive definite (``StepHistory.correct`` refuses it)."""
         i = hist.slot(s)
-        P = hist.P[i]
-        Ph = P[:, PSI].copy()
-        S = Ph[PSI] + self.variance(hist, s, g, delay_std_s)
         y = wrap_pi(self.vehicle_heading(g) - hist.X[i, PSI])
-        if not S > 0.0 or y * y > self.gate_sigma ** 2 * S:
+        self._R[0, 0] = self.variance(hist, s, g, delay_std_s)
+        self._y[0] = y
+        nis = kalman.late_update(hist.P[i], self._H, self._R, self._y, self._dx, self._M)
+        if not nis <= self.gate_sigma ** 2:  # NaN: no usable innovation covariance
             self.consecutive_rejects += 1
             self.rejected += 1
             self.last_reason = f"heading innovation gate ({math.degrees(y):+.2f} deg)"
             self.state = STATE_GATE
             return False
-        K = Ph / S
-        hist.correct(s, K * y, np.outer(K, Ph))
+        if not hist.correct(s, self._dx, self._M):
+            self.rejected += 1
+            self.last_reason = NOT_PD
+            return False
         self.consecutive_rejects = 0
         self.fused += 1
         return True
