@@ -47,12 +47,14 @@ class Feeder(threading.Thread):
     daemon's realtime->monotonic mapping is exercised); otherwise frames carry the daemon's
     (scaled) clock. The daemon's own output frames come back on this bus and are drained while
     waiting (``outputs`` collects them with their arrival time when ``keep_outputs`` is set).
-    ``frame_filter(t, kind, id, data) -> data | None`` changes or drops an event as it is due.
+    ``frame_filter(t, kind, id, data) -> data | None`` changes or drops an event as it is due
+    (kind 0 CAN, 1 GNSS, 2 the second receiver's GNSS).
+    ``gnss2_fd``: the second receiver's pty master, for a scenario with two (``sim.gnss2_messages``).
     """
 
     def __init__(self, sim, channel: str, gnss_fd: int, *, clock=time.monotonic, speed: float = 1.0,
                  lead_s: float = 0.05, keep_outputs: bool = False, frame_filter=None,
-                 bus_config: dict | None = None) -> None:
+                 bus_config: dict | None = None, gnss2_fd: int | None = None) -> None:
         super().__init__(name="demo-feeder", daemon=True)
         self.sim = sim
         self.channel = channel
@@ -70,7 +72,10 @@ class Feeder(threading.Thread):
             self._bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=speed != 1.0)
         else:  # a bus other processes see (e.g. udp_multicast): they stamp receive times themselves
             self._bus = can.Bus(**bus_config)
-        self._player = Player((), buses={None: self._bus}, gnss=GnssPort(fd=gnss_fd), clock=clock,
+        gnss = {"gnss": GnssPort(fd=gnss_fd)}
+        if gnss2_fd is not None:
+            gnss["gnss2"] = GnssPort(fd=gnss2_fd)
+        self._player = Player((), buses={None: self._bus}, gnss=gnss, clock=clock,
                               rate=speed, stamp=clock if speed != 1.0 else None, idle=self._drain)
 
     @property
@@ -108,6 +113,7 @@ class Feeder(threading.Thread):
         sim = self.sim
         events = [(t, 0, fid, data) for t, fid, data in sim.can_frames]
         events += [(t, 1, None, payload) for t, payload in sim.gnss_messages]
+        events += [(t, 2, None, payload) for t, payload in sim.gnss2_messages]
         events.sort(key=lambda e: (e[0], e[1]))
         ext = sim.extended_ids
         s0 = sim.t0
@@ -120,7 +126,7 @@ class Feeder(threading.Thread):
                 yield t - s0, Event(t, self.channel, can.Message(arbitration_id=fid, data=data,
                                                                  is_extended_id=fid in ext, check=False))
             else:
-                yield t - s0, Event(t, "gnss", None, data)
+                yield t - s0, Event(t, "gnss" if kind == 1 else "gnss2", None, data)
 
     def run(self) -> None:
         player = self._player
