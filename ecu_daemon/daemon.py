@@ -5,7 +5,7 @@ Threads and data flow::
     event loop (asyncio, main thread)                 tick thread (io/tick.py)
     ---------------------------------                 ------------------------
     CAN frame  -> ClockMapper --------------------+    every 6 ms at k*dt + grace:
-    GNSS bytes -> stamp --------------------------+--> Pipeline.tick(k): decode what is due,
+    GNSS bytes -> stamp (a port per receiver) ----+--> Pipeline.tick(k): decode what is due,
     host health (20 Hz) --------------------------+    estimate, validity, frames -> bus.send
                                                        WATCHDOG=1
       recording, STATUS=, state persistence <-------- published estimates / sent frames (deque)

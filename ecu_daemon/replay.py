@@ -143,8 +143,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
     Raises UserError on bad files (nothing is opened for writing before the paths are checked;
     outputs are written aside and renamed at the end, a failure keeps them as ``*.partial.*``) and
     :class:`~ecu_daemon.errors.UnusableInputError` when a required input never gave a usable sample.
-    ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
-    GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
+    ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}``, the
+    GNSS speed as ``"gnss_speed"`` and a dual-antenna heading as ``"gnss_heading"`` (for plots). ``can_channel``/``can_time_offset``: see
     :mod:`ecu_daemon.replay_input`. ``gnss_path``: one capture, or one per receiver of the config
     (``[[gnss.receiver]]``, in order). ``ticks_path``: a daemon recording's tick record (see
     :class:`~ecu_daemon.pipeline.TickRecord`); None: the time rule.
