@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from ecu_daemon.config import Config
 from ecu_daemon.estimator import Estimator
 from ecu_daemon.estimator.fusion.gnss_heading import GnssHeadingFusion
 from ecu_daemon.estimator.history import StepHistory
