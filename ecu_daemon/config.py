@@ -65,6 +65,30 @@ class CanSettings:
     bus_kwargs: dict = field(default_factory=dict)
 
 
+#: what a receiver is used for: its velocity (and its heading, if it sends one), or only its heading
+RECEIVER_ROLES = ("velocity", "heading")
+#: the keys of one receiver; in a single-receiver config they sit in [gnss] itself
+RECEIVER_KEYS = ("port", "baudrate", "protocol", "delay_s", "lever_arm_m", "heading_offset_deg", "baseline_m")
+
+
+@dataclass
+class GnssReceiver:
+    """One ``[[gnss.receiver]]``: its port, protocol, antenna position, latency prior and role.
+
+    ``heading_offset_deg`` / ``baseline_m`` describe its dual-antenna baseline (when it sends a
+    heading: NAV-RELPOSNED, HDT, THS), as the same keys of ``[gnss]`` do for a single receiver.
+    """
+
+    port: str = "/dev/ttyACM0"
+    baudrate: int = 115200
+    protocol: str = "auto"  # auto | ubx | nmea
+    role: str = "velocity"  # velocity | heading
+    delay_s: float = 0.2
+    lever_arm_m: list = field(default_factory=lambda: [0.0, 0.0])
+    heading_offset_deg: float = 0.0
+    baseline_m: float = 0.0
+
+
 @dataclass
 class GnssSettings:
     port: str = "/dev/ttyACM0"
@@ -78,6 +102,22 @@ class GnssSettings:
     max_speed_acc_mps: float = 1.0
     nmea_speed_acc_mps: float = 0.15  # assumed 1-sigma when the protocol gives none (NMEA)
     timeout_s: float = 2.0
+    # dual-antenna heading (NAV-RELPOSNED, HDT, THS), used whenever the receiver sends it
+    heading_offset_deg: float = 0.0  # baseline heading minus vehicle heading, clockwise (antennas across, left to right: 90)
+    baseline_m: float = 0.0  # antenna distance as mounted; 0: not checked
+    baseline_tol_m: float = 0.05  # a measured baseline further off is a wrong carrier fix: not used
+    max_heading_acc_deg: float = 2.0  # headings the receiver rates worse than this are not used
+    nmea_heading_acc_deg: float = 0.3  # assumed 1-sigma when the protocol gives none (NMEA)
+    #: ``[[gnss.receiver]]`` tables (GnssReceiver); empty: one receiver described by the keys above
+    receiver: list = field(default_factory=list)
+
+    def receivers(self) -> list[GnssReceiver]:
+        """Every receiver, in order: the ``[[gnss.receiver]]`` list, or the single one of ``[gnss]``
+        (whose port may be empty: GNSS off)."""
+        if self.receiver:
+            return list(self.receiver)
+        return [GnssReceiver(self.port, self.baudrate, self.protocol, "velocity", self.delay_s,
+                             list(self.lever_arm_m), self.heading_offset_deg, self.baseline_m)]
 
 
 @dataclass
@@ -237,6 +277,11 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("gnss", "max_speed_acc_mps"): (0.001, 100.0, "m/s"),
     ("gnss", "nmea_speed_acc_mps"): (0.001, 100.0, "m/s"),
     ("gnss", "timeout_s"): (0.01, 3600.0, "s"),
+    ("gnss", "heading_offset_deg"): (-360.0, 360.0, "deg"),
+    ("gnss", "baseline_m"): (0.0, 100.0, "m"),
+    ("gnss", "baseline_tol_m"): (0.001, 10.0, "m"),
+    ("gnss", "max_heading_acc_deg"): (0.001, 180.0, "deg"),
+    ("gnss", "nmea_heading_acc_deg"): (0.001, 180.0, "deg"),
     ("vehicle", "mass_kg"): (10.0, 100_000.0, "kg"),
     ("vehicle", "yaw_inertia_kgm2"): (1.0, 10_000_000.0, "kg m^2"),
     ("vehicle", "cg_to_front_axle_m"): (0.05, 20.0, "m"),
@@ -282,17 +327,29 @@ def _validate(cfg: Config) -> None:
                           f" {MIN_STEERING_RATIO:g} to 100 (negative flips the sign)")
     if cfg.vehicle.driven_axle not in ("front", "rear", "all"):
         raise ConfigError(f"[vehicle] driven_axle must be front, rear or all, got {cfg.vehicle.driven_axle!r}")
-    if cfg.gnss.protocol not in ("auto", "ubx", "nmea"):
-        raise ConfigError(f"[gnss] protocol must be auto, ubx or nmea, got {cfg.gnss.protocol!r}")
-    # the ring buffer must reach back past the latency prior (and what it may be identified as)
-    cfg.gnss.max_delay_s = max(cfg.gnss.max_delay_s, round(cfg.gnss.delay_s + 0.3, 3))
-    arm = cfg.gnss.lever_arm_m
-    if len(arm) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in arm):
-        raise ConfigError(f"[gnss] lever_arm_m must be [x, y] in metres, got {arm!r}")
-    cfg.gnss.lever_arm_m = [float(a) for a in arm]
-    if not all(abs(a) <= LEVER_ARM_MAX_M for a in cfg.gnss.lever_arm_m):
-        raise ConfigError(f"[gnss] lever_arm_m = {arm!r} is out of range: allowed -{LEVER_ARM_MAX_M:g} to"
-                          f" {LEVER_ARM_MAX_M:g} m each")
+    g = cfg.gnss
+    _validate_receiver("[gnss]", g)
+    for n, rx in enumerate(g.receiver):
+        where = f"[[gnss.receiver]] #{n + 1}"
+        for key in RECEIVER_KEYS:
+            if ("gnss", key) in RANGES:
+                _check_range(where, key, getattr(rx, key), RANGES[("gnss", key)])
+        _validate_receiver(where, rx)
+        if rx.role not in RECEIVER_ROLES:
+            raise ConfigError(f"{where} role must be {' or '.join(RECEIVER_ROLES)}, got {rx.role!r}")
+    if g.receiver:
+        ports = [rx.port for rx in g.receiver]
+        if len(set(ports)) != len(ports):
+            raise ConfigError(f"[[gnss.receiver]] ports must differ, got {ports}")
+        if not any(rx.role == "velocity" for rx in g.receiver):
+            raise ConfigError("[[gnss.receiver]]: at least one receiver needs role = \"velocity\"")
+        # the single-receiver keys of [gnss] describe the first velocity receiver (what code and
+        # tools written for one receiver read)
+        first = next(rx for rx in g.receiver if rx.role == "velocity")
+        for key in RECEIVER_KEYS:
+            setattr(g, key, getattr(first, key))
+    # the ring buffer must reach back past every latency prior (and what it may be identified as)
+    g.max_delay_s = max(g.max_delay_s, round(max(rx.delay_s for rx in g.receivers()) + 0.3, 3))
     if cfg.daemon.log_level.lower() not in ("debug", "info", "warning", "error"):
         raise ConfigError(f"[daemon] log_level must be debug, info, warning or error, got {cfg.daemon.log_level!r}")
     for name, m in cfg.inputs.items():
@@ -323,6 +380,19 @@ def _validate(cfg: Config) -> None:
         raise ConfigError("missing input mapping(s): " + ", ".join(f"[inputs.{n}]" for n in missing))
 
 
+def _validate_receiver(where: str, rx) -> None:
+    """Protocol and lever arm of one receiver ([gnss] itself, or one [[gnss.receiver]])."""
+    if rx.protocol not in ("auto", "ubx", "nmea"):
+        raise ConfigError(f"{where} protocol must be auto, ubx or nmea, got {rx.protocol!r}")
+    arm = rx.lever_arm_m
+    if len(arm) != 2 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in arm):
+        raise ConfigError(f"{where} lever_arm_m must be [x, y] in metres, got {arm!r}")
+    rx.lever_arm_m = [float(a) for a in arm]
+    if not all(abs(a) <= LEVER_ARM_MAX_M for a in rx.lever_arm_m):
+        raise ConfigError(f"{where} lever_arm_m = {arm!r} is out of range: allowed -{LEVER_ARM_MAX_M:g} to"
+                          f" {LEVER_ARM_MAX_M:g} m each")
+
+
 def _check_data_id(name: str, m: InputMapping) -> None:
     def byte(v) -> bool:
         return isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 255
@@ -333,6 +403,22 @@ def _check_data_id(name: str, m: InputMapping) -> None:
     if not (byte(ids) or (isinstance(ids, list) and len(ids) == 16 and all(byte(v) for v in ids))):
         raise ConfigError(f"[inputs.{name}] data_id must be a byte (0..255) or a list of 16 bytes, one per"
                           f" counter value; got {ids!r}")
+
+
+def _fill_gnss(g: GnssSettings, table: Any) -> None:
+    """[gnss], with its optional [[gnss.receiver]] list (then the per-receiver keys go there only)."""
+    if not isinstance(table, dict):
+        raise ConfigError("[gnss] must be a table")
+    receivers = table.get("receiver", [])
+    if not isinstance(receivers, list) or not all(isinstance(r, dict) for r in receivers):
+        raise ConfigError("[gnss] receiver must be a list of [[gnss.receiver]] tables")
+    both = [k for k in RECEIVER_KEYS if k in table] if receivers else []
+    if both:
+        raise ConfigError(f"[gnss] {', '.join(both)}: with [[gnss.receiver]] tables these go in each receiver")
+    _fill(GnssSettings, "gnss", {k: v for k, v in table.items() if k != "receiver"}, base=g)
+    g.receiver = [_fill(GnssReceiver, f"gnss.receiver #{n + 1}", r) for n, r in enumerate(receivers)]
+    for rx in g.receiver:
+        rx.port = off_if_none(rx.port)
 
 
 def from_dict(data: dict, base_dir: Path | None = None) -> Config:
@@ -349,6 +435,8 @@ def from_dict(data: dict, base_dir: Path | None = None) -> Config:
                 # A user table replaces our default mapping for that input entirely.
                 m = InputMapping(min=-math.inf, max=math.inf)
                 cfg.inputs[name] = _fill(InputMapping, f"inputs.{name}", sub, base=m)
+        elif key == "gnss":
+            _fill_gnss(cfg.gnss, table)
         elif key in _SECTIONS:
             _fill(_SECTIONS[key], key, table, base=getattr(cfg, key))
         else:
@@ -383,6 +471,12 @@ def to_dict(cfg: Config) -> dict:
     out: dict[str, Any] = {}
     for key in ("can", "gnss", "vehicle", "estimator", "daemon"):
         out[key] = dataclasses.asdict(getattr(cfg, key))
+    g = out["gnss"]
+    if g["receiver"]:  # the per-receiver keys live in the receivers (as the file had them)
+        for k in RECEIVER_KEYS:
+            del g[k]
+    else:
+        del g["receiver"]
     inputs = {}
     for name in INPUT_NAMES:
         d = dataclasses.asdict(cfg.inputs[name])

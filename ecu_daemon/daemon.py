@@ -5,7 +5,7 @@ Threads and data flow::
     event loop (asyncio, main thread)                 tick thread (io/tick.py)
     ---------------------------------                 ------------------------
     CAN frame  -> ClockMapper --------------------+    every 6 ms at k*dt + grace:
-    GNSS bytes -> stamp --------------------------+--> Pipeline.tick(k): decode what is due,
+    GNSS bytes -> stamp (a port per receiver) ----+--> Pipeline.tick(k): decode what is due,
     host health (20 Hz) --------------------------+    estimate, validity, frames -> bus.send
                                                        WATCHDOG=1
       recording, STATUS=, state persistence <-------- published estimates / sent frames (deque)
@@ -105,8 +105,8 @@ class Daemon:
         # internals
         self.pipeline: Pipeline | None = None
         self._can_seq = 0  # line of the next received frame in the recording's can.log
-        self._gnss_seq = 0
-        self._gnss_port = ""
+        self._gnss_seq: dict[int, int] = {}  # receiver -> line of its next chunk in its capture
+        self._gnss_names: list[str] = []
         self._out: deque = deque()  # tick thread -> loop thread (recording, live view)
         self._last_tick: int | None = None
         self._learned_req = False
@@ -115,10 +115,11 @@ class Daemon:
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wd_next = 0.0
         self._wd_interval = self.notifier.watchdog_s / 3.0 if self.notifier.watchdog_s > 0 else 0.0
-        self._gnss_silent = False
+        self._gnss_silent: set[int] = set()  # receivers reported silent
         self.canio: CanIO | None = None
-        self.serial: GnssSerial | None = None
-        self.parser: GnssStreamParser | None = None
+        # one serial port and parser per GNSS receiver ([[gnss.receiver]], in order)
+        self.serials: list[GnssSerial] = []
+        self.parsers: list[GnssStreamParser] = []
         self.recorder = None
         self.tick: TickThread | None = None
         self.cpu = health_mod.CpuMeter()
@@ -146,6 +147,15 @@ class Daemon:
     @property
     def earliest_late_t(self) -> float:
         return self.pipeline.earliest_late_t if self.pipeline is not None else math.inf
+
+    @property
+    def serial(self) -> GnssSerial | None:
+        """The first receiver's port (the one a single-receiver config has)."""
+        return self.serials[0] if self.serials else None
+
+    @property
+    def parser(self) -> GnssStreamParser | None:
+        return self.parsers[0] if self.parsers else None
 
     # ----------------------------------------------------------------------------- lifecycle
     def request_stop(self) -> None:
@@ -177,7 +187,7 @@ class Daemon:
             self.ready.set()
             self.notifier.ready(f"running on {self._bus_name()}")
             log.info("ecu-daemon running: CAN %s, GNSS %s, %d Hz estimator%s", self._bus_name(),
-                     self.cfg.gnss.port or "off", round(1 / self.dt),
+                     ", ".join(rx.port for _, rx in self._gnss_receivers()) or "off", round(1 / self.dt),
                      f", recording into {self.record_dir}" if self.recorder else "")
             await self._housekeeping()
         finally:
@@ -212,17 +222,16 @@ class Daemon:
         cfg = self.cfg
         learned = self._restore_learned()
         self.pipeline = pl = Pipeline(cfg, learned, encode=cfg.can.send_outputs)
-        port = Path(cfg.gnss.port or "gnss")
-        self._gnss_port = port.parent.name + port.name if port.name.isdigit() else port.name
+        # each receiver's port as its capture names it (ttyACM0, ttyUSB1: what replay reads back)
+        self._gnss_names = [_short_port(rx.port) for rx in cfg.gnss.receivers()]
         if self.record_dir:
             from .io.recorder import Recorder
             self.recorder = Recorder(self.record_dir, can_channel=str(self.bus_config.get("channel") or "can0"),
-                                     gnss_port=self._gnss_port)
+                                     gnss_port=self._gnss_names[0], extra_gnss_ports=self._gnss_names[1:])
             pl.on_late = self._record_late
             pl.on_host = self._record_host
-        if cfg.gnss.port:
-            self.parser = pl.parsers[self._gnss_port] = GnssStreamParser(cfg.gnss.protocol,
-                                                                         name=f"GNSS {cfg.gnss.port}")
+        # the pipeline's parser of each receiver, made here so that their counters can be watched
+        self.parsers = [pl.parser(i, self._gnss_names[i], name=f"GNSS {rx.port}") for i, rx in self._gnss_receivers()]
         try:
             bus = can.Bus(**self.bus_config)
         except (can.CanError, OSError, ValueError, TypeError, ImportError) as e:
@@ -275,10 +284,11 @@ class Daemon:
     def _start(self, loop) -> None:
         self._raise_loop_priority()
         self.canio.start(loop)
-        if self.parser is not None:
-            self.serial = GnssSerial(self.cfg.gnss.port, self.cfg.gnss.baudrate, on_data=self._on_gnss_bytes,
-                                     clock=self.clock)
-            self.serial.start(loop)
+        for (i, rx), parser in zip(self._gnss_receivers(), self.parsers):
+            ser = GnssSerial(rx.port, rx.baudrate, on_data=lambda t, b, i=i: self._on_gnss_bytes(t, b, i),
+                             clock=self.clock)
+            self.serials.append(ser)
+            ser.start(loop)
         self._update_diagnostics(self.clock())  # the first tick already has the host's part
         self.tick = TickThread(self.dt, self._on_tick, offset_s=self.grace_s, clock=self.clock,
                                speed=self.speed, realtime_priority=self.cfg.daemon.realtime_priority,
@@ -292,9 +302,9 @@ class Daemon:
         if self.canio is not None:
             self.canio.stop()
             self.canio.drain()  # frames already received go into the recording too
-        if self.serial is not None:
-            self.serial.drain()  # what the receiver already delivered is not lost
-            self.serial.close()
+        for ser in self.serials:
+            ser.drain()  # what the receivers already delivered is not lost
+            ser.close()
         if self.recorder is not None and self._last_tick is not None:
             self._out.append(("tick", TickRecord.line("end", self._last_tick)))
         self._drain_out()
@@ -330,12 +340,18 @@ class Daemon:
         self.pipeline.push_can(t, msg.arbitration_id, msg.data, msg.is_extended_id, True, self._can_seq)
         self._can_seq += 1
 
-    def _on_gnss_bytes(self, t: float, data: bytes) -> None:
+    def _gnss_receivers(self) -> list:
+        """(index in the config, receiver) of the receivers to open (a single-receiver config with
+        its port "off" has none)."""
+        return [(i, rx) for i, rx in enumerate(self.cfg.gnss.receivers()) if rx.port]
+
+    def _on_gnss_bytes(self, t: float, data: bytes, receiver: int) -> None:
         t = _to_us(t)
         if self.recorder is not None:
-            self.recorder.on_gnss(t, data)
-        self.pipeline.push_gnss(t, data, self._gnss_port, self._gnss_seq)
-        self._gnss_seq += 1
+            self.recorder.on_gnss(t, data, receiver)
+        seq = self._gnss_seq.get(receiver, 0)  # line of this chunk in the receiver's capture
+        self._gnss_seq[receiver] = seq + 1
+        self.pipeline.push_gnss(t, data, self._gnss_names[receiver], seq, receiver)
 
     def _record_late(self, source: str, seq: int, k: int) -> None:
         self._out.append(("tick", TickRecord.line("late", source, seq, k)))
@@ -414,20 +430,24 @@ class Daemon:
         """The host's part of EST_DIAG, for the pipeline's next tick (the rest is built there)."""
         self.pipeline.push_host(health_mod.host_status(
             bus=self.canio.health, tick=self.tick_stats.snapshot(), cpu_pct=self.cpu.update(),
-            gnss_connected=bool(self.serial and self.serial.connected)))
+            gnss_connected=bool(self.serials) and all(ser.connected for ser in self.serials)))
 
     def _check_gnss(self, now: float) -> None:
-        if self.serial is None or not self.serial.connected:
-            return
-        gnss_last = self.pipeline.gnss_last
-        last = gnss_last.t if gnss_last is not None else None
-        silent = last is None or now - last > self.cfg.gnss.timeout_s
-        if silent and not self._gnss_silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s:
-            log.warning("GNSS: no velocity solution from %s for more than %.1f s", self.cfg.gnss.port,
-                        self.cfg.gnss.timeout_s)
-        elif self._gnss_silent and not silent:
-            log.info("GNSS: receiving velocity solutions again")
-        self._gnss_silent = silent and self.tick_stats.ticks * self.dt > self.cfg.gnss.timeout_s
+        """One line when a connected receiver goes silent (no solution for ``timeout_s``), one when
+        it speaks again; each receiver on its own."""
+        timeout = self.cfg.gnss.timeout_s
+        started = self.tick_stats.ticks * self.dt > timeout
+        for (i, _), ser in zip(self._gnss_receivers(), self.serials):
+            if not ser.connected:
+                continue
+            last = self.pipeline.gnss_rx_t.get(i)
+            silent = (last is None or now - last > timeout) and started
+            if silent and i not in self._gnss_silent:
+                log.warning("GNSS: no solution from %s for more than %.1f s", ser.port, timeout)
+                self._gnss_silent.add(i)
+            elif not silent and i in self._gnss_silent:
+                log.info("GNSS: receiving solutions from %s again", ser.port)
+                self._gnss_silent.discard(i)
 
     def _save(self, learned: dict) -> None:
         path = self.cfg.daemon.state_file
@@ -478,6 +498,12 @@ class Daemon:
                 self._out.append(("out", sent))
 
 
+def _short_port(port: str) -> str:
+    """A serial port's name in a GNSS capture: /dev/ttyACM0 -> ttyACM0, /dev/serial/by-id/x/0 -> x0."""
+    p = Path(port or "gnss")
+    return p.parent.name + p.name if p.name.isdigit() else p.name
+
+
 def _to_us(t: float) -> float:
     """A receive time as the recording writes it (%.6f) and replay reads it back, to the bit."""
     return float("%.6f" % t)
@@ -523,6 +549,8 @@ def explicit_can_keys(config_path: str | None) -> set[str]:
 def apply_overrides(cfg: Config, args: argparse.Namespace) -> None:
     if getattr(args, "gnss_port", None):
         cfg.gnss.port = config_mod.off_if_none(args.gnss_port)
+        if cfg.gnss.receiver:  # the first receiver's port
+            cfg.gnss.receiver[0].port = cfg.gnss.port
     if getattr(args, "state_file", None):
         cfg.daemon.state_file = config_mod.off_if_none(args.state_file)
     if getattr(args, "no_send", False):

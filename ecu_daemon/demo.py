@@ -47,12 +47,14 @@ class Feeder(threading.Thread):
     daemon's realtime->monotonic mapping is exercised); otherwise frames carry the daemon's
     (scaled) clock. The daemon's own output frames come back on this bus and are drained while
     waiting (``outputs`` collects them with their arrival time when ``keep_outputs`` is set).
-    ``frame_filter(t, kind, id, data) -> data | None`` changes or drops an event as it is due.
+    ``frame_filter(t, kind, id, data) -> data | None`` changes or drops an event as it is due
+    (kind 0 CAN, 1 GNSS, 2 the second receiver's GNSS).
+    ``gnss2_fd``: the second receiver's pty master, for a scenario with two (``sim.gnss2_messages``).
     """
 
     def __init__(self, sim, channel: str, gnss_fd: int, *, clock=time.monotonic, speed: float = 1.0,
                  lead_s: float = 0.05, keep_outputs: bool = False, frame_filter=None,
-                 bus_config: dict | None = None) -> None:
+                 bus_config: dict | None = None, gnss2_fd: int | None = None) -> None:
         super().__init__(name="demo-feeder", daemon=True)
         self.sim = sim
         self.channel = channel
@@ -70,7 +72,10 @@ class Feeder(threading.Thread):
             self._bus = can.Bus(interface="virtual", channel=channel, preserve_timestamps=speed != 1.0)
         else:  # a bus other processes see (e.g. udp_multicast): they stamp receive times themselves
             self._bus = can.Bus(**bus_config)
-        self._player = Player((), buses={None: self._bus}, gnss=GnssPort(fd=gnss_fd), clock=clock,
+        gnss = {"gnss": GnssPort(fd=gnss_fd)}
+        if gnss2_fd is not None:
+            gnss["gnss2"] = GnssPort(fd=gnss2_fd)
+        self._player = Player((), buses={None: self._bus}, gnss=gnss, clock=clock,
                               rate=speed, stamp=clock if speed != 1.0 else None, idle=self._drain)
 
     @property
@@ -108,6 +113,7 @@ class Feeder(threading.Thread):
         sim = self.sim
         events = [(t, 0, fid, data) for t, fid, data in sim.can_frames]
         events += [(t, 1, None, payload) for t, payload in sim.gnss_messages]
+        events += [(t, 2, None, payload) for t, payload in sim.gnss2_messages]
         events.sort(key=lambda e: (e[0], e[1]))
         ext = sim.extended_ids
         s0 = sim.t0
@@ -120,7 +126,7 @@ class Feeder(threading.Thread):
                 yield t - s0, Event(t, self.channel, can.Message(arbitration_id=fid, data=data,
                                                                  is_extended_id=fid in ext, check=False))
             else:
-                yield t - s0, Event(t, "gnss", None, data)
+                yield t - s0, Event(t, "gnss" if kind == 1 else "gnss2", None, data)
 
     def run(self) -> None:
         player = self._player
@@ -416,6 +422,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-tui", action="store_true", help="periodic lines instead of the live view")
     parser.add_argument("--config", "-C", help="base configuration (DBC, mapping); the vehicle comes from the scenario")
     parser.add_argument("--record", metavar="DIR", help="record what the daemon received, as `run --record` does")
+    parser.add_argument("--gnss", choices=("velocity", "dual-antenna"), default="velocity",
+                        help="the simulated receiver: velocity only (default), or a dual-antenna moving-base pair"
+                        " that adds the heading (UBX NAV-RELPOSNED, 1.2 m baseline across the car)")
     from can.cli import add_bus_arguments
 
     add_bus_arguments(parser, group_title="CAN bus (default: an in-process virtual bus; to watch the demo with"
@@ -425,6 +434,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from .errors import UserError
     from .sim import SCENARIOS, simulate, vehicle_config
+    from .sim.scenario import GNSS_SETUPS
 
     if not (args.speed > 0 and math.isfinite(args.speed)) or args.speed > 20:
         raise UserError("--speed must be a number between 0 and 20")
@@ -434,7 +444,7 @@ def main(args: argparse.Namespace) -> int:
             raise UserError(f"--speed must be 1 on a shared bus ({args.interface} stamps frames with real time)")
         bus_config = {k: v for k, v in bus_overrides(args).items() if v is not None}
         bus_config.setdefault("channel", "239.74.163.2" if args.interface == "udp_multicast" else "vcan0")
-    scenario = SCENARIOS["demo"]
+    scenario = SCENARIOS["demo"].with_(**GNSS_SETUPS[getattr(args, "gnss", None) or "velocity"])
     if args.duration is not None:
         if not args.duration > 1.0:
             raise UserError("--duration must be more than 1 second")

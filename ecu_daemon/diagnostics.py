@@ -85,6 +85,13 @@ class Diagnostics:
     gnss_checksum_errors: int = 0
     gnss_parse_errors: int = 0
     gnss_serial_connected: bool = False
+    # dual-antenna heading (estimator/fusion/gnss_heading.py STATE_*; nan = unknown / never)
+    gnss_heading_state: int = 0
+    gnss_heading_carr_soln: int = 3  # 0 none, 1 float, 2 fixed, 3 unknown (NMEA, or no heading yet)
+    gnss_heading_acc_rad: float = math.nan  # receiver's 1-sigma
+    gnss_heading_baseline_m: float = math.nan  # measured antenna distance
+    gnss_heading_fused: int = 0
+    gnss_heading_rejected: int = 0
     can_bus_state: int = BUS_ACTIVE
     can_error_frames: int = 0
     can_tx_failures: int = 0

@@ -213,6 +213,8 @@ def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
             err_all = est[ec][span] - ref
         err = err_all[sel[span]]
         s = _stats(err)
+        fast = speed[sel[span]] > VALID_SPEED_MPS
+        s["rms_above_5mps"] = _stats(err[fast])["rms"] if fast.any() else math.nan
         sc = STD_COLUMNS.get(name)
         if vc in est and sc in est:
             s["validity"] = validity_metrics(t_all, err_all, est[sc][span], est[vc][span] > 0.5, speed,

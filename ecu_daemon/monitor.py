@@ -161,6 +161,15 @@ def render(state: MonitorState, source: str, now: float, spark_width: int = 40):
                 f" late {_num(state.get('EST_GNSS_COUNTS', 'GNSS_LATE'), '.0f')}"
                 f"  parse errors {_num(d.get('GNSS_PARSE_ERRORS', math.nan), '.0f')}")
 
+    parts = [head, est, status, gnss]
+    if d.get("GNSS_HEADING_STATE", 0):  # a dual-antenna heading was received at some point
+        parts.append(Text(f"GNSS heading: {state.choice('EST_DIAG', 'GNSS_HEADING_STATE')}"
+                          f"  carrier {state.choice('EST_DIAG', 'GNSS_HEADING_CARR_SOLN')}"
+                          f"  acc {_num(math.degrees(d.get('GNSS_HEADING_ACC', math.nan)), '.2f')} deg"
+                          f"  baseline {state.choice('EST_DIAG', 'GNSS_HEADING_BASELINE', '.3f')} m"
+                          f"  fused {_num(d.get('GNSS_HEADING_FUSED', math.nan), '.0f')}"
+                          f" rejected {_num(d.get('GNSS_HEADING_REJECTED', math.nan), '.0f')}"))
+
     inputs = Table(title="inputs", title_justify="left")
     for col in ("input", "age ms", "rate Hz", "stale", "dlc", "decode", "range", "counter", "checksum"):
         inputs.add_column(col, justify="left" if col == "input" else "right", no_wrap=True)
@@ -178,7 +187,7 @@ def render(state: MonitorState, source: str, now: float, spark_width: int = 40):
                 f"   CAN {state.choice('EST_DIAG', 'CAN_BUS_STATE')}"
                 f"  error frames {_num(d.get('CAN_ERROR_FRAMES', math.nan), '.0f')}"
                 f"  tx failures {_num(d.get('CAN_TX_FAILURES', math.nan), '.0f')}")
-    parts = [head, est, status, gnss, inputs, tick]
+    parts += [inputs, tick]
     if state.last_error:
         parts.append(Text(f"last bad frame: {state.last_error}", style="red"))
     return Group(*parts)

@@ -106,6 +106,12 @@ _DIAG_FIELDS = {
     "CAN_TX_FAILURES": ("can_tx_failures", _WRAP), "TICK_LATE_P50": ("tick_late_p50_us", _UNKNOWN_HI),
     "TICK_LATE_P99": ("tick_late_p99_us", _UNKNOWN_HI), "TICK_LATE_MAX": ("tick_late_max_us", _UNKNOWN_HI),
     "TICK_OVERRUNS": ("tick_overruns", _WRAP), "CPU_LOAD": ("cpu_load_pct", _UNKNOWN_HI),
+    "GNSS_HEADING_STATE": ("gnss_heading_state", _CLAMP),
+    "GNSS_HEADING_CARR_SOLN": ("gnss_heading_carr_soln", _CLAMP),
+    "GNSS_HEADING_ACC": ("gnss_heading_acc_rad", _UNKNOWN_HI),
+    "GNSS_HEADING_BASELINE": ("gnss_heading_baseline_m", _UNKNOWN_HI),
+    "GNSS_HEADING_FUSED": ("gnss_heading_fused", _WRAP),
+    "GNSS_HEADING_REJECTED": ("gnss_heading_rejected", _WRAP),
 }
 
 

@@ -7,7 +7,9 @@ estimates before the daemon's stale mask). Here they are decided once:
 
 * **inbox** -- CAN frames, GNSS byte chunks and (live only) the host's health are pushed from any
   thread (``push_*`` append to a deque). Each CAN frame / GNSS chunk carries its ordinal in its
-  log (``seq``), which is how a recording names it.
+  log (``seq``), which is how a recording names it; the chunks of GNSS receiver ``i`` of the
+  config (``[[gnss.receiver]]``) are their own log (:func:`gnss_source`: ``gnss``, ``gnss2``, ...),
+  parsed by a parser of their own with that receiver's protocol.
 * **step rule** (``step_grid``) -- an item belongs to step ``step_of(t)``. Live, the shell calls
   :meth:`tick` for the newest step due; everything received and due by then is decoded and handed
   to the estimator, sorted by (time, CAN before GNSS, seq). An item that arrives after its step ran
@@ -34,9 +36,9 @@ from .config import Config
 from .diagnostics import Diagnostics, HostStatus
 from .estimator import Estimate, Estimator
 from .estimator.estimate import STATUS_INPUT_STALE
-from .gnss.stream import GnssStreamParser
+from .gnss.stream import GnssStreamParser, sum_stats
 from .io.health import build_diagnostics
-from .samples import InputSample
+from .samples import GnssSample, InputSample
 from .signals import SignalDecoder
 from .step_grid import step_of
 
@@ -45,6 +47,12 @@ DIAG_S = 0.05  # diagnostics (and the input staleness behind the validity mask) 
 CAN = "can"
 GNSS = "gnss"
 _ORDER = {CAN: 0, GNSS: 1}  # on a time tie, CAN before GNSS (as the logs are merged)
+
+
+def gnss_source(receiver: int) -> str:
+    """The log name of GNSS receiver number ``receiver`` (0-based): ``gnss``, ``gnss2``, ... -- its
+    recording file (``gnss2.log``) and its items' ``source`` in the tick record."""
+    return GNSS if receiver == 0 else f"{GNSS}{receiver + 1}"
 
 
 class Step(NamedTuple):
@@ -58,7 +66,7 @@ class Item(NamedTuple):
     order: int
     seq: int
     source: str
-    payload: object  # CAN: (id, data, extended, error frame); GNSS: (port, bytes); test: InputSample
+    payload: object  # CAN: (id, data, extended, error frame); GNSS: (receiver, port, bytes); test: InputSample
 
 
 class TickRecord:
@@ -68,7 +76,7 @@ class TickRecord:
 
     Text, one record per line (``ticks.log`` of a recording)::
 
-        start K | end K | late can|gnss SEQ K | skip K1 K2 | host K v1 ... v9
+        start K | end K | late can|gnss|gnss2... SEQ K | skip K1 K2 | host K v1 ... v9
     """
 
     def __init__(self) -> None:
@@ -143,7 +151,8 @@ class Pipeline:
             from .outputs import OutputEncoder
 
             self.encoder = OutputEncoder(cfg)
-        self.parsers: dict[str, GnssStreamParser] = {}
+        self.parsers: dict[tuple[int, str], GnssStreamParser] = {}  # (receiver, port) -> its parser
+        self.gnss_rx_t: dict[int, float] = {}  # receiver -> receive time of its last sample (any kind)
         self.gnss_connected = gnss_connected
         self.record = record
         self.inbox: deque = deque()  # push_* (any thread) -> the stepping thread
@@ -158,7 +167,7 @@ class Pipeline:
         self.late_items = 0
         self.earliest_late_t = math.inf
         self.items = 0
-        self._seq = {CAN: 0, GNSS: 0, "sample": 0}
+        self._seq: dict[str, int] = {}
         self._diag_every = max(1, round(DIAG_S / dt))
         self.on_late: Callable[[str, int, int], None] | None = None  # (source, seq, step applied)
         self.on_host: Callable[[int, HostStatus], None] | None = None  # (step, status)
@@ -169,8 +178,22 @@ class Pipeline:
                  error_frame: bool = False, seq: int | None = None) -> None:
         self.inbox.append(Item(t, 0, self._next_seq(CAN, seq), CAN, (arbitration_id, data, extended, error_frame)))
 
-    def push_gnss(self, t: float, data: bytes, port: str = "", seq: int | None = None) -> None:
-        self.inbox.append(Item(t, 1, self._next_seq(GNSS, seq), GNSS, (port, data)))
+    def push_gnss(self, t: float, data: bytes, port: str = "", seq: int | None = None, receiver: int = 0) -> None:
+        """A chunk of bytes from GNSS receiver number ``receiver`` (its ``port``: a capture may hold several)."""
+        source = gnss_source(receiver)
+        self.inbox.append(Item(t, 1, self._next_seq(source, seq), source, (receiver, port, data)))
+
+    def parser(self, receiver: int, port: str = "", name: str | None = None) -> GnssStreamParser:
+        """The parser of one receiver's port, made on first use with the receiver's protocol (the
+        daemon makes its own up front, to watch their counters); ``name`` in its log lines."""
+        p = self.parsers.get((receiver, port))
+        if p is None:
+            rxs = self.cfg.gnss.receivers()
+            protocol = rxs[receiver].protocol if receiver < len(rxs) else self.cfg.gnss.protocol
+            if name is None:
+                name = f"gnss {port}" if receiver == 0 else f"gnss {port} #{receiver + 1}"
+            p = self.parsers[(receiver, port)] = GnssStreamParser(protocol, name=name, source=receiver)
+        return p
 
     def push_sample(self, s: InputSample) -> None:
         """An already decoded input (tests, tools): as a CAN frame carrying it."""
@@ -182,7 +205,7 @@ class Pipeline:
 
     def _next_seq(self, source: str, seq: int | None) -> int:
         if seq is None:
-            seq = self._seq[source]
+            seq = self._seq.get(source, 0)
         self._seq[source] = seq + 1
         return seq
 
@@ -240,10 +263,7 @@ class Pipeline:
         """Offline: the parsers' last samples, then every step up to ``t``."""
         for p in self.parsers.values():
             for s in p.finish():
-                self.gnss_last = s
-                self.estimator.push_gnss(s)
-                if self.on_sample is not None:
-                    self.on_sample(s)
+                self._gnss_sample(s)
         return [self._publish(e, True) for e in self.estimator.advance_to(t)]
 
     def _drain(self) -> None:
@@ -281,18 +301,20 @@ class Pipeline:
                 est.push_input(s)
                 if self.on_sample is not None:
                     self.on_sample(s)
-        elif it.source == GNSS:
-            port, data = it.payload
-            p = self.parsers.get(port)
-            if p is None:
-                p = self.parsers[port] = GnssStreamParser(self.cfg.gnss.protocol, name=f"gnss {port}")
-            for s in p.feed(it.t, data):
-                self.gnss_last = s
-                est.push_gnss(s)
-                if self.on_sample is not None:
-                    self.on_sample(s)
-        else:
+        elif it.source == "sample":
             est.push_input(it.payload)
+        else:
+            receiver, port, data = it.payload
+            for s in self.parser(receiver, port).feed(it.t, data):
+                self._gnss_sample(s)
+
+    def _gnss_sample(self, s) -> None:
+        self.gnss_rx_t[s.source] = s.t
+        if type(s) is GnssSample:  # the velocity solution: what the diagnostics describe
+            self.gnss_last = s
+        self.estimator.push_gnss(s)
+        if self.on_sample is not None:
+            self.on_sample(s)
 
     # ------------------------------------------------------------------------------- outputs
     def _publish(self, e: Estimate, send: bool) -> Step:
@@ -311,15 +333,12 @@ class Pipeline:
         self.diag = build_diagnostics(
             t, decoder=self.decoder, gnss_stats=self.gnss_stats(), gnss_last=self.gnss_last,
             gnss_delay_s=e.gnss_delay_s, host=self.host, gnss_connected=self.gnss_connected,
-            error_frames=self.error_frames, status=e.status, isolation_events=dict(self.estimator.fdi.events))
+            error_frames=self.error_frames, status=e.status, isolation_events=dict(self.estimator.fdi.events),
+            gnss_heading=self.estimator.heading, gnss_timeout_s=self.cfg.gnss.timeout_s)
 
     def gnss_stats(self) -> dict:
-        """GNSS parser counters summed over the ports (the daemon has one)."""
-        total: dict = {}
-        for p in self.parsers.values():
-            for k, v in p.stats.items():
-                total[k] = total.get(k, 0) + v
-        return total
+        """GNSS parser counters summed over every receiver's ports."""
+        return sum_stats(self.parsers)
 
 
 _IMU = ("yaw_rate", "accel_x", "accel_y")

@@ -2,7 +2,7 @@
 
 The contract outside tools rely on::
 
-    ecu-daemon replay --config CFG.toml --can INPUT.log [--gnss GNSS.log]
+    ecu-daemon replay --config CFG.toml --can INPUT.log [--gnss GNSS.log [--gnss GNSS2.log ...]]
                       [--out-can OUTPUT.log] [--out-csv OUTPUT.csv]
 
 No second path: frames and GNSS bytes go through the live daemon's :class:`~ecu_daemon.pipeline.Pipeline`
@@ -33,9 +33,9 @@ from .gnss.logfile import GnssLogError, read_gnss_log
 from .io.health import gap_line
 from .io.logging_setup import RateLimitedLog
 from .io.output_file import OutputFile, OutputPathError, check_output_paths
-from .pipeline import CAN, GNSS, Pipeline, TickRecord
+from .pipeline import CAN, Pipeline, TickRecord, gnss_source
 from .replay_input import check_time_base, choose_channel, report_other_channels
-from .samples import INPUT_NAMES, InputSample
+from .samples import INPUT_NAMES, GnssHeadingSample, InputSample
 from .signals import SignalDecoder
 from .step_grid import last_step_at, step_of
 from .time_order import TimeOrder, TimeOrderError
@@ -49,7 +49,9 @@ MIN_USED_FRACTION = 0.1
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", "-C", help="TOML configuration (default: built-in defaults)")
     p.add_argument("--can", required=True, help="input CAN log: candump -L (.log), ASC or BLF")
-    p.add_argument("--gnss", help="GNSS capture log: '(seconds.micros) PORT PAYLOAD' per line")
+    p.add_argument("--gnss", action="append", metavar="GNSS.log",
+                   help="GNSS capture log: '(seconds.micros) PORT PAYLOAD' per line; once per receiver, in the"
+                        " order of the config's [[gnss.receiver]] tables")
     p.add_argument("--can-channel", metavar="NAME", help="replay only the frames of this log channel"
                    " (canplayer's IF=NAME works too); needed for a log of several channels")
     p.add_argument("--can-time-offset", type=float, metavar="SECONDS", help="add SECONDS to every CAN log time"
@@ -67,11 +69,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         " when it exists, written at the end (a restart mid-drive is two replays)")
 
 
-def _gnss_items(path: str, order: TimeOrder):
-    """Pipeline items for every line of a GNSS capture (``seq``: its entry in the log)."""
+def _gnss_items(path: str, order: TimeOrder, receiver: int = 0):
+    """Pipeline items for every line of the GNSS capture of receiver number ``receiver`` (``seq``:
+    its entry in the log)."""
+    source = gnss_source(receiver)
     for t, port, payload, seq in order((t, port, payload, seq)
                                        for seq, (t, port, payload) in enumerate(read_gnss_log(path))):
-        yield t, 1, seq, GNSS, (port, payload)
+        yield t, 1, seq, source, (receiver, port, payload)
 
 
 def _can_items(path: str, counters: dict, order: TimeOrder, channel: str | None, time_offset: float):
@@ -128,7 +132,7 @@ def default_ticks(can_path: str) -> str | None:
     return str(p) if p.is_file() else None
 
 
-def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = None,
+def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str] | None = None,
                out_csv: str | None = None, out_can: str | None = None, progress: bool = False,
                config_path: str | None = None, inputs: dict | None = None, can_channel: str | None = None,
                can_time_offset: float | None = None, learned: dict | None = None,
@@ -139,21 +143,29 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
     Raises UserError on bad files (nothing is opened for writing before the paths are checked;
     outputs are written aside and renamed at the end, a failure keeps them as ``*.partial.*``) and
     :class:`~ecu_daemon.errors.UnusableInputError` when a required input never gave a usable sample.
-    ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}`` and the
-    GNSS speed as ``"gnss_speed"`` (for plots). ``can_channel``/``can_time_offset``: see
-    :mod:`ecu_daemon.replay_input`. ``ticks_path``: a daemon recording's tick record (see
+    ``inputs``: when a dict, receives every decoded input as ``{name: ([t], [SI value])}``, the
+    GNSS speed as ``"gnss_speed"`` and a dual-antenna heading as ``"gnss_heading"`` (for plots). ``can_channel``/``can_time_offset``: see
+    :mod:`ecu_daemon.replay_input`. ``gnss_path``: one capture, or one per receiver of the config
+    (``[[gnss.receiver]]``, in order). ``ticks_path``: a daemon recording's tick record (see
     :class:`~ecu_daemon.pipeline.TickRecord`); None: the time rule.
     """
-    for p, what in ((can_path, "CAN log"), (gnss_path, "GNSS log"), (ticks_path, "tick record")):
+    gnss_paths = [gnss_path] if isinstance(gnss_path, (str, Path)) else list(gnss_path or [])
+    n_rx = len(cfg.gnss.receivers())
+    if len(gnss_paths) > n_rx:
+        raise UserError(f"{len(gnss_paths)} GNSS captures given but the config has {n_rx} receiver"
+                        f"{'s' if n_rx > 1 else ''}: one --gnss per [[gnss.receiver]], in order")
+    for p, what in [(can_path, "CAN log"), *((g, "GNSS log") for g in gnss_paths), (ticks_path, "tick record")]:
         if p is not None and not Path(p).is_file():
             raise UserError(f"cannot read {what} {p}: no such file")
     try:
         check_output_paths({"--out-csv": out_csv, "--out-can": out_can},
-                           {"--can": can_path, "--gnss": gnss_path, "--config": config_path})
+                           {"--can": can_path, "--config": config_path,
+                            **{"--gnss" + (f" #{i + 1}" if i else ""): g for i, g in enumerate(gnss_paths)}})
     except OutputPathError as e:
         raise UserError(str(e)) from None
     channel = choose_channel(can_path, can_channel, cfg.can.channel)
-    check_time_base(can_path, gnss_path, channel, can_time_offset)
+    for g in gnss_paths:
+        check_time_base(can_path, g, channel, can_time_offset)
     record = None
     if ticks_path is not None:
         try:
@@ -161,18 +173,20 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         except (OSError, ValueError) as e:
             raise UserError(f"cannot read tick record {ticks_path}: {getattr(e, 'strerror', None) or e}") from None
         log.info("following the tick record %s (a daemon recording: the steps and frames it sent)", ticks_path)
-    pl = Pipeline(cfg, learned, encode=out_can is not None, gnss_connected=gnss_path is not None, record=record)
+    pl = Pipeline(cfg, learned, encode=out_can is not None, gnss_connected=bool(gnss_paths), record=record)
     est = pl.estimator
     counters = {"frames": 0, "error_frames": 0, "gnss_samples": 0, "steps": 0}
 
     def on_sample(s):
-        if type(s) is not InputSample:
+        kind = type(s)
+        if kind is not InputSample:
             counters["gnss_samples"] += 1
         if inputs is not None:
-            ts, vs = inputs.setdefault("gnss_speed" if type(s) is not InputSample else INPUT_NAMES[s.index],
-                                       ([], []))
+            name = (INPUT_NAMES[s.index] if kind is InputSample
+                    else "gnss_heading" if kind is GnssHeadingSample else "gnss_speed")
+            ts, vs = inputs.setdefault(name, ([], []))
             ts.append(s.t)
-            vs.append(s.value if type(s) is InputSample else s.speed_mps)
+            vs.append(s.value if kind is InputSample else s.heading_rad if kind is GnssHeadingSample else s.speed_mps)
 
     pl.on_sample = on_sample
     outputs: list[OutputFile] = []
@@ -189,9 +203,9 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
         raise UserError(str(e)) from None
     orders = [TimeOrder(f"CAN log {can_path}", est.gap_s)]
     streams = [_can_items(can_path, counters, orders[0], channel, can_time_offset or 0.0)]
-    if gnss_path:
-        orders.append(TimeOrder(f"GNSS log {gnss_path}", est.gap_s))
-        streams.append(_gnss_items(gnss_path, orders[1]))
+    for i, g in enumerate(gnss_paths):
+        orders.append(TimeOrder(f"GNSS log {g}", est.gap_s))
+        streams.append(_gnss_items(g, orders[-1], i))
     merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
     bar = _Progress(_count_lines(can_path), progress)
     dt = cfg.estimator.dt_s
@@ -226,13 +240,16 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
 
         ticks = record.ticks() if record is not None else None
         next_tick = next(ticks, None) if ticks is not None else None
-        push = {CAN: lambda t, seq, p: pl.push_can(t, p[0], p[1], p[2], p[3], seq),
-                GNSS: lambda t, seq, p: pl.push_gnss(t, p[1], p[0], seq)}
+        push_can, push_gnss = pl.push_can, pl.push_gnss
         n = 0
         for t, _, seq, source, payload in merged:
             if not math.isfinite(t):
                 continue
-            push[source](t, seq, payload)
+            if source == CAN:
+                push_can(t, *payload, seq)
+            else:
+                receiver, port, data = payload
+                push_gnss(t, data, port, seq, receiver)
             if ticks is None:
                 emit(pl.feed(t))
             else:
@@ -278,7 +295,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | None = No
                     late_inputs=est.late_inputs, learned=est.learned_state(),
                     learned_std=est.learned_std(), gaps=est.gaps,
                     gnss_parse=sum(sum(p.stats.values()) for p in pl.parsers.values()),
-                    inputs=input_table(pl.decoder, pl if gnss_path else None, est))
+                    inputs=input_table(pl.decoder, pl if gnss_paths else None, est))
     for line in format_input_table(counters["inputs"]):
         log.info("%s", line)
     for o in orders:
@@ -345,7 +362,8 @@ def input_table(decoder: SignalDecoder, pipeline: Pipeline | None, est: Estimato
     if pipeline is not None:
         st = pipeline.gnss_stats()
         rows["gnss"] = {"frames": st.get("ubx_frames", 0) + st.get("nmea_sentences", 0),
-                        "samples": st.get("samples", 0), "fused": est.gnss.fused, "rejected": est.gnss.rejected,
+                        "samples": st.get("samples", 0), "fused": est.gnss_counts()[0],
+                        "rejected": est.gnss_counts()[1],
                         "checksum": st.get("checksum_errors", 0),
                         "decode": st.get("malformed", 0) + st.get("truncated", 0)}
     return rows

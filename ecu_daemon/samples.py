@@ -75,8 +75,34 @@ class GnssSample:
     h_acc_m: float = float("nan")
     course_known: bool = True
     ground_speed_mps: float = float("nan")  # only when course_known is False
+    source: int = 0  # index of the receiver in the config's receiver list
 
     @property
     def speed_mps(self) -> float:
         """Ground speed, m/s (NaN when the sample has none)."""
         return math.hypot(self.vel_n_mps, self.vel_e_mps) if self.course_known else self.ground_speed_mps
+
+
+@dataclass(frozen=True, slots=True)
+class GnssHeadingSample:
+    """One dual-antenna heading as received (u-blox NAV-RELPOSNED, NMEA HDT / THS).
+
+    ``heading_rad`` is the heading of the antenna baseline (main/moving-base antenna to the
+    rover antenna), clockwise from true north in [0, 2pi); the estimator turns it into the
+    vehicle's heading with the configured mounting offset. ``t`` is the host receive time, as for
+    :class:`GnssSample` (valid at ``t - latency``). ``heading_acc_rad`` is the receiver's 1-sigma
+    (NaN when the protocol has none: NMEA), ``baseline_m`` the measured antenna distance (NaN when
+    unknown: NMEA, or a normalised RELPOSNED). ``valid`` is the receiver's own verdict (RELPOSNED
+    gnssFixOK, relPosValid and relPosHeadingValid; NMEA THS mode A/D; HDT a non-empty field).
+    ``carr_soln`` is the carrier-phase solution (0 none, 1 float, 2 fixed; -1 unknown: NMEA).
+    """
+
+    t: float
+    heading_rad: float
+    heading_acc_rad: float
+    baseline_m: float
+    valid: bool
+    carr_soln: int = -1
+    protocol: str = ""  # "ubx" | "nmea"
+    fix_time_utc_s: float = float("nan")
+    source: int = 0  # index of the receiver in the config's receiver list

@@ -16,6 +16,16 @@ Targets (issue 7), each a short code in the table when it fails:
 * ``ttv-b`` / ``ttv-h``: valid within 3 s of the first good GNSS fix above 5 m/s;
 * ``lat``: final GNSS latency estimate within 0.03 s of the truth;
 * ``rms-b`` (low-speed cases only): sideslip RMS <= 0.30 deg and <= 0.6 x the single-track observer.
+
+Issue 11 (more aiding sources), per family:
+
+* ``dual_antenna`` (moving-base pair, 1.2 m baseline): ``rms-h`` heading RMS <= 0.15 deg over every
+  row after settling, standstill included; ``rms-b5`` sideslip RMS above 5 m/s <= 0.1 deg.
+* ``two_receivers`` (front and rear, 2.5 m apart, 5 Hz, 0.4 / 0.33 s latency): turning cases
+  ``rms2-b`` sideslip RMS <= 0.15 deg, ``rms2-h`` heading RMS <= 0.2 deg; the straight case
+  ``vs1-b`` / ``vs1-h`` no worse than the same drive with the first receiver only (within 5 % +
+  0.005 deg: the two runs share every other noise); every case ``lat2`` the second receiver's own
+  latency identified within 0.03 s.
 """
 from __future__ import annotations
 
@@ -48,6 +58,10 @@ TARGETS = {
     "latency_error_s": 0.03,
     "low_speed_sideslip_rms_deg": 0.30,
     "low_speed_ratio_to_baseline": 0.6,
+    "dual_antenna_heading_rms_deg": 0.15,
+    "dual_antenna_sideslip_rms_above_5mps_deg": 0.1,
+    "two_receivers_sideslip_rms_deg": 0.15,
+    "two_receivers_heading_rms_deg": 0.2,
 }
 
 
@@ -132,11 +146,21 @@ def score_case(case: SuiteCase, out_dir: str | Path) -> dict:
         learned = load_state(d / "state.json")
         truth = {k: v[truth["t"] >= t_cut] for k, v in truth.items()}
     est_csv = d / "estimate.csv"
-    run_replay(replay_cfg, str(can), str(gnss), str(est_csv), learned=learned)
+    captures = [str(gnss)] + ([str(paths["gnss2"])] if "gnss2" in paths and case.restart_at_s is None else [])
+    replayed = run_replay(replay_cfg, str(can), captures, str(est_csv), learned=learned)
     est = read_csv(est_csv, ESTIMATE_REQUIRED, "estimate CSV")
     r = _evaluate(truth, est, SETTLE_S)
     base = _baseline_rms(replay_cfg, can, truth, float(est["t"][0]) + SETTLE_S)
-    row = summarise(case, r, base)
+    extra = {}
+    if sc.gnss2 is not None:
+        extra["latency2_error_s"] = replayed["learned"]["gnss_delay_s_1"] - sc.gnss2.latency_s
+    if case.compare_single:  # the same drive and noise, the second receiver's capture left out
+        one_cfg = config_mod.load(paths["config"])
+        one_cfg.gnss.receiver = one_cfg.gnss.receiver[:1]
+        run_replay(one_cfg, str(can), [str(gnss)], str(d / "estimate_one_receiver.csv"), learned=learned)
+        r1 = _evaluate(truth, read_csv(d / "estimate_one_receiver.csv", ESTIMATE_REQUIRED, "estimate CSV"), SETTLE_S)
+        extra.update(single_sideslip_rms_deg=r1["sideslip"]["rms"] * DEG, single_heading_rms_deg=r1["heading"]["rms"] * DEG)
+    row = summarise(case, r, base, extra)
     row["wall_s"] = time.perf_counter() - started
     row["spun_out"] = result.spun_out
     (d / "evaluation.json").write_text(json.dumps({"row": public(row), "evaluation": public(r)}, indent=1,
@@ -144,14 +168,16 @@ def score_case(case: SuiteCase, out_dir: str | Path) -> dict:
     return row
 
 
-def summarise(case: SuiteCase, r: dict, baseline_rms: float) -> dict:
-    """One table row from an evaluation (see :func:`ecu_daemon.evaluate.evaluate`)."""
+def summarise(case: SuiteCase, r: dict, baseline_rms: float, extra: dict | None = None) -> dict:
+    """One table row from an evaluation (see :func:`ecu_daemon.evaluate.evaluate`); ``extra``: the
+    two-receiver figures (second latency, the single-receiver comparison), NaN when absent."""
     b, h = r["sideslip"], r["heading"]
     bv, hv, vv = b.get("validity", {}), h.get("validity", {}), r["vx"].get("validity", {})
     g = lambda d, k: d.get(k, math.nan)  # noqa: E731
     row = {
         "scenario": case.name, "family": case.family,
         "sideslip_rms_deg": b["rms"] * DEG, "heading_rms_deg": h["rms"] * DEG,
+        "sideslip_rms_above_5mps_deg": b.get("rms_above_5mps", math.nan) * DEG,
         "baseline_sideslip_rms_deg": baseline_rms * DEG,
         "ratio_to_baseline": b["rms"] / baseline_rms if baseline_rms > 0 else math.nan,
         "sideslip_valid_above_5mps": g(bv, "valid_fraction_above_5mps"),
@@ -164,6 +190,8 @@ def summarise(case: SuiteCase, r: dict, baseline_rms: float) -> dict:
         "heading_time_to_valid_after_fix_s": g(hv, "time_to_valid_after_fix_s"),
         "latency_error_s": r["gnss_delay"]["final_error"] if "gnss_delay" in r else math.nan,
         "has_fix": math.isfinite(r["first_good_fix_above_5mps"]),
+        "latency2_error_s": math.nan, "single_sideslip_rms_deg": math.nan, "single_heading_rms_deg": math.nan,
+        **(extra or {}),
     }
     row["failed"] = failed_targets(row, case)
     return row
@@ -197,6 +225,23 @@ def failed_targets(row: dict, case: SuiteCase) -> list[str]:
     if case.low_speed and (bad(row["sideslip_rms_deg"], T["low_speed_sideslip_rms_deg"])
                            or bad(row["ratio_to_baseline"], T["low_speed_ratio_to_baseline"])):
         fails.append("rms-b")
+    if case.family == "dual_antenna":
+        if bad(row["heading_rms_deg"], T["dual_antenna_heading_rms_deg"]):
+            fails.append("rms-h")
+        if bad(row["sideslip_rms_above_5mps_deg"], T["dual_antenna_sideslip_rms_above_5mps_deg"]):
+            fails.append("rms-b5")
+    if case.family == "two_receivers":
+        if case.compare_single:
+            for q, code in (("sideslip", "b"), ("heading", "h")):
+                if bad(row[f"{q}_rms_deg"], 1.05 * row[f"single_{q}_rms_deg"] + 0.005):
+                    fails.append(f"vs1-{code}")
+        else:
+            if bad(row["sideslip_rms_deg"], T["two_receivers_sideslip_rms_deg"]):
+                fails.append("rms2-b")
+            if bad(row["heading_rms_deg"], T["two_receivers_heading_rms_deg"]):
+                fails.append("rms2-h")
+        if bad(abs(row["latency2_error_s"]), T["latency_error_s"]):
+            fails.append("lat2")
     return fails
 
 
@@ -204,6 +249,7 @@ COLUMNS = (  # header, key, format
     ("scenario", "scenario", "{}"),
     ("b rms", "sideslip_rms_deg", "{:.2f}"),
     ("h rms", "heading_rms_deg", "{:.2f}"),
+    ("b rms>5", "sideslip_rms_above_5mps_deg", "{:.2f}"),
     ("base b", "baseline_sideslip_rms_deg", "{:.2f}"),
     ("ratio", "ratio_to_baseline", "{:.2f}"),
     ("b val>5", "sideslip_valid_above_5mps", "{:.0%}"),
@@ -216,6 +262,7 @@ COLUMNS = (  # header, key, format
     ("b ttv", "sideslip_time_to_valid_after_fix_s", "{:.1f}"),
     ("h ttv", "heading_time_to_valid_after_fix_s", "{:.1f}"),
     ("lat err", "latency_error_s", "{:+.3f}"),
+    ("lat2 err", "latency2_error_s", "{:+.3f}"),
 )
 
 

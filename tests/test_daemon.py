@@ -330,6 +330,63 @@ def test_gnss_garbage_checksum_errors_and_unplug_replug(tmp_path, log_buffer):
 
 
 # ------------------------------------------------------------------------------------ state
+def test_two_receivers_open_two_ports_each_parsed_and_recorded_on_its_own(tmp_path, log_buffer):
+    """[[gnss.receiver]] x 2: one port and parser each, samples tagged with their receiver, one
+    capture file each (what `replay --gnss gnss.log --gnss gnss2.log` reads back)."""
+    links = [str(tmp_path / "ttyFRONT"), str(tmp_path / "ttyREAR")]
+    masters = [plug_pty(link) for link in links]
+    cfg = make_cfg(tmp_path)
+    cfg.gnss.receiver = [config_mod.GnssReceiver(port=links[0], protocol="nmea", lever_arm_m=[1.5, 0.0]),
+                         config_mod.GnssReceiver(port=links[1], protocol="ubx", lever_arm_m=[-1.0, 0.0])]
+    pvt = gnss_encode.nav_pvt(**gnss_encode.utc_fields(1_700_000_000.0), lat_deg=48.1, lon_deg=11.5,
+                              vel_n_mps=8.0, vel_e_mps=6.0)
+    pushed = []
+    try:
+        with LiveDaemon(cfg, record_dir=tmp_path / "rec") as live:
+            d = live.daemon
+            orig = d.estimator.push_gnss
+            d.estimator.push_gnss = lambda s: (pushed.append(s), orig(s))
+            wait_until(lambda: len(d.serials) == 2 and all(s.connected for s in d.serials), what="both ports open")
+            os.write(masters[0], nmea_epoch(0) + nmea_epoch(1))
+            os.write(masters[1], pvt)
+            wait_until(lambda: d.parsers[0].stats["samples"] >= 2 and d.parsers[1].stats["samples"] >= 1,
+                       what="samples from both receivers")
+            wait_until(lambda: len(pushed) >= 3, what="samples pushed to the estimator")
+            wait_until(lambda: d.diag.gnss_checksum_errors == 0 and d.diag.gnss_serial_connected, what="diag")
+    finally:
+        for m in masters:
+            os.close(m)
+    assert sorted((s.protocol, s.source) for s in pushed) == [("nmea", 0), ("nmea", 0), ("ubx", 1)]
+    assert b"".join(p for _, _, p in read_gnss_log(tmp_path / "rec" / "gnss2.log")) == pvt
+    assert all(b"$" in p for _, _, p in read_gnss_log(tmp_path / "rec" / "gnss.log"))
+    assert f"GNSS {links[0]}, {links[1]}" in log_buffer.getvalue()
+
+
+def test_a_silent_receiver_is_reported_on_its_own(tmp_path, log_buffer):
+    links = [str(tmp_path / "ttyFRONT"), str(tmp_path / "ttyREAR")]
+    masters = [plug_pty(link) for link in links]
+    cfg = make_cfg(tmp_path)
+    cfg.gnss.timeout_s = 0.3
+    cfg.gnss.receiver = [config_mod.GnssReceiver(port=links[0], protocol="nmea"),
+                         config_mod.GnssReceiver(port=links[1], protocol="nmea")]
+    try:
+        with LiveDaemon(cfg) as live:
+            d = live.daemon
+            wait_until(lambda: f"no solution from {links[1]}" in log_buffer.getvalue(), what="rear reported silent")
+            k = itertools.count()
+
+            def speaks():  # the rear receiver talks again, an epoch per poll
+                os.write(masters[1], nmea_epoch(next(k)))
+                return f"receiving solutions from {links[1]} again" in log_buffer.getvalue()
+
+            wait_until(speaks, what="rear back")
+            assert d.running
+    finally:
+        for m in masters:
+            os.close(m)
+    assert log_buffer.getvalue().count(f"no solution from {links[1]}") == 1
+
+
 def test_corrupt_state_file_is_reported_once_and_ignored_then_rewritten(tmp_path, log_buffer):
     cfg = make_cfg(tmp_path)
     state = tmp_path / "state.json"

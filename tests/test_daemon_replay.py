@@ -9,6 +9,10 @@ loaded machine also makes ticks overrun (the missed steps run in the next tick, 
 recording's tick record (``ticks.log``) keeps both, and the host health each tick saw, so the
 replay follows the live run exactly; the test runs with the daemon's default 1 ms grace so that
 late inputs and overruns do happen on a busy machine (their counts are printed).
+
+Twice: one velocity receiver, and two receivers (front and rear, each on its own pty, the front
+one a dual-antenna moving-base pair that also sends the heading), recorded as ``gnss.log`` and
+``gnss2.log`` and replayed with two ``--gnss``.
 """
 from __future__ import annotations
 
@@ -40,22 +44,30 @@ def wait_until(cond, timeout=30.0, what="condition"):
         time.sleep(0.005)
 
 
-@pytest.fixture(scope="module")
-def live_run(tmp_path_factory):
+@pytest.fixture(scope="module", params=["one-receiver", "two-receivers"])
+def live_run(tmp_path_factory, request):
     from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+    from ecu_daemon.sim.scenario import GNSS_SETUPS
 
+    two = request.param == "two-receivers"
     tmp = tmp_path_factory.mktemp("live")
     scenario = SCENARIOS["demo"].with_(duration_s=DURATION_S)
+    if two:
+        scenario = scenario.with_(**GNSS_SETUPS["dual-antenna"], **GNSS_SETUPS["front-rear"])
     cfg = vehicle_config(scenario)
     sim = simulate(scenario, cfg)
     master, port = open_gnss_pty()
-    channel = f"live-replay-{os.getpid()}"
+    master2 = None
+    channel = f"live-replay-{os.getpid()}-{request.param}"
     cfg.can.interface, cfg.can.channel = "virtual", channel
     cfg.gnss.port = port
+    if two:
+        master2, port2 = open_gnss_pty()
+        cfg.gnss.receiver[0].port, cfg.gnss.receiver[1].port = port, port2
     cfg.daemon.state_file = ""
     daemon = Daemon(cfg, bus_config={"interface": "virtual", "channel": channel}, record_dir=tmp / "rec",
                     input_grace_s=GRACE_S)
-    feeder = Feeder(sim, channel, master, keep_outputs=True)
+    feeder = Feeder(sim, channel, master, keep_outputs=True, gnss2_fd=master2)
     errors = []
 
     def run():
@@ -72,17 +84,20 @@ def live_run(tmp_path_factory):
     assert feeder.played.wait(DURATION_S + 30), "feeder did not finish"
     # every frame and GNSS byte received, then enough ticks for the last of them to be stepped
     wait_until(lambda: daemon.canio.rx_frames + daemon.canio.rx_ignored >= feeder.frames_sent
-               and daemon.serial.bytes_read >= feeder.gnss_bytes, what="the daemon to receive everything")
+               and sum(s.bytes_read for s in daemon.serials) >= feeder.gnss_bytes,
+               what="the daemon to receive everything")
     steps = daemon.steps
     wait_until(lambda: daemon.steps > steps + math.ceil(GRACE_S / 0.006) + 2, what="the last inputs stepped")
     daemon.request_stop()
     th.join(20)
     feeder.stop()
     os.close(master)
+    if master2 is not None:
+        os.close(master2)
     assert not errors and not th.is_alive()
     cfg_path = tmp / "ecu.toml"
     cfg_path.write_text(config_mod.to_toml(cfg))
-    return dict(tmp=tmp, cfg=cfg, cfg_path=cfg_path, daemon=daemon, feeder=feeder, sim=sim)
+    return dict(tmp=tmp, cfg=cfg, cfg_path=cfg_path, daemon=daemon, feeder=feeder, sim=sim, two=two)
 
 
 def frames(path):
@@ -93,9 +108,15 @@ def test_replay_of_the_recording_sends_the_live_frames_byte_for_byte(live_run):
     tmp, d = live_run["tmp"], live_run["daemon"]
     rec = tmp / "rec"
     out_can, out_csv = tmp / "replay.log", tmp / "replay.csv"
-    rc = cli_main(["replay", "--config", str(live_run["cfg_path"]), "--can", str(rec / "can.log"),
-                   "--gnss", str(rec / "gnss.log"), "--out-can", str(out_can), "--out-csv", str(out_csv)])
+    gnss = ["--gnss", str(rec / "gnss.log")] + (["--gnss", str(rec / "gnss2.log")] if live_run["two"] else [])
+    rc = cli_main(["replay", "--config", str(live_run["cfg_path"]), "--can", str(rec / "can.log"), *gnss,
+                   "--out-can", str(out_can), "--out-csv", str(out_csv)])
     assert rc == 0
+    if live_run["two"]:  # both receivers and the heading were used live, not only recorded
+        est = d.estimator
+        assert all(f.fused > 0 for f in est.receivers) and est.heading.fused > 0, \
+            ([f.fused for f in est.receivers], est.heading.fused)
+        assert d.diag.gnss_heading_state != 0 and d.diag.gnss_heading_baseline_m > 1.0
     live, rep = frames(rec / "outputs.log"), frames(out_can)
     assert d.canio.health.tx_failures == 0  # (a failed send is a frame missing from outputs.log)
     assert len(live) > 0.9 * DURATION_S / 0.006  # several frames per step, most steps sent

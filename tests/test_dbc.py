@@ -148,7 +148,7 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     log = tmp_path / "out.log"
     with CandumpWriter(log) as w:
         period = max(p for _, _, p, _ in enc.schedule)
-        for k in range(max(period, 2 * 23)):  # every message, and all 23 EST_DIAG pages
+        for k in range(max(period, 2 * 25)):  # every message, and all 25 EST_DIAG pages
             for msg in enc.frames(k, est, Diagnostics()):
                 w.write(msg)
     r = subprocess.run([sys.executable, "-m", "cantools", "decode", str(OUTPUTS_DBC)],
@@ -161,7 +161,8 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     assert "SIDESLIP: 0.01 rad" in r.stdout and "Unknown frame" not in r.stdout and "Error" not in r.stdout
     # value tables: the validity and status bits are printed by name
     for name in ("SIDESLIP_VALID: VALID", "HEADING_VALID: VALID", "BIASES_VALID: VALID", "STATUS_HEADING_ALIGNED: ALIGNED",
-                 "STATUS_STANDSTILL: MOVING", "STATUS_GNSS_REJECTED: GNSS_ACCEPTED", "GNSS_FIX_TYPE: NO_FIX"):
+                 "STATUS_STANDSTILL: MOVING", "STATUS_GNSS_REJECTED: GNSS_ACCEPTED", "GNSS_FIX_TYPE: NO_FIX",
+                 "STATUS_GNSS_HEADING: NO_GNSS_HEADING", "GNSS_HEADING_STATE: NONE"):
         assert f"    {name}" in r.stdout, name
 
 
@@ -169,7 +170,7 @@ def test_every_validity_and_status_bit_has_a_value_table(outputs_db):
     """So that `cantools decode` (and any DBC tool) shows names, not bare 0/1."""
     bits = [(m.name, s) for m in outputs_db.messages for s in m.signals
             if s.name.endswith("_VALID") or s.name.startswith("STATUS_")]
-    assert len(bits) == 22
+    assert len(bits) == 23
     for msg, s in bits:
         assert s.choices is not None and set(s.choices) == {0, 1}, f"{msg}.{s.name}"
     decoded = outputs_db.decode_message("EST_HEADING", outputs_db.encode_message(

@@ -52,3 +52,11 @@ def test_bad_arguments_are_one_line_errors(args, capsys):
     assert cli_main(["demo", *args]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error" in err
+
+
+def test_dual_antenna_demo_has_the_heading_before_the_car_moves(capsys):
+    assert cli_main(["demo", "--gnss", "dual-antenna", "--duration", "3", "--speed", "3", "--no-tui"]) == 0
+    out = capsys.readouterr().out
+    # standing still the whole 3 s: only the baseline can give the heading (velocity alone: 0 valid steps)
+    m = re.search(r"heading\s+RMS error ([0-9.]+) deg over (\d+) valid steps", out)
+    assert m and int(m.group(2)) > 200 and float(m.group(1)) < 0.5

@@ -7,6 +7,7 @@ ssh) and the monitor running in a real terminal (tmux), whose screen is captured
 from __future__ import annotations
 
 import io
+import math
 import os
 import shutil
 import subprocess
@@ -35,9 +36,9 @@ ESTIMATE = Estimate(t=12.5, sideslip_rad=0.02, sideslip_std_rad=0.002, heading_r
                     gnss_fused=7, gnss_rejected=1, gnss_late=0)
 
 
-def _frames(steps: int = 250):
+def _frames(steps: int = 250, diag: Diagnostics | None = None):
     enc = OutputEncoder(config.Config())
-    diag = Diagnostics()
+    diag = diag if diag is not None else Diagnostics()
     diag.gnss_fix_type, diag.gnss_num_sv = 3, 11
     out = []
     for k in range(steps):
@@ -76,6 +77,22 @@ def test_render_shows_names_values_validity_and_status():
     for s in ("sideslip [deg]", "1.146", "heading [deg]", "INVALID", "vx [m/s]", "20.000",
               "status: GNSS_FRESH HEADING_ALIGNED", "GNSS: fix FIX_3D  sv 11", "WS_FL", "tick lateness p50"):
         assert s in text, s
+    assert "GNSS heading" not in text  # no dual-antenna receiver: no line for it
+
+
+def test_render_shows_the_dual_antenna_heading_once_there_is_one():
+    from rich.console import Console
+
+    d = Diagnostics(gnss_heading_state=3, gnss_heading_carr_soln=1, gnss_heading_acc_rad=math.radians(0.25),
+                    gnss_heading_baseline_m=1.312, gnss_heading_fused=40, gnss_heading_rejected=2)
+    db, frames = _frames(diag=d)
+    st = MonitorState(db)
+    for m in frames:
+        st.add(m)
+    con = Console(file=io.StringIO(), width=140, color_system=None)
+    con.print(render(st, "virtual:test", frames[-1].timestamp))
+    assert "GNSS heading: BASELINE_MISMATCH  carrier FLOAT  acc 0.25 deg  baseline 1.312 m  fused 40 rejected 2" \
+        in con.file.getvalue()
 
 
 def test_sparkline_scales_to_its_own_range():

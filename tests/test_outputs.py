@@ -176,7 +176,9 @@ def test_diagnostics_pages_cover_everything(enc):
                     gnss_latency_ms=201.3, gnss_checksum_errors=300, gnss_parse_errors=2,
                     gnss_serial_connected=True, can_bus_state=BUS_OFF, can_error_frames=12, can_tx_failures=70000,
                     tick_late_p50_us=120.0, tick_late_p99_us=99999.0, tick_late_max_us=2.5e6, tick_overruns=4,
-                    cpu_load_pct=12.3)
+                    cpu_load_pct=12.3, gnss_heading_state=3, gnss_heading_carr_soln=1,
+                    gnss_heading_acc_rad=0.0052, gnss_heading_baseline_m=1.3125, gnss_heading_fused=70001,
+                    gnss_heading_rejected=12)
     d.inputs["yaw_rate"].age_ms = 7.4
     d.inputs["yaw_rate"].rate_hz = 99.87
     d.inputs["yaw_rate"].counter_errors = 257
@@ -186,9 +188,9 @@ def test_diagnostics_pages_cover_everything(enc):
     d.sources["gnss"].events = 258
     period = next(p for n, _, p, _ in enc.schedule if n == "EST_DIAG")
     pages = {}
-    for f in collect(enc, range(period * 23 * 2), diag=d)["EST_DIAG"]:
+    for f in collect(enc, range(period * 25 * 2), diag=d)["EST_DIAG"]:
         pages.setdefault(f["DIAG_PAGE"], f)
-    assert len(pages) == 23
+    assert len(pages) == 25
     assert pages[5]["YAW_RATE_AGE"] == 7 and pages[5]["YAW_RATE_RATE"] == pytest.approx(99.87)
     assert pages[0]["WS_FL_AGE"] == 65535  # never received
     assert pages[21]["YAW_RATE_COUNTER_ERRORS"] == 1 and pages[23]["ACCEL_Y_CHECKSUM_ERRORS"] == 5  # modulo 256
@@ -198,6 +200,10 @@ def test_diagnostics_pages_cover_everything(enc):
     assert pages[33]["GNSS_RX_AGE"] == 45 and pages[33]["GNSS_LATENCY"] == pytest.approx(201.3)
     assert (pages[34]["ISO_YAW_RATE_ACTIVE"], pages[34]["ISO_WHEELS_ACTIVE"]) == (1, 0)
     assert pages[35]["ISO_YAW_RATE_EVENTS"] == 3 and pages[35]["ISO_GNSS_EVENTS"] == 258 % 256
+    h = pages[36]  # dual-antenna heading: a float fix whose baseline does not match the mounted one
+    assert (h["GNSS_HEADING_STATE"], h["GNSS_HEADING_CARR_SOLN"]) == (3, 1)
+    assert h["GNSS_HEADING_ACC"] == pytest.approx(0.0052) and h["GNSS_HEADING_BASELINE"] == pytest.approx(1.3125, abs=1e-3)
+    assert (pages[37]["GNSS_HEADING_FUSED"], pages[37]["GNSS_HEADING_REJECTED"]) == (70001 % 65536, 12)
     assert pages[48]["CAN_BUS_STATE"] == 3 and pages[48]["CAN_TX_FAILURES"] == 70000 % 65536
     assert pages[49]["TICK_LATE_P99"] == 65535 and pages[49]["CPU_LOAD"] == pytest.approx(12.5)
     assert pages[50]["TICK_LATE_MAX"] == 2_500_000 and pages[50]["TICK_OVERRUNS"] == 4

@@ -3,7 +3,9 @@ run did (late inputs, overrun catch-ups, host health), and the time rule is what
 
 A "live" run is played here without threads: ticks on the step grid, the inputs of a stalled
 event loop delivered a few steps late, one overrun; everything goes through the real
-:class:`~ecu_daemon.io.recorder.Recorder` into files that ``run_replay`` reads back.
+:class:`~ecu_daemon.io.recorder.Recorder` into files that ``run_replay`` reads back. Twice: one
+GNSS receiver, and two (front and rear, the front one a dual-antenna pair sending the heading too),
+whose second capture is a log of its own (``gnss2.log``, ``late gnss2 SEQ K`` in the tick record).
 """
 from __future__ import annotations
 
@@ -25,19 +27,28 @@ STALLS = ((150, 3), (260, 2), (371, 4))  # (step, steps): the loop delivers that
 OVERRUN = (300, 303)  # ticks not run: their steps run in tick 304, unsent
 
 
-@pytest.fixture(scope="module")
-def live(tmp_path_factory):
+@pytest.fixture(scope="module", params=["one-receiver", "two-receivers"])
+def live(tmp_path_factory, request):
     from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+    from ecu_daemon.sim.scenario import GNSS_SETUPS
 
+    two = request.param == "two-receivers"
     tmp = tmp_path_factory.mktemp("pipeline")
     scenario = SCENARIOS["demo"].with_(duration_s=3.0)
+    if two:
+        scenario = scenario.with_(**GNSS_SETUPS["dual-antenna"], **GNSS_SETUPS["front-rear"])
     cfg = vehicle_config(scenario)
     sim = simulate(scenario, cfg)
     events = sorted([(t, 0, fid, data) for t, fid, data in sim.can_frames]
-                    + [(t, 1, None, payload) for t, payload in sim.gnss_messages], key=lambda e: (e[0], e[1]))
+                    + [(t, 1, None, payload) for t, payload in sim.gnss_messages]
+                    + [(t, 2, None, payload) for t, payload in sim.gnss2_messages], key=lambda e: (e[0], e[1]))
     events = [(float("%.6f" % t), kind, fid, data) for t, kind, fid, data in events]
     k0 = step_of(events[0][0], DT)
     stalls = [(k0 + s, n) for s, n in STALLS]
+    if two:  # the loop also stalls over a message of each receiver (GNSS after 1 s: clear of the overrun)
+        for kind in (1, 2):
+            t = next(e[0] for e in events if e[1] == kind and e[0] > events[0][0] + 1.0)
+            stalls.append((step_of(t, DT) - 1, 3))
     overrun = range(k0 + OVERRUN[0], k0 + OVERRUN[1] + 1)
 
     def arrival(t):
@@ -47,14 +58,14 @@ def live(tmp_path_factory):
                 return s + n
         return k
 
-    rec = Recorder(tmp / "rec", can_channel="vcan0", gnss_port="ttyACM0")
+    rec = Recorder(tmp / "rec", can_channel="vcan0", gnss_port="ttyACM0", extra_gnss_ports=["ttyACM1"] if two else [])
     pl = Pipeline(cfg, gnss_connected=True)
     pl.on_late = lambda source, seq, k: rec.on_tick_record(TickRecord.line("late", source, seq, k))
     pl.on_host = lambda k, h: rec.on_tick_record(TickRecord.line("host", k, *h))
     host = HostStatus(True, 0, 0, 0, 120.5, 800.25, 1500.0, 0, 3.5)
     pl.push_host(host)
     sent, steps = [], []
-    i, can_seq, gnss_seq = 0, 0, 0
+    i, can_seq, gnss_seq = 0, 0, [0, 0]
     k_end = last_step_at(events[-1][0], DT)
     rec.on_tick_record(TickRecord.line("start", k0))
     last = None
@@ -67,9 +78,10 @@ def live(tmp_path_factory):
                 pl.push_can(t, fid, data, False, False, can_seq)
                 can_seq += 1
             else:
-                rec.on_gnss(t, data)
-                pl.push_gnss(t, data, "ttyACM0", gnss_seq)
-                gnss_seq += 1
+                rx = kind - 1
+                rec.on_gnss(t, data, rx)
+                pl.push_gnss(t, data, f"ttyACM{rx}", gnss_seq[rx], rx)
+                gnss_seq[rx] += 1
         if k in overrun:
             continue
         if last is not None and k > last + 1:
@@ -86,7 +98,8 @@ def live(tmp_path_factory):
             rec.on_estimate(st.estimate)
     rec.on_tick_record(TickRecord.line("end", last))
     rec.close()
-    return dict(tmp=tmp, cfg=cfg, pl=pl, sent=sent, steps=steps, rec=tmp / "rec")
+    gnss = [str(tmp / "rec" / "gnss.log")] + ([str(tmp / "rec" / "gnss2.log")] if two else [])
+    return dict(tmp=tmp, cfg=cfg, pl=pl, sent=sent, steps=steps, rec=tmp / "rec", gnss=gnss, two=two)
 
 
 def frames(path):
@@ -99,11 +112,15 @@ def test_the_live_run_had_late_inputs_and_an_overrun(live):
     assert record.skipped == [(record.start + OVERRUN[0], record.start + OVERRUN[1])]
     assert len(record.host) == 2
     assert len(live["steps"]) == record.end - record.start + 1  # every step ran, some unsent
+    if live["two"]:  # each receiver's late chunks named by their line in its own capture
+        assert {"gnss", "gnss2"} <= {source for source, _ in record.late}
+        est = live["pl"].estimator
+        assert all(f.fused > 0 for f in est.receivers) and est.heading.fused > 0
 
 
 def test_replay_following_the_tick_record_writes_the_live_frames_and_estimates(live, tmp_path):
     out_can, out_csv = tmp_path / "out.log", tmp_path / "out.csv"
-    run_replay(live["cfg"], str(live["rec"] / "can.log"), str(live["rec"] / "gnss.log"), str(out_csv),
+    run_replay(live["cfg"], str(live["rec"] / "can.log"), live["gnss"], str(out_csv),
                str(out_can), ticks_path=str(live["rec"] / "ticks.log"))
     want = [(round(m.timestamp * 1e6), m.arbitration_id, bytes(m.data)) for m in live["sent"]]
     assert frames(out_can) == want == frames(live["rec"] / "outputs.log")
@@ -116,7 +133,7 @@ def test_the_time_rule_alone_does_not_reproduce_the_live_run(live, tmp_path):
     """Without the tick record the late inputs are applied at their own step: different estimates
     (which is why the recording keeps it)."""
     out_csv = tmp_path / "out.csv"
-    run_replay(live["cfg"], str(live["rec"] / "can.log"), str(live["rec"] / "gnss.log"), str(out_csv))
+    run_replay(live["cfg"], str(live["rec"] / "can.log"), live["gnss"], str(out_csv))
     live_rows = {r.split(",")[0]: r for r in (live["rec"] / "estimates.csv").read_text().splitlines()[1:]}
     rows = {r.split(",")[0]: r for r in out_csv.read_text().splitlines()[1:]}
     common = set(live_rows) & set(rows)

@@ -179,7 +179,7 @@ def test_replay_sends_est_diag_pages_with_live_only_fields_not_available(drive, 
             pages[values["DIAG_PAGE"]] = (t, values)
     expected = {m.name: m for m in db.messages}
     assert {m.frame_id for m in expected.values()} == set(prev)  # every frame of the output DBC
-    assert set(pages) == {0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 32, 33, 34, 35, 48, 49, 50}
+    assert set(pages) == {0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 32, 33, 34, 35, 36, 37, 48, 49, 50}
     assert pages[48][1]["CAN_BUS_STATE"] == BUS_NOT_AVAILABLE
     assert pages[49][1]["TICK_LATE_P50"] == 65535 and pages[49][1]["TICK_LATE_P99"] == 65535
     assert pages[49][1]["CPU_LOAD"] == 127.5 and pages[50][1]["TICK_LATE_MAX"] == 16777215
@@ -187,6 +187,7 @@ def test_replay_sends_est_diag_pages_with_live_only_fields_not_available(drive, 
     assert pages[0][1]["WS_FL_AGE"] < 100 and pages[0][1]["WS_FL_RATE"] > 10
     assert pages[32][1]["GNSS_FIX_TYPE"] >= 2 and pages[32][1]["GNSS_SERIAL_CONNECTED"] == 1
     assert pages[33][1]["GNSS_RX_AGE"] < 1000
+    assert pages[36][1]["GNSS_HEADING_STATE"] == 0  # a velocity-only receiver: no heading ever received
 
 
 def test_time_offset_must_be_finite(drive, tmp_path, capsys):

@@ -52,7 +52,8 @@ def test_select_by_glob_substring_family_and_lists():
     assert names(None) == [c.name for c in SUITE]
     assert names("flying_30_straight_h0") == ["flying_30_straight_h0"]
     assert set(names("latency")) == {"latency_0.1", "latency_0.25", "latency_0.6", "latency_0.8"}
-    assert len(names("fault")) == 9 * 6 + 2  # every CAN input (and all wheels) x every kind, 2 stuck-at
+    assert len(names("fault")) == 9 * 6 + 2 + 1  # every CAN input (and all wheels) x every kind, 2 stuck-at,
+    # and (a substring of its name) the dual antenna's wrong carrier fix
     assert names("gnss_1hz,reversing") == ["reversing", "gnss_1hz"]  # suite order
     assert names("nothing-like-this") == []
 

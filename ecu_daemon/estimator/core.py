@@ -8,7 +8,9 @@ Design (one filter, several aiding sources, see the package docstring for the co
   whose weight follows its conditioning, and adapts the cornering stiffness;
 * ``fusion/standstill.py`` zero-velocity and gyro-bias-at-rest updates;
 * ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
-  history (``history.py``), and ``latency.py`` identifies the latency online.
+  history (``history.py``), and ``latency.py`` identifies the latency online;
+* ``fusion/gnss_heading.py`` fuses a dual-antenna heading the same way (and sets the heading
+  directly when the filter has none, at standstill too).
 
 Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
 the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
@@ -27,18 +29,19 @@ from collections import deque
 import numpy as np
 
 from ..config import Config
-from ..samples import INPUT_INDEX, GnssSample, InputSample
+from ..samples import INPUT_INDEX, GnssHeadingSample, GnssSample, InputSample
 from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
+from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
-from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel
+from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import LatencyEstimator
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
@@ -70,6 +73,16 @@ GNSS_CHECK_FRESH_S = 2.0
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
+HEADING_FRESH_S = 2.0  # a dual-antenna heading this recent, not the course, sets the heading std
+COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
+
+
+MAX_RECEIVERS = 8  # learned latencies kept per receiver index
+
+
+def _learned_key(key: str, receiver: int) -> str:
+    """Learned-state key of a receiver's value: the primary keeps the single-receiver name."""
+    return key if receiver == 0 else f"{key}_{receiver}"
 
 
 class Estimator:
@@ -85,11 +98,23 @@ class Estimator:
         self.hist = StepHistory(int(math.ceil((gn.max_delay_s + 0.3) / dt)) + 2)
         self.delay_compensation = es.delay_compensation
         learned = self._check_learned(learned)
-        self.latency = LatencyEstimator(dt, float(learned.get("gnss_delay_s", gn.delay_s)),
-                                        gn.max_delay_s, gn.estimate_delay,
-                                        prior_std_s=learned.get("gnss_delay_std_s", math.inf))
-        self.gnss = GnssVelocityFusion(gn.lever_arm_m[0], gn.lever_arm_m[1], gn.min_fix_type,
-                                       gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
+        # one velocity fusion and one latency per receiver (GnssSample.source), each at its own
+        # time of validity through the same history; the first is the primary one (published latency)
+        receivers = gn.receivers()
+        self.uses_velocity = [rx.role == "velocity" for rx in receivers]
+        self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
+                                           gn.max_delay_s, gn.estimate_delay,
+                                           prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf))
+                          for i, rx in enumerate(receivers)]
+        self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
+                                             gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
+                          for rx in receivers]
+        self.latency = self.latencies[0]
+        self.gnss = self.receivers[0]
+        self.heading = GnssHeadingFusion([(rx.heading_offset_deg, rx.baseline_m) for rx in receivers],
+                                         gn.baseline_tol_m, gn.max_heading_acc_deg, gn.nmea_heading_acc_deg,
+                                         es.gnss_gate_sigma)
+        self.last_heading_fused_t = -math.inf
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
         self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
         self.single_track = SingleTrackFusion(
@@ -121,6 +146,7 @@ class Estimator:
         self.rdot = 0.0
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
+        self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
         self.last_gnss_rejected = False
         self.late_inputs = 0
         self.resets = 0
@@ -185,8 +211,8 @@ class Estimator:
             "accel_y_gain": float(x[GAY]),
             **self.single_track.learned(),
             "steering_offset_rad": float(self.steer_offset),
-            "gnss_delay_s": float(self.latency.delay_s),
-            "gnss_delay_std_s": float(self.latency.std_s),
+            **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
+               for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
         }
 
     def learned_std(self) -> dict:
@@ -215,6 +241,9 @@ class Estimator:
                   "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
                   "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0),
                   "gnss_delay_std_s": (0.0, 1.0)}
+        for i in range(1, MAX_RECEIVERS):
+            limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
+            limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]
         out = {"version": LEARNED_VERSION}
         for key, lim in limits.items():
             v = learned.get(key)
@@ -236,6 +265,8 @@ class Estimator:
                 self.wheel_new = True
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
+        elif type(s) is GnssHeadingSample:
+            self._on_heading(s, k)
 
     def _skip_gap(self, k: int, t_next: float, to_sample: bool) -> int:
         """Nothing arrives from step k until ``t_next``, longer than every input timeout (a logging
@@ -288,7 +319,9 @@ class Estimator:
         self._reset_flag = True
         self.wheel_reject_t = math.inf
         self.wheels.consecutive_rejects = 0
-        self.gnss.consecutive_rejects = 0
+        for fus in self.receivers:
+            fus.consecutive_rejects = 0
+        self.heading.consecutive_rejects = 0
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -457,7 +490,7 @@ class Estimator:
                         self.latency.delay_s, L.get("wheel_scale", 1.0), self.steer_offset,
                         self.single_track.cornering_stiffness_front,
                         self.single_track.cornering_stiffness_rear, False, False, False, False, status,
-                        self.gnss.fused, self.gnss.rejected, self.gnss.late)
+                        *self.gnss_counts())
 
     def _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok, iso) -> Estimate:
         """x: state as a list, pd: covariance diagonal as a list (Python floats are cheaper)."""
@@ -485,6 +518,8 @@ class Estimator:
             status |= est_mod.STATUS_HEADING_ALIGNED
         if self.last_gnss_rejected:
             status |= est_mod.STATUS_GNSS_REJECTED
+        if t - self.last_heading_fused_t <= GNSS_FRESH_S:
+            status |= est_mod.STATUS_GNSS_HEADING
         if self._reset_flag:
             status |= est_mod.STATUS_RESET
             self._reset_flag = False
@@ -494,8 +529,12 @@ class Estimator:
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
         # The heading is GNSS course less sideslip, so it is never better than the course's own
         # error floor either (multipath; sideslip model errors that last a whole corner): a
-        # filter that has fused hundreds of fixes believes 0.09 deg where Revs shows 0.3.
-        psi_std = math.sqrt(sd[PSI] ** 2 + (self.turn_lp * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2)
+        # filter that has fused hundreds of fixes believes 0.09 deg where Revs shows 0.3. A
+        # dual-antenna heading fused in the last seconds measures the heading itself: no floor.
+        hd = self.heading
+        floor = 0.0 if (hd.fused and hd.last is not None and t - hd.last.t < HEADING_FRESH_S
+                        and hd.consecutive_rejects == 0) else COURSE_FLOOR_RAD
+        psi_std = math.sqrt(sd[PSI] ** 2 + (self.turn_lp * self._latency_std()) ** 2 + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
@@ -506,25 +545,37 @@ class Estimator:
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
         imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
         st = self.single_track
-        gn = self.gnss
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and gn.consecutive_rejects == 0,
+            and all(f.consecutive_rejects == 0 for f in self.receivers) and self.heading.consecutive_rejects < 2,
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
-            status, gn.fused, gn.rejected, gn.late)
+            status, *self.gnss_counts())
+
+    def gnss_counts(self) -> tuple[int, int, int]:
+        """GNSS velocity samples fused, rejected and late, over every receiver."""
+        return (sum(f.fused for f in self.receivers), sum(f.rejected for f in self.receivers),
+                sum(f.late for f in self.receivers))
+
+    def _latency_std(self) -> float:
+        """The largest latency uncertainty of the velocity receivers (the heading error it causes
+        while turning is a bias, whichever receiver it comes from)."""
+        return max(lat.std_s for lat, v in zip(self.latencies, self.uses_velocity) if v)
 
     # ----------------------------------------------------------------------------------------
     def _on_gnss(self, g: GnssSample, k: int) -> None:
-        """Fuse a GNSS sample received just before step k (history holds steps up to k-1)."""
-        fus = self.gnss
+        """Fuse a GNSS sample received just before step k (history holds steps up to k-1), with
+        the lever arm and latency of the receiver it came from."""
         h = self.hist
-        if not self.initialized or h.last < h.first:
+        if not self.initialized or h.last < h.first or g.source >= len(self.receivers) \
+                or not self.uses_velocity[g.source]:
             return
+        fus = self.receivers[g.source]
+        lat = self.latencies[g.source]
         if not fus.usable(g):
             fus.rejected += 1
             self.last_gnss_rejected = True
@@ -532,7 +583,7 @@ class Estimator:
                 self.fdi.gnss_implausible()
             return
         speed = g.speed_mps  # NaN course: speed only (GnssSample.course_known)
-        delay = self.latency.delay_s if self.delay_compensation else 0.0
+        delay = lat.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
@@ -547,25 +598,28 @@ class Estimator:
             return
         agree = agree and not self.fdi.isolated & WHEELS
         if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
-            self.latency.observe(k, speed, h)
+            lat.observe(k, speed, h)
         if late:
             fus.late += 1
         if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
-                and self.wheels.consecutive_rejects == 0 and g.course_known:
+                and self.wheels.consecutive_rejects == 0 and g.course_known \
+                and k * self.dt - self.last_heading_fused_t > GNSS_FRESH_S:  # a baseline outranks a course
             # GNSS and the wheels agree with each other and not with the filter: its heading
             # (or vy) has diverged. Drop the heading and align again from this fix's course.
             # A GNSS that disagrees with the wheels stays rejected instead (a glitch).
             self.aligned = False
             self.realignments += 1
+        if g.course_known and speed >= ALIGN_SPEED:
+            self.course_heading = (s, *self._course_heading(s, g, fus, lat))
         if not self.aligned or not g.course_known:  # heading unknown, or no course: |v| only
-            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=self.latency.std_s)
+            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=lat.std_s)
             if not agree:
                 fus.rejected += 1
                 fus.last_reason = "speed disagrees with the wheels"
             if ok and speed >= ALIGN_SPEED and g.course_known:
-                self._align(s, g)
+                self._align(s, g, fus, lat)
         else:
-            ok = fus.fuse(h, s, g, delay_std_s=self.latency.std_s)
+            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s)
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
@@ -577,6 +631,66 @@ class Estimator:
             self.last_gnss_fused_t = k * self.dt
             self.last_gnss_speed = speed
 
+    def _on_heading(self, g: GnssHeadingSample, k: int) -> None:
+        """Fuse a dual-antenna heading received just before step k, at its time of validity (the
+        receiver's latency: the same as its velocity's); set the heading when the filter has
+        none, or when a run of rejections says the filter's heading, not the baseline, is wrong."""
+        fus = self.heading
+        h = self.hist
+        if not self.initialized or h.last < h.first:
+            return
+        if not fus.usable(g):
+            fus.rejected += 1
+            return
+        lat = self.latencies[min(g.source, len(self.latencies) - 1)]
+        delay = lat.delay_s if self.delay_compensation else 0.0
+        s, _ = h.clamp_step(round((g.t - delay) / self.dt))
+        std = lat.std_s
+        if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS and self._course_confirms(s, g):
+            self.realignments += 1
+            self.aligned = False
+        if self.aligned:
+            if not fus.fuse(h, s, g, std):
+                return
+        else:
+            fus.align(h, s, g, std, self.model.Qd[PSI, PSI])
+            self.aligned = True
+            for f in self.receivers:
+                f.consecutive_rejects = 0
+        self.last_heading_fused_t = k * self.dt
+
+    def _course_heading(self, s: int, g: GnssSample, fus: GnssVelocityFusion,
+                        lat: LatencyEstimator) -> tuple[float, float]:
+        """The heading a GNSS course implies at stored step s (course + the antenna's sideslip, as
+        in :meth:`_align`) and its variance (the course's, the timing's, the sideslip's)."""
+        h = self.hist
+        i = h.slot(s)
+        x = h.X[i]
+        P = h.P[i]
+        r = h.aux[i, AUX_R]
+        vax = x[VX] - r * fus.lever_y
+        vay = x[VY] + r * fus.lever_x
+        sp2 = max(vax * vax + vay * vay, 1.0)
+        jx, jy = -vay / sp2, vax / sp2
+        var_beta = jx * jx * P[VX, VX] + 2.0 * jx * jy * P[VX, VY] + jy * jy * P[VY, VY]
+        var = ((fus.sigma(g) / g.speed_mps) ** 2 + (r * lat.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
+               + max(var_beta, 0.0))
+        return (fus.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi), var
+
+    def _course_confirms(self, s: int, g: GnssHeadingSample) -> bool:
+        """Does a recent GNSS course (moving) agree with this baseline heading at step s? Only then
+        may a run of baseline rejections re-set the filter's heading: at standstill, or against
+        the course, the baseline (a wrong carrier fix) is the likelier culprit, and the heading
+        stays invalid while they disagree."""
+        c = self.course_heading
+        h = self.hist
+        if c is None or not h.oldest() <= c[0] <= h.last or abs(s - c[0]) * self.dt > GNSS_FRESH_S:
+            return False
+        cs, psi_c, var = c
+        psi_c += h.X[h.slot(s), PSI] - h.X[h.slot(cs), PSI]  # turned between the two instants
+        diff = abs(wrap_pi(self.heading.vehicle_heading(g) - psi_c))
+        return diff <= 3.0 * math.sqrt(var + self.heading.sigma(g) ** 2) + COURSE_CONFIRM_RAD
+
     def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
         """GNSS speed against the wheel speed at its time of validity (scaled by the learned
         wheel scale); remembered for the wheel-divergence check in ``_step``."""
@@ -587,7 +701,7 @@ class Estimator:
         self.gnss_checked_t = s * self.dt
         return agree
 
-    def _align(self, s: int, g: GnssSample) -> None:
+    def _align(self, s: int, g: GnssSample, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Set the heading from the GNSS course at stored step s and carry it to the present.
 
         psi = course + beta_antenna(x): the new heading is a function of the velocity states, so
@@ -601,13 +715,13 @@ class Estimator:
         i = h.slot(s)
         x = h.X[i]
         r = h.aux[i, AUX_R]
-        lx, ly = self.gnss.lever_x, self.gnss.lever_y
+        lx, ly = fus.lever_x, fus.lever_y
         vax = x[VX] - r * ly
         vay = x[VY] + r * lx
-        psi = (self.gnss.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
+        psi = (fus.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi)
         dpsi = psi - x[PSI]
         speed = math.hypot(g.vel_n_mps, g.vel_e_mps)
-        var_course = (self.gnss.sigma(g) / speed) ** 2 + (r * self.latency.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
+        var_course = (fus.sigma(g) / speed) ** 2 + (r * lat.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
         old = h.oldest()
         idx = np.arange(old, h.last + 1) % h.n
         X = h.X[idx]
@@ -628,4 +742,5 @@ class Estimator:
         P[:, PSI, PSI] = var
         h.P[idx] = P
         self.aligned = True
-        self.gnss.consecutive_rejects = 0
+        for f in self.receivers:
+            f.consecutive_rejects = 0

@@ -1,4 +1,5 @@
-"""GNSS input: receiver byte stream (UBX NAV-PVT/NAV-SOL/HNR-PVT/NAV-VELNED, NMEA RMC/VTG/GGA/GNS/ZDA/GST) -> GnssSample.
+"""GNSS input: receiver byte stream (UBX NAV-PVT/NAV-SOL/HNR-PVT/NAV-VELNED, NMEA RMC/VTG/GGA/GNS/ZDA/GST) -> GnssSample;
+NAV-RELPOSNED, NMEA HDT/THS (dual-antenna heading) -> GnssHeadingSample.
 
 * ``stream.GnssStreamParser`` -- framing, checksums, auto-detection, counters (the entry point).
 * ``ubx`` / ``nmea`` -- message content -> SI samples (unit conversions happen there, once).

@@ -1,4 +1,4 @@
-"""Encoders for realistic receiver output: UBX NAV-PVT frames and NMEA RMC/VTG/GGA/GST sentences.
+"""Encoders for realistic receiver output: UBX NAV-PVT / NAV-RELPOSNED frames and NMEA RMC/VTG/GGA/GST/HDT/THS sentences.
 
 Used by the vehicle simulator and by tests, so that everything downstream (parser, capture log,
 estimator) sees byte streams shaped like a real u-blox receiver's. Inputs are SI (m/s, m,
@@ -20,12 +20,17 @@ from datetime import datetime, timedelta, timezone
 import pynmea2
 from pyubx2 import GET, UBXMessage
 
+from .nmea import THS  # noqa: F401  (registers THS with pynmea2 for rendering)
+
 __all__ = [
     "GPS_LEAP_SECONDS",
     "KNOTS_PER_MPS",
     "utc_fields",
     "nav_pvt",
     "nav_velned",
+    "nav_relposned",
+    "nmea_hdt",
+    "nmea_ths",
     "nmea_rmc",
     "nmea_vtg",
     "nmea_gga",
@@ -147,6 +152,44 @@ def _latlon(value: float | None, deg_digits: int, pos: str, neg: str) -> tuple[s
 
 def _num(value: float | None, decimals: int) -> str:
     return "" if value is None or not math.isfinite(value) else f"{value:.{decimals}f}"
+
+
+def nav_relposned(*, itow_ms: int, heading_deg: float, baseline_m: float, head_acc_deg: float = 0.3,
+                  length_acc_m: float = 0.01, fix_ok: bool = True, rel_pos_valid: bool = True,
+                  heading_valid: bool = True, carr_soln: int = 2, down_m: float = 0.0) -> bytes:
+    """A UBX NAV-RELPOSNED version 1 frame (01 3C, 64 bytes) as an F9P moving-base rover sends it.
+
+    ``heading_deg``: baseline heading, clockwise from north; ``baseline_m`` its horizontal length
+    (N/E components follow). On the wire: relPosN/E/D/Length cm + 0.1 mm high-precision parts,
+    relPosHeading/accHeading 1e-5 deg, accLength 0.1 mm.
+    """
+    h = math.radians(heading_deg)
+    cm = {}
+    for key, v in (("N", baseline_m * math.cos(h)), ("E", baseline_m * math.sin(h)), ("D", down_m),
+                   ("Length", math.hypot(baseline_m, down_m))):
+        hp = round(v * 10000.0)  # 0.1 mm
+        whole = int(hp / 100)  # toward zero: the high-precision part keeps the sign
+        cm[f"relPos{key}"] = whole
+        cm[f"_HPrelPos{key}"] = _scaled((hp - whole * 100) * 0.01, 0.01)
+    msg = UBXMessage(
+        "NAV", "NAV-RELPOSNED", GET, version=1, iTOW=int(itow_ms), **cm,
+        relPosHeading=_scaled(heading_deg % 360.0, 1e-5), accHeading=_scaled(head_acc_deg, 1e-5),
+        accN=_scaled(length_acc_m * 1000.0, 0.1), accE=_scaled(length_acc_m * 1000.0, 0.1),
+        accD=_scaled(length_acc_m * 1000.0, 0.1), accLength=_scaled(length_acc_m * 1000.0, 0.1),
+        gnssFixOK=int(fix_ok), diffSoln=1, relPosValid=int(rel_pos_valid), carrSoln=int(carr_soln),
+        isMoving=1, relPosHeadingValid=int(heading_valid),
+    )
+    return msg.serialize()
+
+
+def nmea_hdt(*, heading_deg: float | None, talker: str = "GP") -> str:
+    """``$GPHDT``: true heading (2 decimals); ``None`` gives the empty field of no solution."""
+    return _render(talker, "HDT", [_num(None if heading_deg is None else heading_deg % 360.0, 2), "T"])
+
+
+def nmea_ths(*, heading_deg: float | None, mode: str = "A", talker: str = "GN") -> str:
+    """``$GNTHS``: true heading (2 decimals) and mode (A autonomous, E estimated, V invalid ...)."""
+    return _render(talker, "THS", [_num(None if heading_deg is None else heading_deg % 360.0, 2), mode])
 
 
 def _render(talker: str, kind: str, fields: list[str]) -> str:

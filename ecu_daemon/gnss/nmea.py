@@ -24,6 +24,11 @@ sentence comes more than ``_VTG_EPOCH_GAP_S`` of receive time later (then the VT
 previous epoch). The date comes from RMC or ZDA. GGA/GNS and GST contribute fix quality,
 satellites and horizontal accuracy from the same or the previous epoch (at most 1.5 s older).
 
+Heading sentences (dual-antenna receivers: HDT, THS) are not part of an epoch: each gives one
+GnssHeadingSample at once (they carry no time; HDT no validity either, so an empty heading field is
+the only "invalid" it has; THS is valid in modes A autonomous and D differential only).
+pynmea2 has no THS class; the few lines below declare one the way pynmea2 declares its own.
+
 An RMC/VTG with a speed but no course (receivers blank it when slow) gives a sample with
 ``course_known=False``: its speed is usable, its direction is not.
 """
@@ -36,16 +41,20 @@ from dataclasses import dataclass
 
 import pynmea2
 
-from ..samples import FIX_3D, FIX_DR, FIX_NONE, GnssSample
+from ..samples import FIX_3D, FIX_DR, FIX_NONE, GnssHeadingSample, GnssSample
 
 __all__ = ["MPS_PER_KNOT", "NmeaError", "NmeaEpochAssembler", "nmea_checksum_ok", "VELOCITY_KINDS",
-           "TIMED_KINDS", "USED_KINDS"]
+           "TIMED_KINDS", "HEADING_KINDS", "USED_KINDS"]
 
 MPS_PER_KNOT = 1852.0 / 3600.0
 VELOCITY_KINDS = frozenset({"RMC", "VTG"})
 #: Sentences that carry the epoch's time of day (and, for ZDA, the date).
 TIMED_KINDS = frozenset({"GGA", "GNS", "GLL", "ZDA", "GST"})
-USED_KINDS = VELOCITY_KINDS | TIMED_KINDS
+#: Dual-antenna heading sentences (true heading of the antenna baseline).
+HEADING_KINDS = frozenset({"HDT", "THS"})
+USED_KINDS = VELOCITY_KINDS | TIMED_KINDS | HEADING_KINDS
+#: THS mode indicators of a measured heading (E estimated/dead reckoning, M manual, S simulator, V invalid).
+_THS_VALID_MODES = frozenset("AD")
 #: A VTG followed by a timed sentence more than this later (receive time) ended the previous epoch.
 _VTG_EPOCH_GAP_S = 0.5
 _DAY_MS = 86_400_000
@@ -205,6 +214,21 @@ def _int_field(msg, i: int, what: str) -> int | None:
     return int(v)
 
 
+class THS(pynmea2.TalkerSentence):
+    """True heading and status (NMEA 0183 v4): registered with pynmea2 by being defined."""
+
+    fields = (("True heading", "heading"), ("Mode indicator", "mode"))
+
+
+def _decode_heading(t: float, kind: str, msg) -> GnssHeadingSample:
+    """HDT / THS -> a heading sample; an empty or non-numeric heading is an invalid sample."""
+    h = _num(msg, "heading")
+    mode_ok = kind == "HDT" or (getattr(msg, "mode", "") or "")[:1] in _THS_VALID_MODES
+    ok = h is not None and 0.0 <= h <= 360.0 and mode_ok
+    return GnssHeadingSample(t=t, heading_rad=math.radians(h) % (2.0 * math.pi) if ok else math.nan,
+                             heading_acc_rad=math.nan, baseline_m=math.nan, valid=ok, protocol="nmea")
+
+
 # ------------------------------------------------------------------------------ assembler
 
 class NmeaEpochAssembler:
@@ -241,7 +265,9 @@ class NmeaEpochAssembler:
         except (pynmea2.ParseError, ValueError, TypeError, AttributeError, IndexError) as exc:
             raise NmeaError(f"pynmea2 cannot parse {text[:6]}: {exc}") from None
         out: list[GnssSample] = []
-        if kind == "RMC":
+        if kind in HEADING_KINDS:
+            out.append(_decode_heading(t, kind, msg))
+        elif kind == "RMC":
             self._rmc(_decode_rmc(t, msg, self.field_errors), out)
         elif kind == "VTG":
             self._vtg_sentence(_decode_vtg(t, msg), out)

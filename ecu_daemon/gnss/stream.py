@@ -1,4 +1,5 @@
-"""One serial byte stream (UBX + NMEA + RTCM3 interleaved, split anywhere, with garbage) -> GnssSamples.
+"""One serial byte stream (UBX + NMEA + RTCM3 interleaved, split anywhere, with garbage) -> GnssSamples
+(velocity) and GnssHeadingSamples (dual-antenna heading: NAV-RELPOSNED, HDT, THS).
 
 The framing is done here rather than by pyubx2's ``UBXReader`` because a reader that trusts a
 corrupted length field swallows the good frames behind it. Rules:
@@ -21,16 +22,17 @@ from __future__ import annotations
 import logging
 import re
 from collections import deque
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
 from ..io.logging_setup import RateLimitedLog
-from ..samples import GnssSample
+from ..samples import GnssHeadingSample, GnssSample
 from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
 from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError, ubx_checksum
 
-__all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q"]
+__all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q", "sum_stats"]
 
 log = logging.getLogger("ecu_daemon.gnss")
 
@@ -136,16 +138,19 @@ class GnssStreamParser:
     emitting both does not double every epoch), ``"ubx"`` or ``"nmea"`` (frames of the other
     protocol are framed and counted as ``ignored``). RTCM3 frames are always skipped.
 
+    ``source``: the receiver's index in the config, stamped on every sample (``GnssSample.source``).
+
     ``raw_sink(t, data)``: optional; receives every accepted frame (NMEA with its line ending when
     present) and every run of rejected bytes, in stream order -- what ``GnssLogWriter`` records.
     """
 
     def __init__(self, protocol: str = "auto", *,
                  name: str = "gnss", raw_sink: Callable[[float, bytes], None] | None = None,
-                 log_interval_s: float = 10.0, prefer_ubx_s: float = 2.0) -> None:
+                 log_interval_s: float = 10.0, prefer_ubx_s: float = 2.0, source: int = 0) -> None:
         if protocol not in ("auto", "ubx", "nmea"):
             raise ValueError(f"protocol must be auto, ubx or nmea, got {protocol!r}")
         self.protocol = protocol
+        self.source = source
         self.stats: dict[str, int] = dict.fromkeys(STAT_KEYS, 0)
         self.last_error = ""
         self._name = name
@@ -161,6 +166,7 @@ class GnssStreamParser:
         self._junk = bytearray()  # rejected bytes not yet handed to raw_sink
         self._junk_t = 0.0
         self._last_pvt_t: float | None = None
+        self._last_ubx_heading_t: float | None = None
         self._checks: _RangeChecks | None = None
 
     # ------------------------------------------------------------------------------ public API
@@ -345,9 +351,13 @@ class GnssStreamParser:
 
     def _emit_ubx(self, samples: list[GnssSample], out: list) -> None:
         for sample in samples:
-            self._last_pvt_t = sample.t  # a UBX velocity: the same receiver's NMEA copy is not used
+            # a UBX velocity (heading): the same receiver's NMEA copy of it is not used
+            if type(sample) is GnssHeadingSample:
+                self._last_ubx_heading_t = sample.t
+            else:
+                self._last_pvt_t = sample.t
             self.stats["samples"] += 1
-            out.append(sample)
+            out.append(replace(sample, source=self.source) if self.source else sample)
 
     def _nmea_sentence(self, t: float, sentence: bytes, out: list) -> bool:
         """Check and use one sentence; False when its checksum rejects it."""
@@ -382,12 +392,13 @@ class GnssStreamParser:
 
     def _emit_nmea(self, samples: list[GnssSample], out: list) -> None:
         for smp in samples:
-            if (self.protocol == "auto" and self._last_pvt_t is not None
-                    and abs(smp.t - self._last_pvt_t) <= self._prefer_ubx_s):
+            last_ubx = self._last_ubx_heading_t if type(smp) is GnssHeadingSample else self._last_pvt_t
+            if (self.protocol == "auto" and last_ubx is not None
+                    and abs(smp.t - last_ubx) <= self._prefer_ubx_s):
                 self.stats["suppressed"] += 1
                 continue
             self.stats["samples"] += 1
-            out.append(smp)
+            out.append(replace(smp, source=self.source) if self.source else smp)
 
     # ------------------------------------------------------------------------------ bookkeeping
 
@@ -424,3 +435,13 @@ class GnssStreamParser:
             self.stats[counter] += 1
         self.last_error = text
         self._report.report(kind, logging.WARNING, f"{self._name}: {text}", now=t)
+
+
+def sum_stats(parsers) -> dict:
+    """GNSS parser counters summed over parsers (a dict: its values), e.g. every port of every
+    capture, or the daemon's receivers."""
+    total: dict = {}
+    for p in (parsers.values() if isinstance(parsers, dict) else parsers):
+        for k, v in p.stats.items():
+            total[k] = total.get(k, 0) + v
+    return total

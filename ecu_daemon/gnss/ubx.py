@@ -1,4 +1,5 @@
-"""UBX frames -> GnssSample: NAV-PVT, or for receivers without it NAV-SOL, HNR-PVT, NAV-VELNED.
+"""UBX frames -> samples: NAV-PVT, or for receivers without it NAV-SOL, HNR-PVT, NAV-VELNED (velocity);
+NAV-RELPOSNED (dual-antenna heading: a u-blox F9P moving-base rover).
 
 Framing and checksum checks happen in ``stream.py``; this module gets whole, checksum-verified
 frames and turns the velocity messages into SI samples. pyubx2 decodes the payload.
@@ -14,6 +15,9 @@ Unit traps handled here, once:
 * NAV-PVT velN/velE/velD/gSpeed/sAcc are **mm/s**, hAcc mm; pyubx2 returns them unscaled.
 * NAV-VELNED velN/velE/sAcc are **cm/s** (legacy message).
 * pyubx2 returns headMot/headAcc/heading/cAcc already scaled to degrees.
+* NAV-RELPOSNED: pyubx2 gives relPosHeading/accHeading in degrees, relPosLength in **cm** (the
+  0.1 mm high-precision part already added), accLength in **mm**. Only version 1 (64 bytes, F9P)
+  carries a heading; the M8P's 40-byte version 0 has none and gives no sample.
 """
 from __future__ import annotations
 
@@ -25,10 +29,10 @@ from pyubx2 import GET, VALNONE, UBXReader
 from pyubx2.ubxhelpers import calc_checksum
 from pyubx2.ubxtypes_core import UBX_CLASSES
 
-from ..samples import GnssSample
+from ..samples import GnssHeadingSample, GnssSample
 
 __all__ = ["UBX_SYNC", "UBX_MAX_PAYLOAD", "UBX_CLASS_BYTES", "ubx_checksum", "UbxError",
-           "UbxDecoder", "NAV_PVT", "NAV_VELNED", "NAV_SOL", "HNR_PVT"]
+           "UbxDecoder", "NAV_PVT", "NAV_VELNED", "NAV_SOL", "HNR_PVT", "NAV_RELPOSNED"]
 
 UBX_SYNC = b"\xb5\x62"
 #: Longest payload we wait for. Real messages stay far below this (RXM-RAWX with 64 signals is
@@ -41,6 +45,9 @@ NAV_PVT = (0x01, 0x07)
 NAV_VELNED = (0x01, 0x12)
 NAV_SOL = (0x01, 0x06)
 HNR_PVT = (0x28, 0x00)
+NAV_RELPOSNED = (0x01, 0x3C)
+_NAV_RELPOSNED_LEN = 64
+_NAV_RELPOSNED_V0_LEN = 40
 _NAV_STATUS = (0x01, 0x03)
 _NAV_TIMEGPS = (0x01, 0x20)
 _NAV_PVT_LEN = 92
@@ -100,7 +107,7 @@ class UbxDecoder:
 
     @staticmethod
     def supported(cls_id: tuple[int, int]) -> bool:
-        return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, NAV_SOL, _NAV_TIMEGPS, HNR_PVT)
+        return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, NAV_SOL, _NAV_TIMEGPS, HNR_PVT, NAV_RELPOSNED)
 
     def decode(self, t: float, frame: bytes) -> list[GnssSample]:
         """The samples completed by this frame (any UBX frame: it may release a held NAV-SOL).
@@ -126,6 +133,13 @@ class UbxDecoder:
             return out + [self._nav_pvt(t, msg)]  # a held NAV-SOL of the same receiver is dropped
         if held is not None:
             out.append(held)
+        if cls_id == NAV_RELPOSNED:
+            if len(frame) == 8 + _NAV_RELPOSNED_V0_LEN:
+                return out
+            if len(frame) != 8 + _NAV_RELPOSNED_LEN:
+                raise UbxError(f"NAV-RELPOSNED payload is {len(frame) - 8} bytes, expected {_NAV_RELPOSNED_LEN}"
+                               " (version 1, with heading)")
+            return out + [self._nav_relposned(t, self._parse(frame))]
         if self.seen_nav_pvt or not self.supported(cls_id):
             return out  # the others are only used by receivers without NAV-PVT
         msg = self._parse(frame)
@@ -175,6 +189,19 @@ class UbxDecoder:
             lat_deg=float(m.lat) if llh_ok else math.nan,
             lon_deg=float(m.lon) if llh_ok else math.nan,
             h_acc_m=m.hAcc / 1000,
+        )
+
+    @staticmethod
+    def _nav_relposned(t: float, m) -> GnssHeadingSample:
+        """Moving-base heading: valid only when the receiver says the fix, the relative position
+        and its heading are all valid (a float carrier solution stays valid; its accHeading says
+        what it is worth)."""
+        valid = bool(m.gnssFixOK and m.relPosValid and m.relPosHeadingValid)
+        return GnssHeadingSample(
+            t=t, heading_rad=math.radians(m.relPosHeading) % (2.0 * math.pi),
+            heading_acc_rad=math.radians(m.accHeading),
+            baseline_m=math.nan if m.relPosNormalized else m.relPosLength / 100.0,
+            valid=valid, carr_soln=int(m.carrSoln), protocol="ubx",
         )
 
     def _gps_to_utc(self, week: int, itow_ms: int, ftow_ns: int) -> float:

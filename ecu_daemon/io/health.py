@@ -13,6 +13,7 @@ import time
 
 from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics, HostStatus
 from ..estimator.fault_detection import SOURCE_BITS
+from ..estimator.fusion.gnss_heading import STATE_STALE
 from ..samples import GnssSample
 from . import can_bus
 from .tick import TickSnapshot
@@ -51,12 +52,15 @@ def thread_cpu_s(native_id: int | None) -> float:
 
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
                       gnss_delay_s: float, host: HostStatus | None, gnss_connected: bool = False,
-                      error_frames: int = 0, status: int = 0, isolation_events: dict | None = None) -> Diagnostics:
+                      error_frames: int = 0, status: int = 0, isolation_events: dict | None = None,
+                      gnss_heading=None, gnss_timeout_s: float = math.inf) -> Diagnostics:
     """The snapshot at step time ``t``. ``host``: the live host's part (:func:`host_status`);
     offline (replay of a foreign log) there is none: "not available" bus state, tick and CPU,
     ``gnss_connected`` as given and the log's own ``error_frames``. ``status``: the latest
     Estimate.status (its isolation bits); ``isolation_events``: the estimator's per-source
-    isolation counts (``FaultDetector.events``)."""
+    isolation counts (``FaultDetector.events``); ``gnss_heading``: the estimator's
+    ``GnssHeadingFusion`` (its last sample and what became of it), silent for longer than
+    ``gnss_timeout_s`` reads as stale."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     for name, src in d.sources.items():
@@ -72,6 +76,14 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.gnss_checksum_errors = gnss_stats.get("checksum_errors", 0)
         d.gnss_parse_errors = (gnss_stats.get("malformed", 0) + gnss_stats.get("truncated", 0)
                                + gnss_stats.get("garbage_bytes", 0))
+    if gnss_heading is not None and gnss_heading.last is not None:
+        g = gnss_heading.last
+        d.gnss_heading_state = STATE_STALE if t - g.t > gnss_timeout_s else gnss_heading.state
+        d.gnss_heading_carr_soln = g.carr_soln if 0 <= g.carr_soln <= 2 else 3
+        d.gnss_heading_acc_rad = g.heading_acc_rad
+        d.gnss_heading_baseline_m = g.baseline_m
+        d.gnss_heading_fused = gnss_heading.fused
+        d.gnss_heading_rejected = gnss_heading.rejected
     if host is None:
         d.gnss_serial_connected = gnss_connected
         d.can_bus_state = BUS_NOT_AVAILABLE

@@ -217,11 +217,13 @@ class Player:
 
     ``buses`` maps an output key to a python-can bus; ``route`` maps a log interface name to an
     output key (``None`` key = the single default bus). Frames from interfaces with no route are
-    counted as unmapped and skipped, as canplayer skips them.
+    counted as unmapped and skipped, as canplayer skips them. ``gnss``: the port every GNSS event
+    goes to, or a dict from an event's ``source`` to its port (several receivers; events of a
+    source not in it are skipped).
     """
 
     def __init__(self, events: Iterable[tuple[float, Event]], *, buses: dict, route: dict | None = None,
-                 gnss: GnssPort | None = None, clock: Callable[[], float] = time.monotonic,
+                 gnss: GnssPort | dict[str, GnssPort] | None = None, clock: Callable[[], float] = time.monotonic,
                  start_at: float | None = None, rate: float = 1.0, stamp: Callable[[], float] | None = None,
                  idle: Callable[[], None] | None = None):
         self.events = events
@@ -270,9 +272,10 @@ class Player:
             if not self._sleep_until(deadline):
                 break
             if ev.is_gnss:
-                if self.gnss is None:
+                port = self.gnss.get(ev.source) if isinstance(self.gnss, dict) else self.gnss
+                if port is None:
                     continue
-                dropped = self.gnss.write(ev.data)
+                dropped = port.write(ev.data)
                 self.stats.gnss_messages += 1
                 self.stats.gnss_bytes += len(ev.data) - dropped
                 self.stats.gnss_dropped += dropped

@@ -5,17 +5,18 @@ Files (all stamped on the daemon's monotonic clock, the same one the estimator u
 * ``can.log``  -- every received input frame, candump ``-L`` format, timestamps already converted
   to the monotonic clock and rounded to 1 us exactly as the estimator saw them;
 * ``gnss.log`` -- every chunk of bytes read from the GNSS port, in the GNSS capture format,
-  stamped with its receive time;
+  stamped with its receive time; ``gnss2.log``, ... for the further receivers of a
+  ``[[gnss.receiver]]`` list;
 * ``estimates.csv`` -- the published estimates (validity as sent), one row per step, in the
   format of ``replay --out-csv``;
 * ``outputs.log`` -- the frames the daemon sent, candump ``-L``, stamped with the tick time;
 * ``ticks.log`` -- the tick record (:class:`~ecu_daemon.pipeline.TickRecord`): what the time
   rule does not say about when each input reached the estimator.
 
-``ecu-daemon replay --can DIR/can.log --gnss DIR/gnss.log`` follows ``ticks.log`` and writes the
-frames of ``outputs.log`` and the rows of ``estimates.csv`` again, byte for byte. All writes
-happen in the event-loop thread; :meth:`flush` runs periodically and on SIGTERM, so a stopped
-daemon leaves complete files.
+``ecu-daemon replay --can DIR/can.log --gnss DIR/gnss.log [--gnss DIR/gnss2.log ...]`` follows
+``ticks.log`` and writes the frames of ``outputs.log`` and the rows of ``estimates.csv`` again,
+byte for byte. All writes happen in the event-loop thread; :meth:`flush` runs periodically and
+on SIGTERM, so a stopped daemon leaves complete files.
 """
 from __future__ import annotations
 
@@ -33,13 +34,16 @@ log = logging.getLogger("ecu_daemon.record")
 
 
 class Recorder:
-    def __init__(self, directory: str | Path, *, can_channel: str = "can0", gnss_port: str = "ttyACM0") -> None:
+    def __init__(self, directory: str | Path, *, can_channel: str = "can0", gnss_port: str = "ttyACM0",
+                 extra_gnss_ports: list[str] = ()) -> None:
         self.dir = Path(directory)
         try:
             self.dir.mkdir(parents=True, exist_ok=True)
             self.can = CandumpWriter(self.dir / "can.log", channel=can_channel)
             self.outputs = CandumpWriter(self.dir / "outputs.log", channel=can_channel)
             self.gnss = GnssLogWriter(self.dir / "gnss.log", gnss_port)
+            self.gnss_extra = [GnssLogWriter(self.dir / f"gnss{i + 2}.log", port)
+                               for i, port in enumerate(extra_gnss_ports)]
             self._csv = open(self.dir / "estimates.csv", "w", encoding="ascii", newline="\n")
             self._ticks = open(self.dir / "ticks.log", "w", encoding="ascii", newline="\n")
         except (OSError, CanLogError) as e:
@@ -69,9 +73,9 @@ class Recorder:
     def on_tick_record(self, line: str) -> None:
         self._guard(self._ticks.write, line)
 
-    def on_gnss(self, t: float, payload: bytes) -> None:
+    def on_gnss(self, t: float, payload: bytes, receiver: int = 0) -> None:
         self.gnss_messages += 1
-        self._guard(self.gnss.write, t, payload)
+        self._guard((self.gnss_extra[receiver - 1] if receiver else self.gnss).write, t, payload)
 
     def on_output(self, t: float, msg: can.Message) -> None:
         self._guard(self.outputs.write_frame, t, msg.arbitration_id, bytes(msg.data), False, False)
@@ -81,14 +85,14 @@ class Recorder:
         self._guard(self._csv.write, format_row(est))
 
     def flush(self) -> None:
-        for f in (self.can, self.outputs, self.gnss, self._csv, self._ticks):
+        for f in (self.can, self.outputs, self.gnss, *self.gnss_extra, self._csv, self._ticks):
             self._guard(f.flush)
 
     def close(self) -> None:
         if self._closed:
             return
         self.flush()
-        for f in (self.can, self.outputs, self.gnss, self._csv, self._ticks):
+        for f in (self.can, self.outputs, self.gnss, *self.gnss_extra, self._csv, self._ticks):
             self._guard(f.close)
         self._closed = True
 

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from .. import config as config_mod
-from .scenario import SCENARIOS, get
+from .scenario import GNSS_SETUPS, SCENARIOS, get
 
 log = logging.getLogger("ecu_daemon.simulate")
 
@@ -23,6 +23,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gnss-delay", type=float,
                         help="GNSS latency: receive time - time of validity, s (default 0.4)")
     parser.add_argument("--gnss-protocol", choices=("ubx", "nmea"), help="receiver output (default ubx)")
+    parser.add_argument("--gnss", choices=tuple(GNSS_SETUPS), default="velocity",
+                        help="receivers: one for velocity (default); a dual-antenna moving-base pair (heading,"
+                             " 1.2 m baseline across the car); two velocity receivers front and rear, 2.5 m apart"
+                             " (a second capture drive_gnss2.log; replay it with a second --gnss)")
     parser.add_argument("--config", "-C", help="encode CAN with this config's DBC and [inputs.*] mapping")
     parser.add_argument("--can-dbc", help="use this DBC instead of the config's (same mapping)")
     parser.add_argument("--can-rate", type=float,
@@ -75,7 +79,7 @@ def main(args: argparse.Namespace) -> int:
         _fail(f"--gnss-delay must be between 0 and 2 s, got {args.gnss_delay}")
     if args.usb_batch_ms < 0 or not math.isfinite(args.usb_batch_ms):
         _fail(f"--usb-batch-ms must be >= 0, got {args.usb_batch_ms}")
-    changes = {}
+    changes = dict(GNSS_SETUPS[args.gnss])
     if args.duration is not None:
         changes["duration_s"] = args.duration
     if args.seed is not None:
@@ -115,7 +119,9 @@ def main(args: argparse.Namespace) -> int:
           f" mu {sc.mu:g}, bank {math.degrees(sc.bank_rad):+.2f} deg, seed {sc.seed}")
     print(f"  {len(result.can_frames)} CAN frames ({result.config.dbc_path().name}),"
           f" {len(result.gnss_messages)} GNSS messages ({sc.gnss.protocol}, {sc.gnss.rate_hz:g} Hz,"
-          f" latency {sc.gnss.latency_s:g} s)")
+          f" latency {sc.gnss.latency_s:g} s)"
+          + (f" + {len(result.gnss2_messages)} from the second receiver (latency {sc.gnss2.latency_s:g} s)"
+             if sc.gnss2 is not None else ""))
     print(f"  max |sideslip| {math.degrees(tr.max_abs_sideslip):.2f} deg, max |ay|"
           f" {abs(tr.col('ay')).max():.2f} m/s^2; true Cf {cf:.0f} N/rad, Cr {cr:.0f} N/rad"
           + ("; config has WRONG vehicle parameters" if args.wrong_params else ""))

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Config
+from ..config import Config, GnssReceiver
 from . import sensors as sens
 from .can_encoder import FrameEncoder
 from .manoeuvres import Circle, Driver
@@ -33,6 +33,7 @@ class SimResult:
     config: Config  # the config whose DBC + mapping encoded the frames
     extended_ids: set = field(default_factory=set)  # arbitration ids that are 29-bit
     gnss_good_rx: list = field(default_factory=list)  # receive times of the fault-free GNSS solutions
+    gnss2_messages: list = field(default_factory=list)  # the second receiver's (scenario.gnss2), time-ordered
 
     @property
     def t0(self) -> float:
@@ -132,12 +133,25 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     g = cfg.gnss
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
+    if scenario.gnss.dual_antenna:
+        g.heading_offset_deg = scenario.gnss.baseline_offset_deg
+        g.baseline_m = scenario.gnss.baseline_m
     lat = scenario.gnss.latency_s
     prior = lat if scenario.latency_prior_s is None else scenario.latency_prior_s
     if wrong:
         prior = lat - 0.2 if lat >= 0.3 else lat + 0.2
     g.delay_s = round(prior, 3)
     g.max_delay_s = max(g.max_delay_s, round(lat + 0.3, 3))
+    if scenario.gnss2 is not None:  # two receivers: the list form, the first one as above
+        g2 = scenario.gnss2
+        lat2 = g2.latency_s if scenario.latency_prior_s is None else scenario.latency_prior_s
+        g.receiver = [
+            GnssReceiver("/dev/ttyACM0", g.baudrate, g.protocol, "velocity", g.delay_s, list(g.lever_arm_m),
+                         g.heading_offset_deg, g.baseline_m),
+            GnssReceiver("/dev/ttyACM1", g.baudrate, g2.protocol, "velocity", round(lat2, 3),
+                         [float(a) for a in g2.lever_arm_m], g2.baseline_offset_deg if g2.dual_antenna else 0.0,
+                         g2.baseline_m if g2.dual_antenna else 0.0)]
+        g.max_delay_s = max(g.max_delay_s, round(g2.latency_s + 0.3, 3))
     return cfg
 
 
@@ -182,4 +196,10 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
         if ep.good:
             good_rx.append(ep.t_rx)
     gnss.sort(key=lambda m: m[0])
-    return SimResult(scenario, truth, can_frames, gnss, cfg, extended, good_rx)
+    gnss2 = []
+    if scenario.gnss2 is not None:  # its own noise (a fourth child of the seed: the others unchanged)
+        rng_gnss2 = np.random.default_rng(seq.spawn(1)[0])
+        for ep in sens.gnss_epochs(truth, scenario.gnss2, rng_gnss2):
+            gnss2.extend(m for m in sens.encode_epoch(ep, scenario.gnss2) if m[0] <= truth.t[-1])
+        gnss2.sort(key=lambda m: m[0])
+    return SimResult(scenario, truth, can_frames, gnss, cfg, extended, good_rx, gnss2)

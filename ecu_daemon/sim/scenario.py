@@ -33,6 +33,7 @@ class Scenario:
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     sensors: SensorParams = field(default_factory=SensorParams)
     gnss: GnssParams = field(default_factory=GnssParams)
+    gnss2: GnssParams | None = None  # a second receiver (own antenna, latency, rate), own capture file
     seed: int = 1
     duration_s: float | None = None  # None: the manoeuvre's own length
     heading0_rad: float = math.radians(35.0)  # initial heading, clockwise from north
@@ -50,16 +51,30 @@ class Scenario:
         return self.duration_s if self.duration_s is not None else self.build_manoeuvre().duration_s
 
     def with_(self, **changes) -> "Scenario":
-        """A copy with fields replaced; ``gnss_*`` / ``sensor_*`` keys go into the nested params."""
+        """A copy with fields replaced; ``gnss_*`` / ``gnss2_*`` / ``sensor_*`` keys go into the nested
+        params (``gnss2_*`` start from the first receiver's params when there is no second yet)."""
         g = {k[5:]: v for k, v in changes.items() if k.startswith("gnss_")}
+        g2 = {k[6:]: v for k, v in changes.items() if k.startswith("gnss2_")}
         s = {k[7:]: v for k, v in changes.items() if k.startswith("sensor_")}
-        rest = {k: v for k, v in changes.items() if not (k.startswith("gnss_") or k.startswith("sensor_"))}
+        rest = {k: v for k, v in changes.items() if not k.startswith(("gnss_", "gnss2_", "sensor_"))}
         out = replace(self, **rest)
         if g:
             out = replace(out, gnss=replace(out.gnss, **g))
         if s:
             out = replace(out, sensors=replace(out.sensors, **s))
+        if g2:
+            out = replace(out, gnss2=replace(out.gnss2 or out.gnss, **g2))
         return out
+
+
+#: GNSS set-ups a scenario can be given (``simulate --gnss``, ``demo --gnss``): Scenario.with_ changes
+GNSS_SETUPS = {
+    "velocity": {},  # one receiver: velocity only
+    # a moving-base pair, antennas across the car (left to right): the heading, at standstill too
+    "dual-antenna": {"gnss_dual_antenna": True, "gnss_baseline_m": 1.2, "gnss_baseline_offset_deg": 90.0},
+    # two velocity receivers front and rear, 2.5 m apart, unsynchronised (own latency each)
+    "front-rear": {"gnss_lever_arm_m": (1.5, 0.0), "gnss2_lever_arm_m": (-1.0, 0.0), "gnss2_latency_s": 0.33},
+}
 
 
 _KINDS = {

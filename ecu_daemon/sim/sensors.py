@@ -22,7 +22,10 @@ timestamp (as comma's panda does). The value in a frame is the truth at its *sen
 GNSS: epochs on the UTC grid of ``1/rate_hz``; each reports the *antenna* velocity (lever arm)
 with white noise, and reaches the host ``latency_s`` (+ jitter) after its time of validity.
 UBX: one NAV-PVT per epoch. NMEA: RMC, VTG, GGA per epoch, each sentence a few ms after the
-previous one (serial transmission).
+previous one (serial transmission). A dual-antenna receiver (moving base + rover, ``dual_antenna``)
+adds the baseline's heading to every epoch (UBX NAV-RELPOSNED after the NAV-PVT, NMEA THS): the
+vehicle's heading plus the mounting offset plus white noise that shrinks with the baseline length
+(carrier-phase heading: ~0.2 deg at 1 m).
 """
 from __future__ import annotations
 
@@ -50,7 +53,8 @@ class Fault:
     ``scaled`` (x ``value``), ``noisy`` (+ white noise of 1-sigma ``value``), ``intermittent``
     (reads 0 for 0.1 s out of every 0.3 s: a loose connector). GNSS (``input`` = ``gnss``):
     ``scaled`` (velocity x ``value``, a glitch), ``constant`` (north and east velocity both
-    ``value``), ``dropout`` (no solutions). Every value stays what the receiver or the DBC can
+    ``value``), ``dropout`` (no solutions), ``heading_offset`` (a dual antenna's heading + ``value``
+    deg: a wrong carrier fix whose baseline length still looks right). Every value stays what the receiver or the DBC can
     carry: these are the implausible-but-in-range inputs only cross-checks can catch.
     """
 
@@ -65,7 +69,7 @@ class Fault:
 
 
 CAN_FAULT_KINDS = ("stuck", "zero", "offset", "scaled", "noisy", "intermittent")
-GNSS_FAULT_KINDS = ("scaled", "constant", "dropout")
+GNSS_FAULT_KINDS = ("scaled", "constant", "dropout", "heading_offset")
 
 
 def apply_fault(fault: Fault, t: np.ndarray, v: np.ndarray, t0: float, rng: np.random.Generator) -> np.ndarray:
@@ -127,6 +131,10 @@ class GnssParams:
     lon0_deg: float = 11.575
     height_m: float = 520.0
     faults: tuple = ()  # Fault s with input "gnss"
+    dual_antenna: bool = False  # moving-base pair: a heading per epoch
+    baseline_m: float = 1.2  # antenna distance
+    baseline_offset_deg: float = 0.0  # baseline heading minus vehicle heading (mounting yaw), clockwise
+    heading_noise_deg_1m: float = 0.2  # 1-sigma heading noise for a 1 m baseline (scales with 1/baseline)
 
 
 def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
@@ -199,6 +207,7 @@ class GnssEpoch:
     lat_deg: float
     lon_deg: float
     good: bool = True  # False while a fault corrupts it (the truth's gnss_good column)
+    heading_deg: float = math.nan  # baseline heading (dual antenna), clockwise from north
 
 
 def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator) -> list[GnssEpoch]:
@@ -234,6 +243,10 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     t_rx = tv + params.latency_s + jitter
     t_rx = np.maximum.accumulate(t_rx)  # a receiver never reorders its output
     vn, ve = vn_true + noise[:, 0], ve_true + noise[:, 1]
+    head = np.full(n, math.nan)
+    if params.dual_antenna:
+        sig = math.radians(params.heading_noise_deg_1m) / params.baseline_m
+        head = np.degrees(psi + math.radians(params.baseline_offset_deg) + sig * rng.standard_normal(n)) % 360.0
     good = np.ones(n, dtype=bool)
     sent = np.ones(n, dtype=bool)
     for f in params.faults:
@@ -245,16 +258,19 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
             vn[on] = ve[on] = f.value
         elif f.kind == "dropout":
             sent &= ~on
+        elif f.kind == "heading_offset":
+            head[on] = (head[on] + f.value) % 360.0
         else:
             raise ValueError(f"unknown GNSS fault kind {f.kind!r}; known: {', '.join(GNSS_FAULT_KINDS)}")
-        good &= ~on
+        if f.kind != "heading_offset":  # the velocity stays good
+            good &= ~on
     out = []
     for i in range(n):
         if t_rx[i] > t[-1]:
             break
         if sent[i]:
             out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn[i]), float(ve[i]), float(lat[i]),
-                                 float(lon[i]), bool(good[i])))
+                                 float(lon[i]), bool(good[i]), float(head[i])))
     return out
 
 
@@ -268,7 +284,13 @@ def encode_epoch(ep: GnssEpoch, params: GnssParams) -> list[tuple[float, bytes]]
                                lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, height_m=params.height_m,
                                h_acc_m=max(0.5, 1.5 * params.pos_noise_m),
                                vel_n_mps=ep.vel_n, vel_e_mps=ep.vel_e, speed_acc_mps=params.speed_acc_mps)
-        return [(ep.t_rx, frame)]
+        out = [(ep.t_rx, frame)]
+        if math.isfinite(ep.heading_deg):
+            acc = 1.5 * params.heading_noise_deg_1m / params.baseline_m  # receivers' accHeading: pessimistic
+            out.append((ep.t_rx + params.nmea_stagger_s, encode.nav_relposned(
+                itow_ms=encode.utc_fields(utc)["itow_ms"], heading_deg=ep.heading_deg, baseline_m=params.baseline_m,
+                head_acc_deg=acc)))
+        return out
     if params.protocol == "nmea":
         course = math.degrees(math.atan2(ep.vel_e, ep.vel_n)) % 360.0
         lines = [
@@ -276,7 +298,7 @@ def encode_epoch(ep: GnssEpoch, params: GnssParams) -> list[tuple[float, bytes]]
             encode.nmea_vtg(speed_mps=speed, course_deg=course),
             encode.nmea_gga(utc=utc, lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, num_sv=params.num_sv,
                             alt_m=params.height_m),
-        ]
+        ] + ([encode.nmea_ths(heading_deg=ep.heading_deg)] if math.isfinite(ep.heading_deg) else [])
         return [(ep.t_rx + i * params.nmea_stagger_s, (s + "\r\n").encode("ascii")) for i, s in enumerate(lines)]
     raise ValueError(f"unknown GNSS protocol {params.protocol!r} (ubx or nmea)")
 

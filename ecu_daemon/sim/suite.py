@@ -5,14 +5,14 @@ Each :class:`SuiteCase` is a :class:`~ecu_daemon.sim.scenario.Scenario` plus how
 apply. ``ecu-daemon evaluate --suite`` (:mod:`ecu_daemon.suite`) runs them. The families follow
 issue 7: flying starts, a restart mid-drive, reversing, GNSS outage / rate / latency / faults,
 road bank and grade, low friction, wrong vehicle parameters in the config, a sign-magnitude DBC,
-faults on every CAN input, and low-speed handling.
+faults on every CAN input, and low-speed handling; and from issue 11, a dual-antenna receiver.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-from .scenario import SCENARIOS, Scenario
+from .scenario import GNSS_SETUPS, SCENARIOS, Scenario
 from .sensors import CAN_FAULT_KINDS, Fault
 
 
@@ -24,6 +24,7 @@ class SuiteCase:
     restart_at_s: float | None = None  # replay up to here, save the learned state, replay the rest from it
     encoding: str = ""  # "" = our chassis DBC; else a key of ecu_daemon.suite.ENCODINGS
     low_speed: bool = False  # the low-speed accuracy targets apply
+    compare_single: bool = False  # also run it with the first receiver only: two must be no worse
 
 
 def _flying() -> list[SuiteCase]:
@@ -121,8 +122,43 @@ def _low_speed() -> list[SuiteCase]:
     return out
 
 
+def _dual_antenna() -> list[SuiteCase]:
+    """A moving-base pair (1.2 m baseline) on the same receiver as the velocity: standstill
+    included, antennas along, across and reversed on the car, UBX and NMEA, low friction, a wrong
+    carrier fix, an outage."""
+    out = []
+    for name, kind, offset, protocol, extra in (
+            ("dual_straight_standstill", "straight", 0.0, "ubx", {}),
+            ("dual_dlc_across", "dlc_dry", 90.0, "ubx", {}),
+            ("dual_circle", "circle_dry", 180.0, "ubx", {}),
+            ("dual_slalom_nmea", "slalom_dry", -90.0, "nmea", {}),
+            ("dual_mu03_dlc", "dlc_mu03", 0.0, "ubx", {}),
+            # a wrong carrier fix with a plausible baseline: 8 deg off for 5 s in the lane change
+            ("dual_heading_fault", "dlc_dry", 0.0, "ubx",
+             {"gnss_faults": (Fault("gnss", "heading_offset", 24.0, 5.0, 8.0),)}),
+            ("dual_outage_30s", "demo", 0.0, "ubx", {"gnss_faults": (Fault("gnss", "dropout", 25.0, 30.0),)})):
+        # an outage takes the heading away too: scored on honesty, not on the dual-antenna accuracy
+        family = "gnss" if "outage" in name else "dual_antenna"
+        out.append(SuiteCase(name, family, _base(
+            name, kind, gnss_dual_antenna=True, gnss_baseline_m=1.2, gnss_baseline_offset_deg=offset,
+            gnss_protocol=protocol, **extra)))
+    return out
+
+
+def _two_receivers() -> list[SuiteCase]:
+    """Two velocity receivers front and rear, 2.5 m apart, 5 Hz, unsynchronised (0.4 and 0.33 s
+    latency, each identified on its own; the config's priors are 0.1 s off); turning, and straight
+    (where their velocity difference says nothing and two must be no worse than one)."""
+    out = []
+    for name, kind in (("two_rx_dlc", "dlc_dry"), ("two_rx_slalom", "slalom_dry"), ("two_rx_jturn", "jturn_dry"),
+                       ("two_rx_straight", "straight")):
+        sc = _base(name, kind, gnss_latency_s=0.4, latency_prior_s=0.3, **GNSS_SETUPS["front-rear"])
+        out.append(SuiteCase(name, "two_receivers", sc, compare_single=kind == "straight"))
+    return out
+
+
 def build_suite() -> list[SuiteCase]:
-    return _flying() + _conditions() + _sensor_faults() + _low_speed()
+    return _flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna() + _two_receivers()
 
 
 SUITE: list[SuiteCase] = build_suite()

@@ -4,7 +4,8 @@ Files (all on the same clock, which starts at 1200.0 s):
 
 * ``drive.log``: candump ``-L`` lines ``(%.6f) can0 ID#HEX`` (3 hex digits for 11-bit ids, 8 for
   29-bit), time-ordered by receive time.
-* ``drive_gnss.log``: the GNSS capture log (:class:`~ecu_daemon.gnss.logfile.GnssLogWriter`).
+* ``drive_gnss.log``: the GNSS capture log (:class:`~ecu_daemon.gnss.logfile.GnssLogWriter`);
+  ``drive_gnss2.log`` the second receiver's, when the scenario has one.
 * ``truth.csv``: one row per 6 ms (every 6th 1 kHz integration step; rows fall on the
   estimator's absolute 6 ms grid); column meanings in :meth:`SimResult.truth_table`.
 * ``config.toml``: a config for this car (``ecu-daemon replay --config`` accepts it).
@@ -26,6 +27,8 @@ from .run import SimResult
 
 CAN_LOG = "drive.log"
 GNSS_LOG = "drive_gnss.log"
+GNSS2_LOG = "drive_gnss2.log"
+GNSS2_PORT = "ttyACM1"
 TRUTH_CSV = "truth.csv"
 CONFIG_TOML = "config.toml"
 SCENARIO_JSON = "scenario.json"
@@ -40,9 +43,10 @@ def write_can_log(path: Path, result: SimResult) -> None:
             w.write_frame(t, fid, data, fid in ext)
 
 
-def write_gnss_log(path: Path, result: SimResult) -> None:
-    with GnssLogWriter(path, GNSS_PORT) as w:
-        for t, payload in result.gnss_messages:
+def write_gnss_log(path: Path, result: SimResult, second: bool = False) -> None:
+    """The first receiver's capture, or with ``second`` the second one's."""
+    with GnssLogWriter(path, GNSS2_PORT if second else GNSS_PORT) as w:
+        for t, payload in (result.gnss2_messages if second else result.gnss_messages):
             w.write(t, payload)
 
 
@@ -103,6 +107,9 @@ def write_all(out_dir: str | Path, result: SimResult, config: Config | None = No
                                      ("config", CONFIG_TOML), ("scenario", SCENARIO_JSON))}
     write_can_log(paths["can"], result)
     write_gnss_log(paths["gnss"], result)
+    if result.scenario.gnss2 is not None:
+        paths["gnss2"] = out / GNSS2_LOG
+        write_gnss_log(paths["gnss2"], result, second=True)
     write_truth_csv(paths["truth"], result)
     paths["config"].write_text(to_toml(portable_config(config or result.config)), encoding="utf-8")
     paths["scenario"].write_text(json.dumps(scenario_summary(result), indent=2, default=str) + "\n",
