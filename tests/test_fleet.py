@@ -269,3 +269,22 @@ def test_calibrate_state_file_is_what_the_estimator_restores(serial, tmp_path, c
     restored = Estimator(cfg, load_state(state)).learned_state()  # before the first sample: what it starts from
     assert restored["wheel_scale"] == params["wheel_scale"]["value"]
     assert restored["yaw_rate_bias_radps"] == params["yaw_rate_bias_radps"]["value"]
+
+
+def test_a_drive_with_two_receivers_replays_both_captures(tmp_path):
+    """A front-rear drive's two captures are both found, in receiver order, and both fused."""
+    from ecu_daemon.sim import writer
+    from ecu_daemon.sim.run import simulate, vehicle_config
+    from ecu_daemon.sim.scenario import SCENARIOS
+
+    sc = SCENARIOS["dlc_dry"].with_(name="two", gnss_lever_arm_m=(1.5, 0.0), gnss_latency_s=0.4,
+                                    gnss2_lever_arm_m=(-1.0, 0.0), gnss2_latency_s=0.33, latency_prior_s=0.3)
+    cfg = vehicle_config(sc)
+    d = tmp_path / "fleet" / "car09" / "d1"
+    d.mkdir(parents=True)
+    writer.write_all(d, simulate(sc, cfg), cfg)
+    (drive,) = discover(tmp_path / "fleet")
+    assert [Path(g).name for g in drive.gnss] == ["drive_gnss.log", "drive_gnss2.log"]
+    (rec,) = run_fleet(str(tmp_path / "fleet"), tmp_path / "out", jobs=1, report=False)
+    assert rec["status"] == "ok", rec["error"]
+    assert rec["gnss_delay_s"] == pytest.approx(0.4, abs=0.03)

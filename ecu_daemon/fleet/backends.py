@@ -47,7 +47,7 @@ def _pool(drives, store_dir, jobs, done) -> list[dict]:
 
 
 def _dask(drives, store_dir, address, done) -> list[dict]:
-    from ..cli import UserError
+    from ..errors import UserError
 
     try:
         from distributed import Client

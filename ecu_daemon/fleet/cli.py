@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import UserError
+from ..errors import UserError
 
 log = logging.getLogger("ecu_daemon.fleet")
 RESULTS = "results"

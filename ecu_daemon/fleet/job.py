@@ -20,7 +20,7 @@ import numpy as np
 
 from .. import __version__
 from .. import config as config_mod
-from ..cli import UserError
+from ..errors import UserError
 from ..evaluate import ESTIMATE_REQUIRED, TRUTH_REQUIRED, EvaluationError, _evaluate, read_csv
 from .manifest import Drive
 from .store import ResultStore
@@ -109,9 +109,8 @@ def _replay_log_quiet():
 def _replay(cfg, drive: Drive, est_csv: str) -> dict:
     from ..replay import run_replay
 
-    if len(drive.gnss) > 1:
-        raise UserError(f"{len(drive.gnss)} GNSS captures: the replay takes one per drive")
-    return run_replay(cfg, drive.can, drive.gnss[0] if drive.gnss else None, est_csv, config_path=drive.config)
+    gnss = list(drive.gnss) if len(drive.gnss) > 1 else (drive.gnss[0] if drive.gnss else None)
+    return run_replay(cfg, drive.can, gnss, est_csv, config_path=drive.config)  # one capture per receiver
 
 
 def replay_and_score(drive: Drive) -> dict:

@@ -21,10 +21,10 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..cli import UserError
+from ..errors import UserError
 
 CAN_NAMES = ("can.log", "drive.log")  # --record, simulate
-GNSS_NAMES = ("gnss.log", "drive_gnss.log")
+GNSS_NAMES = ("gnss.log", "gnss2.log", "drive_gnss.log", "drive_gnss2.log")  # one per receiver, in order
 TRUTH_NAME = "truth.csv"
 CONFIG_NAME = "config.toml"
 
