@@ -46,7 +46,6 @@ DIAG_S = 0.05  # diagnostics (and the input staleness behind the validity mask) 
 
 CAN = "can"
 GNSS = "gnss"
-_ORDER = {CAN: 0, GNSS: 1}  # on a time tie, CAN before GNSS (as the logs are merged)
 
 
 def gnss_source(receiver: int) -> str:
