@@ -2,8 +2,6 @@
 stored step, on a linear problem built from the production update functions (both kernels)."""
 from __future__ import annotations
 
-from contextlib import contextmanager
-
 import numpy as np
 import pytest
 
@@ -12,15 +10,6 @@ from ecu_daemon.estimator.history import StepHistory
 from ecu_daemon.estimator.kinematic import NX
 
 STEPS = 60  # steps between the late measurement's time of validity and the present
-
-
-@contextmanager
-def kernels(compiled: bool):
-    backend.select(compiled)
-    try:
-        yield
-    finally:
-        backend.select(True)
 
 
 def problem(seed=3):
@@ -100,7 +89,7 @@ def test_rewind_is_the_refilter_with_the_stored_gains(compiled):
     linear in P for a fixed gain, which is what lets the shift carry M as A M A')."""
     prob = problem()
     F, Q, meas, _, _, H, z, R = prob
-    with kernels(compiled):
+    with backend.selected(compiled):
         hist, gains = run_history(prob)
         s = 10
         xs, Ps = hist.X[s].copy(), hist.P[s].copy()
@@ -121,7 +110,7 @@ def test_rewind_is_close_to_the_optimal_refilter_and_never_more_confident(compil
     not have)."""
     prob = problem(seed=11)
     F, Q, meas, _, _, H, z, R = prob
-    with kernels(compiled):
+    with backend.selected(compiled):
         hist, _ = run_history(prob)
         s = 10
         xs, Ps = hist.X[s].copy(), hist.P[s].copy()
@@ -140,7 +129,7 @@ def test_rewind_is_close_to_the_optimal_refilter_and_never_more_confident(compil
 
 
 def test_rewind_at_the_present_step_and_psi_wraps():
-    with kernels(True):
+    with backend.selected(True):
         hist, _ = run_history(problem())
         s = hist.last
         hist.X[s, 2] = 6.2

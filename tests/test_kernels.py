@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -17,15 +16,6 @@ from ecu_daemon.signals import SignalDecoder
 from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
 RNG = np.random.default_rng(7)
-
-
-@contextmanager
-def kernels(compiled: bool):
-    backend.select(compiled)
-    try:
-        yield
-    finally:
-        backend.select(True)
 
 
 def spd(scale=1.0):
@@ -55,9 +45,9 @@ def test_without_the_extension_one_log_line_and_the_reference_runs():
 
 def _both(fn):
     """fn() under the reference and under the compiled kernels."""
-    with kernels(False):
+    with backend.selected(False):
         ref = fn()
-    with kernels(True):
+    with backend.selected(True):
         out = fn()
     return ref, out
 
@@ -107,7 +97,7 @@ def test_scalar_and_index_updates_agree(gate):
 
 def test_index_update_is_the_scalar_update_with_a_unit_row():
     for compiled in (False, True):
-        with kernels(compiled):
+        with backend.selected(compiled):
             x, P, A = RNG.normal(size=NX), spd(), RNG.normal(size=(NX, NX))
             x2, P2, A2 = x.copy(), P.copy(), A.copy()
             kalman.index_update(x, P, 0.4, 5, 0.3, 0.0, A)
@@ -122,7 +112,7 @@ def test_update_is_joseph_form():
     step's symmetrize, and stays positive definite where P - K h' P would not (a tiny R against
     a huge variance: the subtraction cancels all digits)."""
     for compiled in (False, True):
-        with kernels(compiled):
+        with backend.selected(compiled):
             P = np.diag([1e8, 1.0, 1.0, 1e-6, 1.0, 1.0, 1e-4, 1.0])
             P[0, 1] = P[1, 0] = 9999.0
             x = np.zeros(NX)
@@ -162,7 +152,7 @@ def test_late_update_agrees_and_is_the_joseph_reduction(m):
 
 def test_late_update_without_a_positive_innovation_covariance_is_nan():
     for compiled in (False, True):
-        with kernels(compiled):
+        with backend.selected(compiled):
             P = np.zeros((NX, NX))
             dx, M = np.zeros(NX), np.zeros((NX, NX))
             nis = kalman.late_update(P, np.ones((2, NX)), np.zeros((2, 2)), np.ones(2), dx, M)
@@ -211,7 +201,7 @@ def test_correct_refuses_a_covariance_that_is_not_positive_definite(compiled):
     M = np.zeros((NX, NX))
     M[4, 4] = 1e3  # far more than any P[4, 4]
     X0, P0 = h.X.copy(), h.P.copy()
-    with kernels(compiled):
+    with backend.selected(compiled):
         assert not h.correct(s, np.ones(NX), M)
     np.testing.assert_array_equal(h.X, X0)
     np.testing.assert_array_equal(h.P, P0)

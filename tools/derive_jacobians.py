@@ -80,28 +80,22 @@ def _subs_r(e):
     return e.subs(r_m, r + b_r)
 
 
+def _small_pow(printer, expr) -> str | None:
+    """x**2, x**-1, x**-2 as plain products (same bits as the hand code, no pow()); else None."""
+    if expr.exp not in (2, -1, -2):
+        return None
+    b = printer.parenthesize(expr.base, 100)
+    return {2: f"({b}*{b})", -1: f"1.0/{b}", -2: f"1.0/({b}*{b})"}[int(expr.exp)]
+
+
 class _Py(PythonCodePrinter):
-    def _print_Pow(self, expr, rational=False):  # plain x*x: same bits as the hand code, no pow()
-        if expr.exp == 2:
-            return f"({self.parenthesize(expr.base, 100)}*{self.parenthesize(expr.base, 100)})"
-        if expr.exp == -1:
-            return f"1.0/{self.parenthesize(expr.base, 100)}"
-        if expr.exp == -2:
-            b = self.parenthesize(expr.base, 100)
-            return f"1.0/({b}*{b})"
-        return super()._print_Pow(expr, rational)
+    def _print_Pow(self, expr, rational=False):
+        return _small_pow(self, expr) or super()._print_Pow(expr, rational)
 
 
 class _C(C99CodePrinter):
     def _print_Pow(self, expr):
-        if expr.exp == 2:
-            return f"({self.parenthesize(expr.base, 100)}*{self.parenthesize(expr.base, 100)})"
-        if expr.exp == -1:
-            return f"1.0/{self.parenthesize(expr.base, 100)}"
-        if expr.exp == -2:
-            b = self.parenthesize(expr.base, 100)
-            return f"1.0/({b}*{b})"
-        return super()._print_Pow(expr)
+        return _small_pow(self, expr) or super()._print_Pow(expr)
 
 
 def _py(e) -> str:

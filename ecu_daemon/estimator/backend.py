@@ -8,6 +8,7 @@ tests that compare the two.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 
 from . import history, kalman, kinematic
@@ -48,6 +49,17 @@ def select(use_compiled: bool = True) -> str:
     kalman.symmetrize = compiled.symmetrize if on else kalman.symmetrize_reference
     kalman.late_update = compiled.late_update if on else kalman.late_update_reference
     return active()
+
+
+@contextlib.contextmanager
+def selected(use_compiled: bool):
+    """:func:`select` for a block (tests comparing the two), the previous choice restored after."""
+    before = active() == "compiled"
+    select(use_compiled)
+    try:
+        yield
+    finally:
+        select(before)
 
 
 def active() -> str:

@@ -109,8 +109,7 @@ def _replay_log_quiet():
 def _replay(cfg, drive: Drive, est_csv: str) -> dict:
     from ..replay import run_replay
 
-    gnss = list(drive.gnss) if len(drive.gnss) > 1 else (drive.gnss[0] if drive.gnss else None)
-    return run_replay(cfg, drive.can, gnss, est_csv, config_path=drive.config)  # one capture per receiver
+    return run_replay(cfg, drive.can, list(drive.gnss), est_csv, config_path=drive.config)  # one per receiver
 
 
 def replay_and_score(drive: Drive) -> dict:

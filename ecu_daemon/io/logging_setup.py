@@ -136,9 +136,7 @@ def setup_logging(level: str = "info", stream=None, interval_s: float = 10.0) ->
     warnings.showwarning = _warning_line
     for name in ("ecu_daemon",) + _FOREIGN:
         lg = logging.getLogger(name)
-        for h in list(lg.handlers):
-            if getattr(h, "_ecu_daemon", False):
-                lg.removeHandler(h)
+        _remove_ours(lg)
         lg.addHandler(handler)
         lg.propagate = False
         if name != "ecu_daemon" and lg.level == logging.NOTSET:
@@ -149,14 +147,18 @@ def setup_logging(level: str = "info", stream=None, interval_s: float = 10.0) ->
     return root
 
 
+def _remove_ours(lg: logging.Logger) -> None:
+    for h in list(lg.handlers):
+        if getattr(h, "_ecu_daemon", False):
+            lg.removeHandler(h)
+
+
 def reset_logging() -> None:
     """Undo :func:`setup_logging` (tests, embedding): records propagate to the root logger again."""
     warnings.showwarning = _SHOWWARNING
     for name in ("ecu_daemon",) + _FOREIGN:
         lg = logging.getLogger(name)
-        for h in list(lg.handlers):
-            if getattr(h, "_ecu_daemon", False):
-                lg.removeHandler(h)
+        _remove_ours(lg)
         if getattr(lg, "_ecu_daemon_level", False) or name == "ecu_daemon":
             lg.setLevel(logging.NOTSET)
             lg.__dict__.pop("_ecu_daemon_level", None)
