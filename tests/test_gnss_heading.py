@@ -270,3 +270,19 @@ def test_a_wrong_carrier_fix_never_takes_the_heading_while_moving(tmp_path):
     fault = (est["t"] >= est["t"][0] + 24.5) & (est["t"] < est["t"][0] + 29.0)
     assert err[fault].max() < 0.5 and err[valid].max() < 0.5  # never followed the wrong baseline
     assert not valid[fault].all()  # said so: the two GNSS sources disagree
+
+
+def test_a_fresh_dual_antenna_heading_is_published_without_the_course_floor():
+    """The 0.3 deg floor is the error of a heading taken from the GNSS course; a heading measured by
+    the antenna pair is better, and its std says so while it stays honest (3 sigma)."""
+    from ecu_daemon.estimator.core import COURSE_FLOOR_RAD
+
+    rows, psi, _, _ = _standstill_run(dual=True)
+    late = np.array([e.t - rows[0].t > 1.5 and e.heading_valid for e in rows])
+    std = np.array([e.heading_std_rad for e in rows])
+    err = np.abs((np.array([e.heading_rad for e in rows]) - psi + np.pi) % (2 * np.pi) - np.pi)
+    assert late.sum() > 300
+    assert np.median(std[late]) < 0.5 * COURSE_FLOOR_RAD
+    assert (err[late] <= 3 * std[late]).mean() >= 0.99
+    rows, _, _, _ = _standstill_run(dual=False)
+    assert all(e.heading_std_rad >= COURSE_FLOOR_RAD for e in rows if e.heading_valid)
