@@ -61,12 +61,24 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict]:
         mod.add_arguments(p)
         entries[name] = mod.main
     for p in sub.choices.values():  # one logging set-up for every command (``run`` has its own option)
-        try:
-            p.add_argument("--log-level", choices=("debug", "info", "warning", "error"),
-                           help="log level of the lines on stderr (default: info)")
-        except argparse.ArgumentError:
-            pass
+        _add_log_level(p, None)
     return parser, entries
+
+
+def _add_log_level(p: argparse.ArgumentParser, default) -> None:
+    """``--log-level`` on a command and on each of its actions (``fleet run --log-level ...``).
+
+    An action's option defaults to SUPPRESS so that ``fleet --log-level warning run`` keeps the
+    level given before the action."""
+    try:
+        p.add_argument("--log-level", choices=("debug", "info", "warning", "error"), default=default,
+                       help="log level of the lines on stderr (default: info)")
+    except argparse.ArgumentError:
+        pass  # ``run`` has its own (it overrides [daemon] log_level)
+    for action in p._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for nested in action.choices.values():
+                _add_log_level(nested, argparse.SUPPRESS)
 
 
 def _unavailable(name, err):
