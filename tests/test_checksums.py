@@ -129,6 +129,10 @@ def test_per_counter_data_ids_from_the_config(tmp_path):
     rotated = ESP_21_IDS[1:] + ESP_21_IDS[:1]
     dec = SignalDecoder(vw_config(tmp_path, wheel_speed_fl={**esp_21, "data_id": rotated}))
     assert decode_all(dec, 0xFD, ESP_21) == 0 and dec.health["wheel_speed_fl"].errors["checksum"] == 16
+    # the log line names the CRC the configured id of the frame's counter gives (15: rotated[15])
+    last = ESP_21[-1]
+    assert dec.health["wheel_speed_fl"].last_error == (
+        f"ESP_21 (0x0FD): E2E CRC 0x{last[0]:02X}, expected 0x{compute_profile2_crc(last, rotated[15]):02X}")
 
 
 @pytest.mark.parametrize("data_id, checksum, why", [

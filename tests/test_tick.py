@@ -83,8 +83,16 @@ def test_stats_percentiles_and_histogram():
 
 def test_scaled_clock_runs_faster():
     c = ScaledClock(10.0)
-    a, r0 = c(), time.monotonic()
+    # bracket each reading between two of time.monotonic (non-decreasing): exact bounds, whatever the
+    # load delays between the calls (the old "c() - a >= 9 x elapsed" read the clock after c())
+    before_a = time.monotonic()
+    a = c()
+    after_a = time.monotonic()
     time.sleep(0.02)
-    assert (c() - a) >= 10 * (time.monotonic() - r0) * 0.9
+    before_b = time.monotonic()
+    b = c()
+    after_b = time.monotonic()
+    assert 10 * (before_b - after_a) - 1e-9 <= b - a <= 10 * (after_b - before_a) + 1e-9
+    assert b - a >= 10 * 0.02 - 1e-9
     with pytest.raises(ValueError):
         ScaledClock(0.0)
