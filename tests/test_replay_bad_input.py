@@ -199,8 +199,15 @@ def test_an_input_that_never_decodes_ends_with_the_table_and_exit_3(drive, tmp_p
     cfg.write_text(tomli_w.dumps(data))
     rc, err = replay(drive, "--out-csv", tmp_path / "o.csv", config=cfg)
     assert rc == 3, err
-    table = [line for line in err if " yaw_rate " in f" {line.split(' ', 2)[-1]}"]
-    assert table, err
+    table = {cells[0]: cells[1:] for cells in (line.split(" ", 2)[-1].split() for line in err)
+             if cells and cells[0] in ("input", "wheel_speed_fl", "yaw_rate", "accel_x", "accel_y", "gnss")}
+    assert table["input"] == ["frames", "used", "dlc", "decode", "range", "counter", "checksum"], err
+    n = len([ln for ln in (drive / "drive.log").read_text().splitlines() if " 0B4#" in ln])  # IMU frames
+    for name in ("yaw_rate", "accel_x", "accel_y"):  # seen, used, dropped by reason: all checksum
+        frames, used, dlc, decode, rng, counter, checksum = map(int, table[name])
+        assert frames == n > 1000 and used + checksum == frames and used < 0.01 * frames, table[name]
+        assert dlc == decode == rng == counter == 0
+    assert list(map(int, table["wheel_speed_fl"]))[1:] == [int(table["wheel_speed_fl"][0]), 0, 0, 0, 0, 0]
     final = err[-1]
     assert final.startswith("ecu-daemon replay: error: required input(s) never usable")
     assert "yaw_rate" in final and "accel_x" in final and "accel_y" in final and "checksum" in final
