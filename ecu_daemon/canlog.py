@@ -352,8 +352,9 @@ def log_channels(path: str | Path, max_frames: int | None = None) -> dict[str, i
 class CandumpWriter:
     """Writes frames as candump ``-L`` lines that canplayer accepts: ``(%.6f) can0 ID#DATA``."""
 
-    def __init__(self, path: str | Path, channel: str = "can0"):
+    def __init__(self, path: str | Path, channel: str = "can0", name: str | Path | None = None):
         self.path = Path(path)
+        self.name = Path(name) if name is not None else self.path  # what messages call it
         if not channel or any(c.isspace() for c in channel):
             raise ValueError(f"bad channel name {channel!r}")
         self.channel = channel
@@ -361,7 +362,7 @@ class CandumpWriter:
         try:
             self._f = open(self.path, "w", encoding="ascii", newline="\n")
         except OSError as e:
-            raise CanLogError(f"cannot write CAN log {self.path}: {e.strerror or e}") from None
+            raise CanLogError(f"cannot write CAN log {self.name}: {e.strerror or e}") from None
 
     def write(self, msg: can.Message) -> None:
         """Append one python-can message (data, remote, error or CAN FD frame)."""
@@ -422,25 +423,27 @@ class CandumpWriter:
 
 class PythonCanWriter:
     """The writer python-can picks for the file's extension (``can.Logger``: .asc, .blf, ...),
-    with :class:`CandumpWriter`'s interface."""
+    with :class:`CandumpWriter`'s interface. ``name``: what messages call the file (the target
+    a temporary ``path`` will be renamed to; default ``path``)."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, name: str | Path | None = None):
         self.path = Path(path)
+        self.name = Path(name) if name is not None else self.path
         self.frames = 0
         try:
             asc = self.path.suffix.lower() == ".asc"
             self._w = _ASCWriter(str(self.path)) if asc else can.Logger(str(self.path))
         except OSError as e:
-            raise CanLogError(f"cannot write CAN log {self.path}: {e.strerror or e}") from None
+            raise CanLogError(f"cannot write CAN log {self.name}: {e.strerror or e}") from None
         except (ValueError, ImportError) as e:  # an extension python-can has no writer (or library) for
-            raise CanLogError(f"cannot write CAN log {self.path}: {e}") from None
+            raise CanLogError(f"cannot write CAN log {self.name}: {e}") from None
 
     def write(self, msg: can.Message) -> None:
         if self._w is None:
             raise ValueError("PythonCanWriter is closed")
         if not self.frames and self.path.suffix.lower() == ".blf" and msg.timestamp < BLF_EARLIEST_START:
             log.warning("%s: times before 1990 (%.6f s: a monotonic or boot clock?) have no BLF start date;"
-                        " read back, they count from the first frame's millisecond", self.path, msg.timestamp)
+                        " read back, they count from the first frame's millisecond", self.name, msg.timestamp)
         self._w.on_message_received(msg)
         self.frames += 1
 
@@ -456,8 +459,9 @@ class PythonCanWriter:
         self.close()
 
 
-def open_can_writer(path: str | Path, channel: str = "can0"):
+def open_can_writer(path: str | Path, channel: str = "can0", name: str | Path | None = None):
     """A writer for the format the file name says: candump ``-L`` text for ``.log`` (and any name
-    python-can does not know), python-can's writer for ``.asc``, ``.blf``, ``.trc``, ..."""
+    python-can does not know), python-can's writer for ``.asc``, ``.blf``, ``.trc``, ...
+    ``name``: what messages call the file (the target of a temporary ``path``)."""
     p = Path(path)
-    return PythonCanWriter(p) if _is_python_can(p) else CandumpWriter(p, channel)
+    return PythonCanWriter(p, name) if _is_python_can(p) else CandumpWriter(p, channel, name)

@@ -196,7 +196,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
         can_file = OutputFile(out_can) if out_can else None
         outputs += [can_file] if can_file else []
         csv_out = csv_file.open() if csv_file else None
-        can_out = open_can_writer(can_file.write_path) if can_file else None
+        can_out = open_can_writer(can_file.write_path, name=can_file.path) if can_file else None
     except (OutputPathError, CanLogError) as e:
         for o in outputs:
             o.keep_partial()

@@ -153,7 +153,9 @@ def test_out_can_writes_the_format_of_the_extension(drive, original, tmp_path, s
     # the simulated clock (1200 s) has no BLF start date: said once, not silently lost (the CLI logs
     # through its own stderr handler)
     err = capsys.readouterr().err.splitlines()
-    assert len([line for line in err if "have no BLF start date" in line]) == (suffix == ".blf")
+    said = [line for line in err if "have no BLF start date" in line]
+    assert len(said) == (suffix == ".blf")
+    assert all(f" WARNING {out}: times before 1990" in line for line in said)  # the file asked for, not its .partial
     reader = can.ASCReader(str(out), relative_timestamp=False) if suffix == ".asc" else can.BLFReader(str(out))
     theirs = [(m.arbitration_id, bytes(m.data), m.timestamp) for m in reader]
     ours = [(fid, data, t) for t, fid, ext, err, data in read_can_log(original / "o.log")]
