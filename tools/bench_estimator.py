@@ -74,7 +74,8 @@ from ecu_daemon.estimator.kinematic import (
 from ecu_daemon.gnss.logfile import read_gnss_log
 from ecu_daemon.gnss.stream import GnssStreamParser
 from ecu_daemon.outputs import OutputEncoder
-from ecu_daemon.replay import ROW_FORMAT, csv_header, run_replay
+from ecu_daemon.estimate_csv import ROW_FORMAT, csv_header
+from ecu_daemon.replay import run_replay
 from ecu_daemon.samples import INPUT_INDEX
 from ecu_daemon.signals import SignalDecoder
 from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
