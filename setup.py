@@ -1,4 +1,4 @@
-"""Only the compiled estimator kernels and output frame packing; everything else is in pyproject.toml.
+"""Only the compiled estimator kernels, output frame packing and estimate CSV rows; everything else is in pyproject.toml.
 
 Ahead-of-time C (no JIT: the service runs with MemoryDenyWriteExecute=yes). ``optional``: a
 machine without a compiler still installs, and the estimator says so once and runs its
@@ -15,6 +15,11 @@ setup(ext_modules=[Extension(
 ), Extension(  # output frame packing (ecu_daemon/outputs.py falls back to its Python reference)
     "ecu_daemon._frames",
     sources=["ecu_daemon/_frames.c"],
+    extra_compile_args=["-O2", "-ffp-contract=off"],
+    optional=True,
+) , Extension(  # estimate CSV rows (ecu_daemon/estimate_csv.py falls back to %-formatting)
+    "ecu_daemon._estimate_csv",
+    sources=["ecu_daemon/_estimate_csv.c"],
     extra_compile_args=["-O2", "-ffp-contract=off"],
     optional=True,
 )])

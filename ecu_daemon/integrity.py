@@ -28,6 +28,7 @@ def _crc8h2f_table() -> bytes:
 
 
 _T = _crc8h2f_table()
+CRC8H2F_TABLE = _T  # for the compiled output encoder (_frames.c)
 
 
 def e2e_p2_crc(payload: bytes | bytearray, data_id: int) -> int:

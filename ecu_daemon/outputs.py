@@ -27,13 +27,14 @@ from .dbc_loading import load_dbc
 from .diagnostics import Diagnostics
 from .estimator import estimate as estimate_module
 from .estimator.estimate import ESTIMATE_FIELDS, Estimate
-from .integrity import data_id_for, e2e_p2_crc, next_counter
+from .integrity import CRC8H2F_TABLE, data_id_for, e2e_p2_crc, next_counter
 from .io.logging_setup import RateLimitedLog
 
 try:
     from ._frames import pack as _pack_compiled  # setup.py builds it; optional
+    from ._frames import compile_plan as _compile_plan, encode as _encode_compiled
 except ImportError:
-    _pack_compiled = None
+    _pack_compiled = _compile_plan = _encode_compiled = None
 
 log = logging.getLogger(__name__)
 
@@ -213,7 +214,7 @@ def _pack_reference(layout, values: dict, length: int) -> bytearray | None:
 
 class _MessagePlan:
     __slots__ = ("name", "message", "encode", "layout", "length", "frame_id", "data_id", "period", "phase",
-                 "counter", "values", "fields", "valid", "status", "pages", "ok")
+                 "counter", "values", "fields", "valid", "status", "pages", "ok", "compiled")
 
     def __init__(self, message, period: int):
         self.name = message.name
@@ -233,6 +234,7 @@ class _MessagePlan:
         self.pages: list[tuple[int, dict, list[_Field], list | None]] = []  # multiplexed: (page, values,
         # fields, layout)
         self.ok: dict[str, bool] = {}  # every validity signal -> True: the start of each frame's check
+        self.compiled = None  # _frames.encode's plan of an estimate frame (None: Python only)
 
 
 class OutputEncoder:
@@ -301,6 +303,7 @@ class OutputEncoder:
                 p.fields.append(_Field(sig, ESTIMATE_FIELDS.index(field), mode, valid))
             else:
                 raise ConfigError(f"{where}: signal {name} has no source in ecu_daemon/outputs.py")
+        p.compiled = _compiled_plan(p)
 
     def _plan_pages(self, p: _MessagePlan, msg, where: str) -> None:
         tree = [n for n in msg.signal_tree if isinstance(n, dict)]
@@ -347,6 +350,13 @@ class OutputEncoder:
                 page, values, fields, layout = p.pages[(step_index // p.period) % len(p.pages)]
                 self._fill(p.name, values, fields, diag, None, None)
             else:
+                if p.compiled is not None:
+                    payload = _encode_compiled(p.compiled, est, p.counter)
+                    if payload is not NotImplemented:  # else a value to check, log or leave to cantools
+                        p.counter = (p.counter + 1) & 0xF
+                        out.append(can.Message(timestamp=t, arbitration_id=p.frame_id, is_extended_id=False,
+                                               data=payload, check=False))
+                        continue
                 values = p.values
                 layout = p.layout
                 ok = p.ok.copy()
@@ -412,6 +422,41 @@ class OutputEncoder:
         what = f"not finite, sent as {f.zero:g}" if kind == "non_finite" else f"saturated to [{f.lo:g}, {f.hi:g}]"
         self._log.report((f.signal, kind), logging.WARNING,
                          f"output {msg_name}.{f.signal} = {float(v):.6g} {what}; {f.valid} cleared")
+
+
+def _compiled_plan(p: _MessagePlan):
+    """The estimate frame's whole per-step encoding (:meth:`OutputEncoder.frames` for frames whose
+    values all fit) as a plan for ``_frames.encode``; None without the extension or for a layout
+    it does not take. Per layout signal: where its value comes from and how it is packed."""
+    if _compile_plan is None or p.layout is None:
+        return None
+    valid = dict(p.valid)
+    status = dict(p.status)
+    fields = {f.signal: f for f in p.fields}
+    slot = {e[0]: i for i, e in enumerate(p.layout)}
+    i_status = ESTIMATE_FIELDS.index("status")
+    entries = []
+    for name, offset, scale, shift, mask, rlo, rhi in p.layout:
+        kind, mode, src, lo, hi, modulus, smask, zero, vslot, vflag = 0, 0, 0, 0.0, 0.0, 1, 0, 0.0, -1, -1
+        if name == "COUNTER":
+            kind = 1
+        elif name in valid:
+            kind, src = 3, -1 if valid[name] is None else valid[name]
+        elif name in status:
+            kind, src, smask = 4, i_status, status[name]
+        elif name in fields:
+            f = fields[name]
+            if f.mode not in (_SAT, _ANGLE, _WRAP) or (f.mode != _WRAP and f.valid not in slot):
+                return None
+            kind, mode, src, lo, hi, modulus, zero = 2, f.mode, f.source, f.lo, f.hi, f.modulus, f.zero
+            if f.mode != _WRAP:
+                vslot = slot[f.valid]
+                vflag = -1 if valid[f.valid] is None else valid[f.valid]
+        elif name != "CHECKSUM":
+            return None
+        entries.append((kind, mode, src, float(lo), float(hi), modulus, smask, float(zero), vslot, vflag,
+                        float(offset), float(scale), shift, mask, float(rlo), float(rhi)))
+    return _compile_plan(tuple(entries), p.length, p.data_id, CRC8H2F_TABLE)
 
 
 def _claimed(est: Estimate, valid: list, vsig: str) -> bool:

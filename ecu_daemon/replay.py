@@ -27,7 +27,7 @@ import numpy as np
 from . import config as config_mod
 from .canlog import CanLogError, open_can_writer, read_can_log
 from .errors import UnusableInputError, UserError
-from .estimate_csv import ROW_FORMAT, csv_header
+from .estimate_csv import csv_header, format_rows
 from .estimator import Estimator
 from .gnss.logfile import GnssLogError, read_gnss_log
 from .io.health import gap_line
@@ -209,7 +209,6 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
     merged = heapq.merge(*streams, key=lambda e: (e[0], e[1]))
     bar = _Progress(_count_lines(can_path), progress)
     dt = cfg.estimator.dt_s
-    fmt = ROW_FORMAT
     t_first = None
     t_last = None
     gaps_said = 0
@@ -233,7 +232,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
                 gaps_said = est.gaps
                 gap_log.report("gap", logging.WARNING, gap_line(est))
             if csv_out:
-                _write(csv_file, csv_out.writelines, [fmt % st.estimate for st in steps])
+                _write(csv_file, csv_out.write, format_rows([st.estimate for st in steps]))
             if can_out is not None:
                 _write(can_file, write_frames, steps)
             counters["steps"] += len(steps)

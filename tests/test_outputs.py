@@ -11,7 +11,7 @@ import pytest
 from ecu_daemon import config
 from ecu_daemon.config import ConfigError
 from ecu_daemon.diagnostics import BUS_OFF, Diagnostics
-from ecu_daemon.estimator.estimate import (STATUS_GNSS_FRESH, STATUS_HEADING_ALIGNED, STATUS_INPUT_STALE,
+from ecu_daemon.estimator.estimate import (ESTIMATE_FIELDS, STATUS_GNSS_FRESH, STATUS_HEADING_ALIGNED, STATUS_INPUT_STALE,
                                            Estimate)
 from ecu_daemon.outputs import OutputEncoder, OutputFrameError, decode_output_frame
 
@@ -369,3 +369,67 @@ def test_a_big_endian_message_keeps_cantools_encode(tmp_path):
     db = cantools.database.load_string(
         'VERSION ""\nBO_ 256 M: 8 ECU\n SG_ A : 7|16@0+ (1,0) [0|65535] "" ECU\n', database_format="dbc")
     assert _layout(db.messages[0]) is None
+
+
+def _random_estimate(rng, enc) -> Estimate:
+    """An estimate whose every output field is in range, at a limit, beyond it or not finite, with
+    random validity flags and status: every branch of the per-field range check."""
+    from ecu_daemon.outputs import _ESTIMATE_SOURCES
+
+    limits = {}
+    for p in enc._plans:
+        for f in p.fields:
+            if isinstance(f.source, int):
+                limits[ESTIMATE_FIELDS[f.source]] = (f.lo, f.hi)
+    kw = {}
+    for name, (lo, hi) in limits.items():
+        if name in ("gnss_fused", "gnss_rejected", "gnss_late"):
+            kw[name] = rng.choice((0, 15, 16, 65535, 65536, 2 ** 40, rng.randint(0, 10 ** 6)))
+            continue
+        kw[name] = rng.choice((lo, hi, rng.uniform(lo, hi), rng.uniform(lo, hi), rng.uniform(lo, hi),
+                               lo - 1.0, hi * 1.5 + 1.0, math.nan, math.inf, -math.inf, -7.5, 13.0))
+    for flag in ("sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"):
+        kw[flag] = rng.random() < 0.6
+    kw["status"] = rng.randrange(1 << 12)
+    assert set(_ESTIMATE_SOURCES.values()) and kw
+    return est(**kw)
+
+
+def test_compiled_frame_encoder_gives_the_reference_frames_and_log_counts():
+    """``_frames.encode`` (the whole estimate frame in C) against the Python path it replaces, on
+    random estimates with saturated, non-finite and wrapped values, claimed valid or not: the same
+    bytes in every frame, the same counters, and the same counts of values logged as claimed valid
+    (the C path hands those frames to Python, which logs them)."""
+    import random
+
+    from ecu_daemon import outputs
+
+    if outputs._encode_compiled is None:
+        pytest.skip("the compiled frame encoder is not built (pip install builds it)")
+    fast, ref = OutputEncoder(config.Config()), OutputEncoder(config.Config())
+    assert all(p.compiled is not None for p in fast._plans if not p.pages)
+    for p in ref._plans:
+        p.compiled = None
+    rng = random.Random(11)
+    took_c = 0
+    calls = []
+    real = outputs._encode_compiled
+
+    def counting(plan, e, counter):
+        out = real(plan, e, counter)
+        calls.append(out is not NotImplemented)
+        return out
+
+    outputs._encode_compiled = counting
+    try:
+        for k in range(3000):
+            e = _random_estimate(rng, fast) if k % 3 else est(t=k * 0.006, heading_rad=rng.uniform(-20, 20))
+            a = [(m.arbitration_id, bytes(m.data)) for m in fast.frames(k, e)]
+            b = [(m.arbitration_id, bytes(m.data)) for m in ref.frames(k, e)]
+            assert a == b, (k, e)
+    finally:
+        outputs._encode_compiled = real
+    took_c = sum(calls)
+    assert fast.saturated == ref.saturated and fast.non_finite == ref.non_finite
+    assert ref.saturated and ref.non_finite  # the log paths were exercised
+    assert 0.3 * len(calls) < took_c < len(calls)  # both paths ran

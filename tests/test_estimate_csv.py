@@ -1,0 +1,71 @@
+"""The estimate CSV rows: the compiled batch formatter writes exactly what %-formatting writes."""
+from __future__ import annotations
+
+import math
+import random
+import struct
+
+import pytest
+
+from ecu_daemon import estimate_csv
+from ecu_daemon.estimate_csv import ROW_FORMAT, format_row, format_rows
+from ecu_daemon.estimator.estimate import ESTIMATE_FIELDS, Estimate
+
+_INTS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid", "status", "gnss_fused",
+         "gnss_rejected", "gnss_late"}
+
+
+def _float(rng: random.Random) -> float:
+    """Any double: random bit patterns (every exponent, subnormals, NaNs with either sign), the
+    specials, values at rounding ties of %.6f / %.9g, and ordinary estimate magnitudes."""
+    pick = rng.random()
+    if pick < 0.3:
+        return struct.unpack("<d", rng.getrandbits(64).to_bytes(8, "little"))[0]
+    if pick < 0.4:
+        return rng.choice((0.0, -0.0, math.inf, -math.inf, math.nan, -math.nan, 1e16, 1e-5, 1e-4,
+                           123456789.5, 0.0000005, 2.5e-7, 1e300, -1e-300, 5e-324))
+    if pick < 0.6:  # decimal ties and near-ties
+        return rng.randint(-10 ** 9, 10 ** 9) / 10 ** rng.randint(0, 12) + rng.choice((0.0, 5e-7, 5e-10))
+    return rng.uniform(-1e4, 1e4) * 10.0 ** rng.randint(-8, 8)
+
+
+def _row(rng: random.Random) -> Estimate:
+    vals = []
+    for name in ESTIMATE_FIELDS:
+        if name in _INTS:
+            vals.append(rng.choice((True, False, 0, 7, 2 ** 40, -3, rng.getrandbits(62))))
+        elif name == "t":
+            vals.append(rng.choice((rng.uniform(0, 1e6), rng.uniform(-1e9, 1e9), 0.0, -0.0, math.nan,
+                                    math.inf, -math.inf, 2.5e-7, 0.0000005, 1e15 + 0.5)))
+        else:
+            vals.append(_float(rng) if rng.random() < 0.9 else rng.randint(-5, 5))  # an int where a float goes
+    return Estimate(*vals)
+
+
+def test_format_rows_writes_what_percent_formatting_writes():
+    if estimate_csv._format_rows_compiled is None:
+        pytest.skip("the compiled CSV formatter is not built (pip install builds it)")
+    rng = random.Random(3)
+    rows = [_row(rng) for _ in range(4000)]
+    expect = "".join(ROW_FORMAT % tuple(r) for r in rows)
+    got = estimate_csv._format_rows_compiled(estimate_csv._KINDS, rows)
+    assert got is not NotImplemented
+    if got != expect:  # name the first differing field
+        for r in rows:
+            a = estimate_csv._format_rows_compiled(estimate_csv._KINDS, [r])
+            assert a == format_row(r), r
+    assert got == expect
+    assert format_rows(rows[:10]) == expect[:sum(len(format_row(r)) for r in rows[:10])]
+
+
+def test_what_the_compiled_formatter_does_not_take_is_formatted_by_python():
+    """A "%d" field holding a float, an int wider than 64 bits, a "%.6f" too long for its room, a
+    row of the wrong length: the
+    compiled formatter declines and format_rows gives %-formatting's text (or its error)."""
+    base = Estimate(*[0.5 if n not in _INTS else 1 for n in ESTIMATE_FIELDS])
+    for row in (base._replace(status=3.7), base._replace(gnss_fused=2 ** 70), base._replace(t=1e300)):
+        if estimate_csv._format_rows_compiled is not None:
+            assert estimate_csv._format_rows_compiled(estimate_csv._KINDS, [row]) is NotImplemented
+        assert format_rows([base, row]) == format_row(base) + format_row(row)
+    if estimate_csv._format_rows_compiled is not None:
+        assert estimate_csv._format_rows_compiled(estimate_csv._KINDS, [(1.0, 2.0)]) is NotImplemented
