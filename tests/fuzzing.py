@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from ecu_daemon import config as config_mod
 from ecu_daemon.canlog import CanLogError, read_can_log
-from ecu_daemon.config import RANGES, ConfigError
+from ecu_daemon.config import RANGES, RECEIVER_KEYS, RECEIVER_ROLES, ConfigError
 from ecu_daemon.estimator import Estimator
 from ecu_daemon.integrity import e2e_p2_apply
 from ecu_daemon.samples import INPUT_INDEX, INPUT_NAMES, GnssSample, InputSample
@@ -56,9 +56,28 @@ def _inputs():
     return st.dictionaries(st.sampled_from(INPUT_NAMES), one, max_size=3)
 
 
-config_docs = st.fixed_dictionaries({}, optional={
-    "gnss": _section("gnss"), "vehicle": _section("vehicle"), "estimator": _section("estimator"),
-    "daemon": _section("daemon"), "can": _section("can"), "inputs": _inputs()})
+def _receiver():
+    """One ``[[gnss.receiver]]`` table: the per-receiver keys of [gnss], a role, a port."""
+    keys = {k: _number(*RANGES[("gnss", k)][:2], k == "baudrate")
+            for k in RECEIVER_KEYS if ("gnss", k) in RANGES}
+    keys["lever_arm_m"] = st.lists(st.one_of(st.floats(-30, 30), st.sampled_from(_NASTY)), min_size=2, max_size=2)
+    keys["role"] = st.sampled_from(RECEIVER_ROLES + ("other",))
+    return st.fixed_dictionaries({"port": st.sampled_from(("/dev/ttyACM0", "/dev/ttyACM1", "/dev/ttyUSB0"))},
+                                 optional=keys)
+
+
+@st.composite
+def _docs(draw):
+    doc = draw(st.fixed_dictionaries({}, optional={
+        "gnss": _section("gnss"), "vehicle": _section("vehicle"), "estimator": _section("estimator"),
+        "daemon": _section("daemon"), "can": _section("can"), "inputs": _inputs()}))
+    if draw(st.integers(0, 3)) == 0:  # several receivers: the per-receiver keys go in their tables
+        gnss = {k: v for k, v in doc.get("gnss", {}).items() if k not in RECEIVER_KEYS or draw(st.booleans())}
+        doc["gnss"] = {**gnss, "receiver": draw(st.lists(_receiver(), min_size=1, max_size=3))}
+    return doc
+
+
+config_docs = _docs()
 
 
 def _merge_inputs(doc: dict) -> dict:
@@ -201,6 +220,20 @@ def random_config_doc(rng) -> dict:
     if rng.random() < 0.3:
         doc.setdefault("gnss", {})["lever_arm_m"] = [rng.choice((rng.uniform(-30, 30), rng.choice(_NASTY)))
                                                      for _ in range(rng.choice((2, 2, 2, 0, 1, 3)))]
+    if rng.random() < 0.25:  # several receivers: the per-receiver keys go in their tables
+        gnss = {k: v for k, v in doc.get("gnss", {}).items() if k not in RECEIVER_KEYS or rng.random() < 0.1}
+        receivers = []
+        for _ in range(rng.randint(1, 3)):
+            rx: dict = {"port": rng.choice(("/dev/ttyACM0", "/dev/ttyACM1", "/dev/ttyUSB0")),
+                        "role": rng.choice(RECEIVER_ROLES + RECEIVER_ROLES + ("other",))}
+            for key in RECEIVER_KEYS:
+                if ("gnss", key) in RANGES and rng.random() < 0.5:
+                    lo, hi, _ = RANGES[("gnss", key)]
+                    rx[key] = _rand_number(rng, lo, hi, key == "baudrate")
+            if rng.random() < 0.5:
+                rx["lever_arm_m"] = [rng.choice((rng.uniform(-30, 30), rng.choice(_NASTY))) for _ in range(2)]
+            receivers.append(rx)
+        doc["gnss"] = {**gnss, "receiver": receivers}
     if rng.random() < 0.5:
         inputs = {}
         for name in rng.sample(INPUT_NAMES, rng.randint(1, 3)):
