@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import importlib.resources
+import os
 import subprocess
 import sys
 import tarfile
@@ -104,10 +105,9 @@ _NOT_SHIPPED = {".git", ".venv", "build", "dist", ".hypothesis", ".pytest_cache"
 
 def _tree() -> list[Path]:
     out = []
-    for p in ROOT.rglob("*"):
-        parts = p.relative_to(ROOT).parts
-        if p.is_file() and not any(x in _NOT_SHIPPED or x.endswith(".egg-info") for x in parts):
-            out.append(p)
+    for here, dirs, files in os.walk(ROOT):
+        dirs[:] = [d for d in dirs if d not in _NOT_SHIPPED and not d.endswith(".egg-info")]
+        out += [Path(here) / f for f in files]
     return out
 
 
