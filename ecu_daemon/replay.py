@@ -44,7 +44,12 @@ log = logging.getLogger("ecu_daemon.replay")
 #: inputs without which the estimator publishes nothing valid; a replay that never had one fails
 REQUIRED_INPUTS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr",
                    "yaw_rate", "accel_x", "accel_y")
-MIN_USED_FRACTION = 0.1
+#: a required CAN input is usable when at least this share of its frames gave a sample: a wrong
+#: checksum scheme still passes 1 frame in 256, a counter mapped onto a value signal a quarter of
+#: them; more than half dropped is a mapping to fix (or a bus not to trust), not an input
+MIN_USED_FRACTION = 0.5
+#: the same for GNSS, whose frames also count the sentences and messages that carry no velocity
+MIN_USED_FRACTION_GNSS = 0.1
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", "-C", help="TOML configuration (default: built-in defaults)")
@@ -302,7 +307,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
             log.warning("%s", o.summary())
     unusable = unusable_inputs(counters["inputs"])
     if unusable:
-        raise UnusableInputError("required input(s) never usable: " + "; ".join(unusable)
+        raise UnusableInputError("required input(s) not usable: " + "; ".join(unusable)
                                  + " (see the input table above); check [inputs.*] against the DBC"
                                  " (message, signal, counter, checksum)", counters)
     return counters
@@ -381,13 +386,14 @@ def format_input_table(rows: dict[str, dict]) -> list[str]:
 
 
 def unusable_inputs(rows: dict[str, dict]) -> list[str]:
-    """'name (why)' for each required input (and GNSS, when given) that was never usable: no sample,
-    or samples from fewer than :data:`MIN_USED_FRACTION` of its frames (a checksum of the wrong
-    scheme still passes 1 frame in 256; that is not an input)."""
+    """'name (why)' for each required input (and GNSS, when given) that was not usable: no sample,
+    or samples from fewer than :data:`MIN_USED_FRACTION` (GNSS: :data:`MIN_USED_FRACTION_GNSS`)
+    of its frames."""
     out = []
     for name in REQUIRED_INPUTS + ("gnss",):
         r = rows.get(name)
-        if r is None or (r["samples"] > 0 and r["samples"] >= MIN_USED_FRACTION * r["frames"]):
+        share = MIN_USED_FRACTION_GNSS if name == "gnss" else MIN_USED_FRACTION
+        if r is None or (r["samples"] > 0 and r["samples"] >= share * r["frames"]):
             continue
         drops = ", ".join(f"{r[k]} {h}" for k, h in _TABLE[2:] if r.get(k))
         out.append(f"{name} ({r['samples']} of {r['frames']} frames used"

@@ -137,22 +137,46 @@ def test_can_reception_errors_are_counted_and_throttled(capsys):
 
 
 # ----------------------------------------------------------------------------------- decoder
-def _dbc_with_counter(tmp_path, counter_def: str) -> Path:
+def _dbc_with_counter(tmp_path, counter_def: str, tail: str = "") -> Path:
     text = (ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc").read_text()
     assert text.count(' SG_ COUNTER : 8|4@1+ (1,0) [0|15] "" ECU_DAEMON') == 3
     p = tmp_path / "in.dbc"
-    p.write_text(text.replace(' SG_ COUNTER : 8|4@1+ (1,0) [0|15] "" ECU_DAEMON', counter_def))
+    p.write_text(text.replace(' SG_ COUNTER : 8|4@1+ (1,0) [0|15] "" ECU_DAEMON', counter_def) + tail)
     return p
 
 
-@pytest.mark.parametrize("counter_def, why", [
-    (' SG_ COUNTER : 8|4@1+ (0,0) [0|15] "" ECU_DAEMON', "scale 0"),
+@pytest.mark.parametrize("counter_def, tail, why", [
+    (' SG_ COUNTER : 8|4@1+ (0,0) [0|15] "" ECU_DAEMON', "", "cannot be a rolling counter \\(scale 0"),
+    # NaN, inf and 1e38 are values a float signal can carry (int(round(...)) raised on them)
+    (' SG_ COUNTER : 8|32@1+ (1,0) [0|0] "" ECU_DAEMON', "SIG_VALTYPE_ 176 COUNTER : 1;\n",
+     "cannot be a rolling counter \\(a float signal"),
+    (' SG_ COUNTER : 0|64@1+ (1,0) [0|0] "" ECU_DAEMON', "", "is 64 bits long; a rolling counter has at most 32"),
 ])
-def test_a_counter_that_cannot_be_one_is_refused_when_binding(tmp_path, counter_def, why):
+def test_a_counter_that_cannot_be_one_is_refused_when_binding(tmp_path, counter_def, tail, why):
     cfg = config.load(None)
-    cfg.can.dbc = str(_dbc_with_counter(tmp_path, counter_def))
-    with pytest.raises(ConfigError, match=f"counter 'COUNTER' cannot be a rolling counter \\({why}"):
+    cfg.can.dbc = str(_dbc_with_counter(tmp_path, counter_def, tail))
+    with pytest.raises(ConfigError, match=f"counter 'COUNTER' {why}"):
         SignalDecoder(cfg)
+
+
+def test_an_exception_inside_the_decoder_is_a_counted_decode_error_in_one_line(caplog, monkeypatch):
+    """The daemon's safety net below the reception thread: whatever a frame makes the decoder raise
+    (a bug not yet found) drops its samples, counts a decode error per input, which EST_DIAG carries,
+    and says so once per input, not once per frame."""
+    dec = SignalDecoder(config.load(None))
+
+    def bug(plan, t, data):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(dec, "_decode", bug)
+    msg = dec.db.get_message_by_name("IMU")
+    with caplog.at_level(logging.WARNING, logger="ecu_daemon"):
+        for i in range(200):
+            assert dec.decode(i * 0.01, msg.frame_id, bytes(8)) == []
+    diag = dec.input_diagnostics(2.0)
+    assert [diag[n].decode_errors for n in ("yaw_rate", "accel_x", "accel_y")] == [200, 200, 200]
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 3 and all("ZeroDivisionError" in ln and "sample dropped" in ln for ln in lines), lines
 
 
 def test_a_counter_mapped_onto_a_value_signal_is_counted_not_raised(caplog):

@@ -171,7 +171,7 @@ def test_vendored_rav4_extract_matches_python_can_reader():
     assert compare_with_python_can(DATA / "rav4_bus0_candump_5s.log") == 4494
 
 
-@pytest.mark.skipif(not SHARED_LOG.exists(), reason="/work/shared comma2k19-rav4 log not present")
+@pytest.mark.skipif(not SHARED_LOG.exists(), reason=f"{SHARED_LOG} not present")
 def test_full_rav4_log_matches_python_can_reader_and_round_trips(tmp_path):
     assert compare_with_python_can(SHARED_LOG) == 53800
     out = tmp_path / "copy.log"

@@ -183,7 +183,7 @@ def test_protocol_filter():
         assert a.speed_mps == pytest.approx(b.speed_mps, abs=0.16)
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="/work/shared GNSS captures not available")
+@pytest.mark.skipif(not SHARED.is_dir(), reason=f"{SHARED} not present")
 def test_every_shared_capture_parses_without_exceptions():
     """All staged captures (72 gpsd, 12 pyubx2): no exception, and NMEA/UBX get framed."""
     n = 0
@@ -230,7 +230,7 @@ def test_hnr_pvt_gives_velocity_when_no_nav_pvt_comes():
         assert min(abs(v - s.speed_mps) for v in gpsd[round(s.fix_time_utc_s, 3)]) <= 0.06
 
 
-@pytest.mark.skipif(not (SHARED / "gpsd").is_dir(), reason="/work/shared GNSS captures not available")
+@pytest.mark.skipif(not (SHARED / "gpsd").is_dir(), reason=f"{SHARED / 'gpsd'} not present")
 def test_share_of_gpsd_speed_epochs_matched_over_all_shared_captures():
     """tools/score_gnss_captures.py: 74.4 % before issue 9's GNSS items (1244 of 1671 with the same
     definition), 85.9 % after; the rest is gpsd's own speed (quectel, boat), HNR/NAV mixing (M8L)."""

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import importlib.resources
+import os
 import subprocess
 import sys
 import tarfile
@@ -97,3 +98,40 @@ def test_sdist_carries_the_kernel_sources_and_builds_them(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     (whl,) = wheel_dir.glob("ecu_daemon-*.whl")
     assert [n for n in zipfile.ZipFile(whl).namelist() if n.startswith("ecu_daemon/estimator/_kernels.")]
+
+
+#: what a build, an install or a test run leaves in a checkout and .gitignore keeps out
+_NOT_SHIPPED = {".git", ".venv", "build", "dist", ".hypothesis", ".pytest_cache", "__pycache__", "out", "work"}
+
+
+def _tree() -> list[Path]:
+    out = []
+    for here, dirs, files in os.walk(ROOT):
+        dirs[:] = [d for d in dirs if d not in _NOT_SHIPPED and not d.endswith(".egg-info")]
+        out += [Path(here) / f for f in files]
+    return out
+
+
+def test_the_checkout_holds_no_stray_files():
+    """Once a kernel test's ``state_file = "none"`` left a file called ``none`` here, and a pyflakes
+    wheel was committed; this runs after the kernel tests (tests/kernel sorts first), so a test that
+    writes into the checkout is caught too."""
+    stray = [str(p.relative_to(ROOT)) for p in _tree()
+             if p.name.lower() in ("none", "null", "") or p.suffix in (".whl", ".tar", ".gz") and "data" not in p.parts]
+    assert stray == []
+
+
+def test_one_vendored_copy_of_each_opendbc_file_and_a_licence_beside_the_vendored_data():
+    dbcs = [p for p in _tree() if p.suffix == ".dbc" and p.parent.name != "dbc"]  # ecu_daemon/dbc: our own
+    names = [p.name for p in dbcs]
+    assert names.count("_toyota_2017.dbc") == 1, [str(p) for p in dbcs]
+    contents = [p.read_bytes() for p in dbcs]
+    assert len(set(contents)) == len(contents), "the same DBC vendored twice"
+    assert (ROOT / "LICENSE").is_file() and "MIT License" in (ROOT / "LICENSE").read_text()
+    for p in dbcs + [p for p in _tree() if "data" in p.relative_to(ROOT).parts[:2]]:
+        if p.name.startswith(("LICENSE", "README")):
+            continue
+        here = p.parent  # the project's own LICENSE (at the root) does not cover what others wrote
+        while here != ROOT and not any(q.name.startswith("LICENSE") for q in here.iterdir()):
+            here = here.parent
+        assert here != ROOT, f"{p.relative_to(ROOT)}: no LICENSE* of its own beside it or above it"

@@ -109,3 +109,30 @@ def _run_setup_line(script: str, tmp_path: Path) -> None:
     r = subprocess.run(["bash", "-c", run + " --duration 6"], cwd=copy, env=env, capture_output=True,
                        text=True, timeout=300)
     assert r.returncode == 0 and "demo summary" in r.stdout, r.stderr[-2000:]
+
+
+def test_ci_runs_the_suite_once_and_exits_with_its_status(tmp_path):
+    """``.ci/run`` with stand-ins for python3, pip and the venv's python (so not the suite itself):
+    a failed run is reported with pytest's status and is not run again (no automatic re-run)."""
+    repo, fake = tmp_path / "repo", tmp_path / "bin"
+    (repo / ".ci").mkdir(parents=True)
+    shutil.copy2(REPO / ".ci" / "run", repo / ".ci" / "run")
+    venv_bin = repo / ".venv" / "bin"
+    venv_bin.mkdir(parents=True)
+    fake.mkdir()
+    calls = tmp_path / "calls"
+    stubs = {fake / "python3": 'case "$1" in --version) echo "Python 3.11.0";; esac; echo "python3 $*" >> CALLS',
+             venv_bin / "pip": 'echo "pip $*" >> CALLS',
+             venv_bin / "python": 'echo "python $*" >> CALLS; exit 1'}
+    for path, body in stubs.items():
+        path.write_text("#!/bin/sh\n" + body.replace("CALLS", str(calls)) + "\n")
+        path.chmod(0o755)
+    r = subprocess.run([str(repo / ".ci" / "run")], cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                       env=dict(os.environ, PATH=f"{fake}{os.pathsep}{os.environ['PATH']}"))
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert "pytest exit status 1" in r.stdout
+    ran = calls.read_text().splitlines()
+    assert [c for c in ran if "pytest" in c] == ["python -m pytest -q"], ran
+    # nothing in the test dependencies re-runs failures behind the run's back either
+    deps = (REPO / "pyproject.toml").read_text()
+    assert not re.search(r"rerunfailures|flaky|pytest-retry", deps)

@@ -209,10 +209,29 @@ def test_an_input_that_never_decodes_ends_with_the_table_and_exit_3(drive, tmp_p
         assert dlc == decode == rng == counter == 0
     assert list(map(int, table["wheel_speed_fl"]))[1:] == [int(table["wheel_speed_fl"][0]), 0, 0, 0, 0, 0]
     final = err[-1]
-    assert final.startswith("ecu-daemon replay: error: required input(s) never usable")
+    assert final.startswith("ecu-daemon replay: error: required input(s) not usable")
     assert "yaw_rate" in final and "accel_x" in final and "accel_y" in final and "checksum" in final
     assert "wheel_speed" not in final
     assert rows(tmp_path / "o.csv") > 1000  # the run went to the end; its output is there to look at
+
+
+def test_a_counter_mapped_onto_a_value_signal_ends_with_exit_3(drive, tmp_path):
+    """The raw wheel speed steps by exactly one now and then, so some frames pass the "counter"
+    check: samples from a quarter of the frames, which is not an input."""
+    data = tomllib.loads((drive / "config.toml").read_text())
+    wheels = [n for n in data["inputs"] if n.startswith("wheel_speed_")]
+    for name in wheels:
+        assert data["inputs"][name]["counter"] == "COUNTER"
+        data["inputs"][name]["counter"] = "WHEEL_SPEED_RR"
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(tomli_w.dumps(data))
+    rc, err = replay(drive, "--out-csv", tmp_path / "o.csv", config=cfg)
+    assert rc == 3, err
+    assert any("counter 'WHEEL_SPEED_RR' has scale" in line and "value signal?" in line for line in err), err
+    final = err[-1]
+    assert final.startswith("ecu-daemon replay: error: required input(s) not usable")
+    assert all(n in final for n in wheels) and "counter" in final and "yaw_rate" not in final, final
+    assert rows(tmp_path / "o.csv") > 1000
 
 
 def test_replay_logs_through_the_common_set_up(drive, tmp_path):
@@ -242,5 +261,5 @@ def test_a_gnss_log_that_never_gives_a_sample_is_exit_3(drive, tmp_path):
     g.write_text("\n".join(x[:-2] + ("00" if x[-2:] != "00" else "11") for x in lines) + "\n")
     rc, err = replay(drive, gnss=g)
     assert rc == 3, err
-    assert "never usable: gnss (0 of" in err[-1] and "checksum" in err[-1]
+    assert "not usable: gnss (0 of" in err[-1] and "checksum" in err[-1]
     assert not any("yaw_rate (" in line for line in err[-1:])

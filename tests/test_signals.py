@@ -387,7 +387,7 @@ def test_toyota_checksum_mapping_on_real_speed_frames(tmp_path):
     assert dec.health["wheel_speed_fl"].errors["checksum"] == 1
 
 
-@pytest.mark.skipif(not SHARED.exists(), reason="/work/shared comma2k19-rav4 data not present")
+@pytest.mark.skipif(not SHARED.exists(), reason=f"{SHARED} not present")
 def test_rav4_full_minute_matches_comma_reference():
     cfg = config.load(EXAMPLE)
     dec, s = decode_log(cfg, SHARED / "rav4_bus0_candump.log")
