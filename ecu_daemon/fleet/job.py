@@ -135,7 +135,8 @@ def replay_and_score(drive: Drive) -> dict:
 
 def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict:
     """The :data:`PARAMS` and their ``_std`` from the estimator's learned state; the cornering
-    stiffness from its compliance kappa = m / C (std by first-order propagation). A value still
+    stiffness from the drive's own compliance regression kappa = m / C (``kappa_*_drive``, see
+    ``estimator/fusion/stiffness_regression.py``; std by first-order propagation). A value still
     bit-identical to the config's prior was never learned on this drive: its std is NaN, so the
     calibration does not count the same prior once per drive."""
     out = {}
@@ -145,7 +146,7 @@ def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict
     if out["gnss_delay_s"] == cfg.gnss.delay_s:
         out["gnss_delay_s_std"] = math.nan
     m = cfg.vehicle.mass_kg
-    for axle, k in (("front", "kappa_f"), ("rear", "kappa_r")):
+    for axle, k in (("front", "kappa_f_drive"), ("rear", "kappa_r_drive")):
         c = f"cornering_stiffness_{axle}_n_per_rad"
         kappa = float(learned.get(k, math.nan))
         out[c] = m / kappa
