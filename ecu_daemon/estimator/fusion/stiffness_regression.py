@@ -40,6 +40,7 @@ HEADING_INIT_RAD = math.radians(2.0)  # added to the filter's heading std when t
 MIN_LATENCY_STD = 0.01  # s; below, the prior would pin tau on one estimator's word
 STEER_OFFSET_RAD = math.radians(0.3)  # road-wheel steering offset prior (~4 deg at the steering wheel)
 GYRO_SCALE_ERR = 0.005  # relative yaw-rate scale uncertainty (heading error per radian turned)
+LATENCY_INFO_STEP = 1.2  # take the latency estimator's news once its information grew by 20 %
 MODEL_ERR = 0.1  # relative slip error the two-term law and tyre relaxation leave (white part)
 MIN_UPDATES = 20  # fewer samples: the residuals say too little about the noise level; the prior's std
 MAX_RHO = 0.9  # residual autocorrelation cap (x19 variance)
@@ -69,6 +70,8 @@ class AxleFilter:
         self.psi = 0.0  # gyro heading (clockwise from north), rad
         self.bias = 0.0  # the yaw-rate bias it removes, rad/s
         self.latency_started = False
+        self.lat_info = 0.0  # the latency estimator's information (1/var) and information mean last taken in
+        self.lat_info_mean = 0.0
         self.nis_sum = 0.0
         self.lag_sum = 0.0  # sum of products of consecutive normalised innovations
         self.last_nu = 0.0
@@ -82,10 +85,34 @@ class AxleFilter:
             self.P[:, j] = 0.0
             self.P[j, j] = v
 
-    def start_latency(self, tau: float, var: float) -> None:
-        self.x[TAU] = tau
-        self.P[TAU, TAU] = var
-        self.latency_started = True
+    def latency(self, tau: float, std: float) -> None:
+        """Take in what the latency estimator has learned since it was last asked.
+
+        Its estimate is the only good source of tau (here tau trades with k1 whenever speed is
+        steady: V r tau and phi ~ vx^2 r look alike). Its information only grows with its data, so
+        the increment since the last call, (tau, std) minus (tau0, std0) in information form, is
+        fused as an independent measurement; the first call is the prior."""
+        info = 1.0 / max(std, MIN_LATENCY_STD) ** 2
+        if not self.latency_started:
+            self.x[TAU] = tau
+            self.P[TAU, :] = 0.0
+            self.P[:, TAU] = 0.0
+            self.P[TAU, TAU] = 1.0 / info
+            self.latency_started = True
+        elif info > LATENCY_INFO_STEP * self.lat_info:
+            d_info = info - self.lat_info
+            z = (tau * info - self.lat_info_mean) / d_info
+            h = np.zeros(NS)
+            h[TAU] = 1.0
+            Ph = self.P @ h
+            g = Ph / (Ph[TAU] + 1.0 / d_info)
+            self.x += g * (z - self.x[TAU])
+            self.P -= np.outer(g, Ph)
+            self.P = 0.5 * (self.P + self.P.T)
+        else:
+            return
+        self.lat_info = info
+        self.lat_info_mean = tau * info
 
     def propagate(self, r_sum: float, steps: int, dt: float, q_psi: float, q_bias: float) -> None:
         """Integrate ``steps`` raw yaw-rate samples (their sum ``r_sum``) into the heading."""
@@ -165,8 +192,7 @@ class StiffnessRegression:
                 ax.propagate(r_sum, steps, self.dt, q_psi, q_bias)
         self.last_s = s
         for ax in axles:
-            if not ax.latency_started:
-                ax.start_latency(latency, max(latency_std, MIN_LATENCY_STD) ** 2)
+            ax.latency(latency, latency_std)
         vx = float(h.X[i, VX])
         lo, hi = max(h.oldest(), s - WINDOW), min(h.last, s + WINDOW)
         if hi - lo < 2:
