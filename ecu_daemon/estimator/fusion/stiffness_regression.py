@@ -12,16 +12,19 @@ psi_g differs from the true heading by a slowly drifting error d_psi (yaw-rate b
 residuals), which shifts vy_g by vx d_psi. The single-track axle relations (the regressors of
 ``SingleTrackFusion``; two-term tyre law k1 + k3 n^2 as in ``AxleRls``) then give, per axle::
 
-    rear:   vy_g - lr r           = phi_r (k1 + k3 n^2) + vx d_psi
-    front:  vy_g + lf r - vx delta = phi_f (k1 + k3 n^2) + vx d_psi     (d_psi also takes a steering offset)
+    rear:   vy_g - lr r            = phi_r (k1 + k3 n^2) + vx d_psi - ay d_tau
+    front:  vy_g + lf r - vx delta = phi_f (k1 + k3 n^2) + vx d_psi - ay d_tau - vx d0
 
-A small Kalman filter per axle estimates [k1, k3, d_psi] (d_psi a random walk from the gyro's
-bias uncertainty and scale error; reset into psi_g after each update so the sine stays linear).
-Observability is the physics of the relation: k1 separates from d_psi only when phi changes while
-the heading error cannot (a corner entered or left, a slalom); a steady circle or a straight
-leaves k1 at its prior and its variance large. The result is only reported (learned state ->
-``fleet calibrate``), one independent estimate per drive with a std scaled by the regression's own
-normalised residuals, so the fleet's inverse-variance combination can trust it.
+with d_tau the error of the GNSS latency that placed the sample (the velocity vector turns at
+ay / V, so a sample placed late by d_tau reads vy off by -ay d_tau) and d0 the steering offset.
+A small Kalman filter per axle (:class:`AxleFilter`) estimates k1, k3 and the nuisances.
+Observability is the physics of the relation: k1 separates from the heading error only when phi
+changes faster than the heading error can (a corner entered or left, a slalom), and from the
+latency only where phi is not proportional to ay (r_dot, speed changes); a steady circle or a
+straight leaves k1 near its prior with a large variance. The result is only reported (learned
+state -> ``fleet calibrate``; the live model keeps its own learner, so the estimates and Revs are
+unchanged): one independent estimate per drive with a std scaled by the regression's own
+residuals, which the fleet's inverse-variance combination can trust.
 """
 from __future__ import annotations
 
@@ -40,7 +43,6 @@ HEADING_INIT_RAD = math.radians(2.0)  # added to the filter's heading std when t
 MIN_LATENCY_STD = 0.01  # s; below, the prior would pin tau on one estimator's word
 STEER_OFFSET_RAD = math.radians(0.3)  # road-wheel steering offset prior (~4 deg at the steering wheel)
 GYRO_SCALE_ERR = 0.005  # relative yaw-rate scale uncertainty (heading error per radian turned)
-LATENCY_INFO_STEP = 1.2  # take the latency estimator's news once its information grew by 20 %
 MODEL_ERR = 0.1  # relative slip error the two-term law and tyre relaxation leave (white part)
 MIN_UPDATES = 20  # fewer samples: the residuals say too little about the noise level; the prior's std
 MAX_RHO = 0.9  # residual autocorrelation cap (x19 variance)
@@ -54,15 +56,14 @@ NS = 6
 class AxleFilter:
     """Kalman filter of one axle's two-term slip compliance [k1, k3] (``AxleRls``'s tyre law) with
     the nuisances of its relation: d_psi the gyro heading's error, e_b the error of the yaw-rate
-    bias it removes (a drift: d_psi grows by e_b dt), tau the GNSS latency (a sample placed at a
-    time of validity late by dt sees a course turned by r dt: vy off by -V r dt, a bias all through
-    a corner) and, for the front, d0 the steering offset. d_psi and e_b are reset into
+    bias it removes (a drift: d_psi grows by e_b dt), tau the GNSS latency (*considered*: see
+    :meth:`latency`) and, for the front, d0 the steering offset. d_psi and e_b are reset into
     ``psi``/``bias`` after each update (error state), so the measurement stays linear.
 
     The two axles are deliberately separate filters: together, their difference is the
     understeer relation L r - vx delta = k_f phi_f - k_r phi_r with no GNSS noise in it, which pins
     only the understeer gradient and lets its small systematic errors (steering timing, the tyre
-    law) drive k1 and k3 apart with a tiny variance."""
+    law) drive k1 and k3 apart with a tiny variance (tried: both axles 30-40 % off at 1 % std)."""
 
     def __init__(self, k1: float, steer_offset_var: float):
         self.x = np.array([k1, 0.6 * k1, 0.0, 0.0, 0.0, 0.0])
@@ -70,8 +71,6 @@ class AxleFilter:
         self.psi = 0.0  # gyro heading (clockwise from north), rad
         self.bias = 0.0  # the yaw-rate bias it removes, rad/s
         self.latency_started = False
-        self.lat_info = 0.0  # the latency estimator's information (1/var) and information mean last taken in
-        self.lat_info_mean = 0.0
         self.nis_sum = 0.0
         self.lag_sum = 0.0  # sum of products of consecutive normalised innovations
         self.last_nu = 0.0
@@ -86,33 +85,23 @@ class AxleFilter:
             self.P[j, j] = v
 
     def latency(self, tau: float, std: float) -> None:
-        """Take in what the latency estimator has learned since it was last asked.
-
-        Its estimate is the only good source of tau (here tau trades with k1 whenever speed is
-        steady: V r tau and phi ~ vx^2 r look alike). Its information only grows with its data, so
-        the increment since the last call, (tau, std) minus (tau0, std0) in information form, is
-        fused as an independent measurement; the first call is the prior."""
-        info = 1.0 / max(std, MIN_LATENCY_STD) ** 2
+        """Follow the latency estimator: tau is a *considered* state (Schmidt): this regression never
+        updates it (here tau trades with k1 whenever speed is steady: V r tau and phi ~ vx^2 r look
+        alike), but carries how its estimate depends on it (the cross-covariance, S = P[:, tau] /
+        P[tau, tau] per second of latency error). When the estimator's tau moves, the estimate
+        moves by S dtau; when its std changes, so does the share of tau in every variance."""
+        var = max(std, MIN_LATENCY_STD) ** 2
         if not self.latency_started:
             self.x[TAU] = tau
             self.P[TAU, :] = 0.0
             self.P[:, TAU] = 0.0
-            self.P[TAU, TAU] = 1.0 / info
+            self.P[TAU, TAU] = var
             self.latency_started = True
-        elif info > LATENCY_INFO_STEP * self.lat_info:
-            d_info = info - self.lat_info
-            z = (tau * info - self.lat_info_mean) / d_info
-            h = np.zeros(NS)
-            h[TAU] = 1.0
-            Ph = self.P @ h
-            g = Ph / (Ph[TAU] + 1.0 / d_info)
-            self.x += g * (z - self.x[TAU])
-            self.P -= np.outer(g, Ph)
-            self.P = 0.5 * (self.P + self.P.T)
-        else:
             return
-        self.lat_info = info
-        self.lat_info_mean = tau * info
+        p = self.P[:, TAU].copy()
+        self.x += p / p[TAU] * (tau - self.x[TAU])
+        self.P -= (1.0 - var / p[TAU]) * np.outer(p, p) / p[TAU]
+        self.P = 0.5 * (self.P + self.P.T)
 
     def propagate(self, r_sum: float, steps: int, dt: float, q_psi: float, q_bias: float) -> None:
         """Integrate ``steps`` raw yaw-rate samples (their sum ``r_sum``) into the heading."""
@@ -124,12 +113,16 @@ class AxleFilter:
         self.P[EB, EB] += q_bias
 
     def update(self, z: float, h: np.ndarray, rv: float) -> None:
+        """Scalar update, tau considered (its gain zero; Joseph form, the covariance then stays
+        that of the suboptimal gain)."""
         Ph = self.P @ h
         s = float(h @ Ph) + rv
         e = z - float(h @ self.x)
         g = Ph / s
+        g[TAU] = 0.0
         self.x += g * e
-        self.P -= np.outer(g, Ph)
+        IKH = np.eye(NS) - np.outer(g, h)
+        self.P = IKH @ self.P @ IKH.T + rv * np.outer(g, g)
         self.P = 0.5 * (self.P + self.P.T)
         nu = e / math.sqrt(s)
         self.nis_sum += nu * nu
@@ -213,10 +206,10 @@ class StiffnessRegression:
             if vax < MIN_SPEED or (ax is self.front and not math.isfinite(delta)):
                 continue
             # measured lateral velocity at the CG, as if the sample were placed by tau
-            vy = speed * math.sin(rel) - r * lever_x - speed * r * latency
+            vy = speed * math.sin(rel) - r * lever_x - ay * latency
             phi = -vx * (arm * ay - sign * self.iz_m * rdot) / self.L
             z = vy - self.lr * r if ax is self.rear else vy + self.lf * r - vx * delta
-            hv = np.array([phi, phi * n2, vax, 0.0, -speed * r, 0.0 if ax is self.rear else -vx])
+            hv = np.array([phi, phi * n2, vax, 0.0, -ay, 0.0 if ax is self.rear else -vx])
             # noise: GNSS, the regressor's own (ay noise), what the two-term tyre law leaves
             k1 = ax.x[K1]
             rv = sigma_v ** 2 + (k1 * vx * arm * sig_ay / self.L) ** 2 + (MODEL_ERR * k1 * phi) ** 2
