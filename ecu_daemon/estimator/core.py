@@ -38,6 +38,7 @@ from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, 
 from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
+from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
@@ -121,6 +122,10 @@ class Estimator:
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.adapt_cornering_stiffness, learned)
+        self.stiffness = StiffnessRegression(
+            veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
+            veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
+            es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt)
         self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
                                  self.wheels.measured_speed)
         self.steer_ratio = veh.steering_ratio
@@ -210,6 +215,7 @@ class Estimator:
             "wheel_scale": float(x[KW]),
             "accel_y_gain": float(x[GAY]),
             **self.single_track.learned(),
+            **self.stiffness.learned(),
             "steering_offset_rad": float(self.steer_offset),
             **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
                for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
@@ -228,6 +234,7 @@ class Estimator:
                 "wheel_scale": sd(KW), "accel_y_gain": sd(GAY),
                 "kappa_r": float(math.sqrt(self.single_track.rear.P[0, 0])),
                 "kappa_f": float(math.sqrt(self.single_track.front.P[0, 0])),
+                **self.stiffness.learned_std(),
                 "gnss_delay_s": float(self.latency.std_s)}
 
     # ----------------------------------------------------------------------------------------
@@ -626,6 +633,8 @@ class Estimator:
                 xs = h.X[i]
                 self.single_track.adapt_from(xs[VX], xs[VY], h.P[i][VY, VY], a[AUX_R], a[AUX_AY],
                                              a[AUX_RDOT], a[AUX_DELTA])
+                self.stiffness.observe(h, s, fus.course(g), speed, fus.sigma(g), fus.lever_x, lat.delay_s, lat.std_s,
+                                       self.steer_offset / self.steer_ratio)
         self.last_gnss_rejected = not ok
         if ok:
             self.last_gnss_fused_t = k * self.dt

@@ -135,9 +135,12 @@ def replay_and_score(drive: Drive) -> dict:
 
 def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict:
     """The :data:`PARAMS` and their ``_std`` from the estimator's learned state; the cornering
-    stiffness from its compliance kappa = m / C (std by first-order propagation). A value still
-    bit-identical to the config's prior was never learned on this drive: its std is NaN, so the
-    calibration does not count the same prior once per drive."""
+    stiffness from a compliance kappa = m / C (std by first-order propagation): the rear from the
+    drive's own regression on GNSS velocity (``kappa_r_drive``, ``estimator/fusion/
+    stiffness_regression.py``), the front still from the live learner (``kappa_f``: its
+    regression's std is not yet honest, see that module). A value still bit-identical to the
+    config's prior was never learned on this drive: its std is NaN, so the calibration does not
+    count the same prior once per drive."""
     out = {}
     for name in ("gnss_delay_s", "wheel_scale", "steering_offset_rad", "yaw_rate_bias_radps"):
         out[name] = float(learned.get(name, math.nan))
@@ -145,7 +148,7 @@ def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict
     if out["gnss_delay_s"] == cfg.gnss.delay_s:
         out["gnss_delay_s_std"] = math.nan
     m = cfg.vehicle.mass_kg
-    for axle, k in (("front", "kappa_f"), ("rear", "kappa_r")):
+    for axle, k in (("front", "kappa_f"), ("rear", "kappa_r_drive")):
         c = f"cornering_stiffness_{axle}_n_per_rad"
         kappa = float(learned.get(k, math.nan))
         out[c] = m / kappa

@@ -1,0 +1,230 @@
+"""Per-drive cornering stiffness from GNSS velocity and a gyro heading, not from the filter's vy.
+
+The live learner (``single_track.AxleRls``) regresses the filter's vy, which the single-track
+pseudo-measurement itself pulls towards the prior stiffness: it barely leaves its prior. This one
+uses only quantities the stiffness does not influence. At each fused GNSS sample (at its time of
+validity, from the ring buffer) the antenna's lateral velocity is the GNSS velocity projected on
+the body y axis of a *gyro-integrated* heading psi_g::
+
+    vy_g = V sin(psi_g - course) - r l_x                         (at the CG)
+
+psi_g differs from the true heading by a slowly drifting error d_psi (yaw-rate bias and scale
+residuals), which shifts vy_g by vx d_psi. The single-track axle relations (the regressors of
+``SingleTrackFusion``; two-term tyre law k1 + k3 n^2 as in ``AxleRls``) then give, per axle::
+
+    rear:   vy_g - lr r            = phi_r (k1 + k3 n^2) + vx d_psi - ay d_tau
+    front:  vy_g + lf r - vx delta = phi_f (k1 + k3 n^2) + vx d_psi - ay d_tau - vx d0
+
+with d_tau the error of the GNSS latency that placed the sample (the velocity vector turns at
+ay / V, so a sample placed late by d_tau reads vy off by -ay d_tau) and d0 the steering offset.
+A small Kalman filter per axle (:class:`AxleFilter`) estimates k1, k3 and the nuisances.
+Observability is the physics of the relation: k1 separates from the heading error only when phi
+changes faster than the heading error can (a corner entered or left, a slalom), and from the
+latency only where phi is not proportional to ay (r_dot, speed changes); a steady circle or a
+straight leaves k1 near its prior with a large variance. The result is only reported (learned
+state ``kappa_r_drive``/``kappa_f_drive`` -> ``fleet calibrate``; the live model keeps its own
+learner, so the estimates and Revs are unchanged): one independent estimate per drive with a std
+scaled by the regression's own residuals, which the fleet's inverse-variance combination can trust.
+
+Known limit: the front estimate moves with the latency about 3x more than its linear model of the
+latency error says (a drive whose latency estimate is 1 sigma = 0.03 s off: front 23 % off at a
+7 % std; with the true latency 6 %), so its std is not yet honest and the fleet calibration takes
+only the rear from here.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..history import AUX_AY, AUX_DELTA, AUX_R, StepHistory
+from ..kinematic import BR, PSI, VX
+
+G = 9.81
+MIN_SPEED = 5.0  # m/s; below, the slip is a small part of vy (kinematic regime) and GNSS course is noisy
+MAX_N = 0.6  # normalised lateral force beyond which the two-term tyre law is not trusted
+WINDOW = 10  # steps each side of the time of validity for r, ay (mean) and r_dot (slope)
+HEADING_INIT_RAD = math.radians(2.0)  # added to the filter's heading std when the gyro heading starts
+MIN_LATENCY_STD = 0.01  # s; floor of the latency's considered std (the estimator's own floor is below)
+STEER_OFFSET_RAD = math.radians(0.3)  # road-wheel steering offset prior (~4 deg at the steering wheel)
+GYRO_SCALE_ERR = 0.005  # relative yaw-rate scale uncertainty (heading error per radian turned)
+MODEL_ERR = 0.1  # relative slip error the two-term law and tyre relaxation leave (white part)
+MIN_UPDATES = 20  # fewer samples: the residuals say too little about the noise level; the prior's std
+MAX_RHO = 0.9  # residual autocorrelation cap (x19 variance)
+
+# state of one axle's filter: compliances k1, k3, heading error, yaw-rate bias error, GNSS latency,
+# road-wheel steering offset (front only)
+K1, K3, DPSI, EB, TAU, D0 = range(6)
+NS = 6
+
+
+class AxleFilter:
+    """Kalman filter of one axle's two-term slip compliance [k1, k3] (``AxleRls``'s tyre law) with
+    the nuisances of its relation: d_psi the gyro heading's error, e_b the error of the yaw-rate
+    bias it removes (a drift: d_psi grows by e_b dt), tau the GNSS latency (*considered*: see
+    :meth:`latency`) and, for the front, d0 the steering offset. d_psi and e_b are reset into
+    ``psi``/``bias`` after each update (error state), so the measurement stays linear.
+
+    The two axles are deliberately separate filters: together, their difference is the
+    understeer relation L r - vx delta = k_f phi_f - k_r phi_r with no GNSS noise in it, which pins
+    only the understeer gradient and lets its small systematic errors (steering timing, the tyre
+    law) drive k1 and k3 apart with a tiny variance (tried: both axles 30-40 % off at 1 % std)."""
+
+    def __init__(self, k1: float, steer_offset_var: float):
+        self.x = np.array([k1, 0.6 * k1, 0.0, 0.0, 0.0, 0.0])
+        self.P = np.diag([(0.5 * k1) ** 2, (0.8 * k1) ** 2, 0.0, 0.0, 0.0, steer_offset_var])
+        self.psi = 0.0  # gyro heading (clockwise from north), rad
+        self.bias = 0.0  # the yaw-rate bias it removes, rad/s
+        self.latency_started = False
+        self.nis_sum = 0.0
+        self.lag_sum = 0.0  # sum of products of consecutive normalised innovations
+        self.last_nu = 0.0
+        self.updates = 0
+
+    def start_heading(self, psi: float, var_psi: float, bias: float, var_bias: float) -> None:
+        self.psi, self.bias = psi, bias
+        self.x[DPSI] = self.x[EB] = 0.0
+        for j, v in ((DPSI, var_psi), (EB, var_bias)):
+            self.P[j, :] = 0.0
+            self.P[:, j] = 0.0
+            self.P[j, j] = v
+
+    def latency(self, tau: float, std: float) -> None:
+        """Follow the latency estimator: tau is a *considered* state (Schmidt): this regression never
+        updates it (here tau trades with k1 whenever speed is steady: V r tau and phi ~ vx^2 r look
+        alike), but carries how its estimate depends on it (the cross-covariance, S = P[:, tau] /
+        P[tau, tau] per second of latency error). When the estimator's tau moves, the estimate
+        moves by S dtau; when its std changes, so does the share of tau in every variance."""
+        var = max(std, MIN_LATENCY_STD) ** 2
+        if not self.latency_started:
+            self.x[TAU] = tau
+            self.P[TAU, :] = 0.0
+            self.P[:, TAU] = 0.0
+            self.P[TAU, TAU] = var
+            self.latency_started = True
+            return
+        p = self.P[:, TAU].copy()
+        self.x += p / p[TAU] * (tau - self.x[TAU])
+        self.P -= (1.0 - var / p[TAU]) * np.outer(p, p) / p[TAU]
+        self.P = 0.5 * (self.P + self.P.T)
+
+    def propagate(self, r_sum: float, steps: int, dt: float, q_psi: float, q_bias: float) -> None:
+        """Integrate ``steps`` raw yaw-rate samples (their sum ``r_sum``) into the heading."""
+        self.psi -= (r_sum - steps * self.bias) * dt  # yaw rate positive left, heading clockwise
+        F = np.eye(NS)
+        F[DPSI, EB] = steps * dt
+        self.P = F @ self.P @ F.T
+        self.P[DPSI, DPSI] += q_psi
+        self.P[EB, EB] += q_bias
+
+    def update(self, z: float, h: np.ndarray, rv: float) -> None:
+        """Scalar update, tau considered (its gain zero; Joseph form, the covariance then stays
+        that of the suboptimal gain)."""
+        Ph = self.P @ h
+        s = float(h @ Ph) + rv
+        e = z - float(h @ self.x)
+        g = Ph / s
+        g[TAU] = 0.0
+        self.x += g * e
+        IKH = np.eye(NS) - np.outer(g, h)
+        self.P = IKH @ self.P @ IKH.T + rv * np.outer(g, g)
+        self.P = 0.5 * (self.P + self.P.T)
+        nu = e / math.sqrt(s)
+        self.nis_sum += nu * nu
+        self.lag_sum += nu * self.last_nu
+        self.last_nu = nu
+        self.updates += 1
+        self.psi -= float(self.x[DPSI])
+        self.bias -= float(self.x[EB])
+        self.x[DPSI] = self.x[EB] = 0.0
+
+    def k1_std(self) -> float:
+        """1-sigma of k1: its noise-driven part with the noise level the residuals show (the
+        least-squares estimate of the residual variance, the mean normalised innovation squared:
+        the noise model only has to be right in shape) and their time correlation (lag-1
+        autocorrelation rho: a sample then carries (1 - rho) / (1 + rho) of an independent one's
+        information); plus, unscaled, the part the latency's uncertainty leaves (a bias common to
+        every sample, which no residual shows)."""
+        var = max(float(self.P[K1, K1]), 0.0)
+        if self.updates < MIN_UPDATES:
+            return math.sqrt(var)
+        lat = self.P[K1, TAU] ** 2 / self.P[TAU, TAU] if self.P[TAU, TAU] > 0 else 0.0
+        nis = self.nis_sum / self.updates
+        rho = min(max(self.lag_sum / self.nis_sum, 0.0), MAX_RHO) if self.nis_sum > 0 else 0.0
+        return math.sqrt(max(var - lat, 0.0) * nis * (1.0 + rho) / (1.0 - rho) + lat)
+
+
+class StiffnessRegression:
+    """Both axles' filters, fed from the fused GNSS samples and the ring buffer."""
+
+    def __init__(self, mass: float, yaw_inertia: float, lf: float, lr: float, cf: float, cr: float,
+                 yaw_rate_noise: float, yaw_rate_bias_walk: float, dt: float):
+        self.dt = dt
+        self.lf, self.lr, self.L = lf, lr, lf + lr
+        self.iz_m = yaw_inertia / mass
+        self.rear = AxleFilter(mass / cr, 0.0)
+        self.front = AxleFilter(mass / cf, STEER_OFFSET_RAD ** 2)
+        self.arw = yaw_rate_noise
+        self.bias_walk = yaw_rate_bias_walk
+        self.last_s: int | None = None  # step up to which the gyro headings are integrated
+
+    def observe(self, h: StepHistory, s: int, course: float, speed: float, sigma_v: float,
+                lever_x: float, latency: float, latency_std: float, steer_offset: float) -> None:
+        """Use one fused GNSS velocity (course, speed; per-axis 1-sigma ``sigma_v``) valid at step s
+        by the latency estimator's ``latency`` (+- ``latency_std``). ``steer_offset``: the road-wheel
+        angle offset the estimator currently removes from the steering (added back: d0 is the true,
+        constant offset, not the learner's slowly moving one)."""
+        i = h.slot(s)
+        if self.last_s is not None and s <= self.last_s:
+            return  # out of order (a second receiver): the headings only move forward
+        axles = (self.rear, self.front)
+        if self.last_s is None or self.last_s < h.oldest():
+            # (re)start from the filter's heading and bias, with their uncertainty
+            for ax in axles:
+                ax.start_heading(float(h.X[i, PSI]), float(h.P[i][PSI, PSI]) + HEADING_INIT_RAD ** 2,
+                                 float(h.X[i, BR]), float(h.P[i][BR, BR]))
+        else:
+            idx = np.arange(self.last_s + 1, s + 1) % h.n
+            r_sum = float(np.sum(h.aux[idx, AUX_R] + h.X[idx, BR]))  # the gyro's own reading
+            steps = s - self.last_s
+            q_psi = self.arw ** 2 * steps * self.dt + (GYRO_SCALE_ERR * r_sum * self.dt) ** 2
+            q_bias = self.bias_walk ** 2 * steps * self.dt
+            for ax in axles:
+                ax.propagate(r_sum, steps, self.dt, q_psi, q_bias)
+        self.last_s = s
+        for ax in axles:
+            ax.latency(latency, latency_std)
+        vx = float(h.X[i, VX])
+        lo, hi = max(h.oldest(), s - WINDOW), min(h.last, s + WINDOW)
+        if hi - lo < 2:
+            return
+        idx = np.arange(lo, hi + 1) % h.n
+        ayw = h.aux[idx, AUX_AY]
+        rdot, r = np.polyfit((np.arange(lo, hi + 1) - s) * self.dt, h.aux[idx, AUX_R], 1)
+        ay = float(np.mean(ayw))
+        n = abs(ay) / G
+        if vx < MIN_SPEED or n > MAX_N:
+            return
+        n2 = n * n
+        sig_ay = float(np.std(ayw)) / math.sqrt(len(ayw))
+        delta = float(h.aux[i, AUX_DELTA]) + steer_offset
+        for ax, arm, sign in ((self.rear, self.lf, 1.0), (self.front, self.lr, -1.0)):
+            rel = ax.psi - course
+            vax = speed * math.cos(rel)
+            if vax < MIN_SPEED or (ax is self.front and not math.isfinite(delta)):
+                continue
+            # measured lateral velocity at the CG, as if the sample were placed by tau
+            vy = speed * math.sin(rel) - r * lever_x - ay * latency
+            phi = -vx * (arm * ay - sign * self.iz_m * rdot) / self.L
+            z = vy - self.lr * r if ax is self.rear else vy + self.lf * r - vx * delta
+            hv = np.array([phi, phi * n2, vax, 0.0, -ay, 0.0 if ax is self.rear else -vx])
+            # noise: GNSS, the regressor's own (ay noise), what the two-term tyre law leaves
+            k1 = ax.x[K1]
+            rv = sigma_v ** 2 + (k1 * vx * arm * sig_ay / self.L) ** 2 + (MODEL_ERR * k1 * phi) ** 2
+            ax.update(z, hv, rv)
+
+    def learned(self) -> dict:
+        return {"kappa_r_drive": float(self.rear.x[K1]), "kappa_f_drive": float(self.front.x[K1])}
+
+    def learned_std(self) -> dict:
+        return {"kappa_r_drive": self.rear.k1_std(), "kappa_f_drive": self.front.k1_std()}
