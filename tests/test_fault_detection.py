@@ -174,6 +174,23 @@ def test_lateral_window_sees_an_ay_offset_in_a_transient_not_a_bank():
     assert 400 < first < 400 + 1.0 / DT and excess.max() > 0.5
 
 
+def test_corner_exit_at_low_speed_is_not_an_ay_fault():
+    """Leaving a 9 m circle at 6.5 m/s: vy = lr * r falls with r, so ay = r vx + lr * rdot and
+    ay / vx is 0.3 rad/s off the gyro for half a second (flying_6_r9r isolated ay there, and
+    sideslip and heading stayed invalid for the rest of the drive)."""
+    lr, vx = 1.5, 6.5
+    det = fd.FaultDetector(DT, TRACK, lr_m=lr)
+    x = _state(vx)
+    r0, ramp = 0.67, int(0.5 / DT)
+    for j in range(600):
+        rdot = -r0 / (ramp * DT) if 200 <= j < 200 + ramp else 0.0
+        r = r0 if j < 200 else max(r0 - (j - 200) * r0 / ramp, 0.0)
+        ay = r * vx + lr * rdot
+        w = (vx - r * TRACK / 2, vx + r * TRACK / 2)
+        det.step(j, (w[0], w[1], w[0], w[1]), True, r, 0.0, ay, True, x, 1e-4, 4e-4, 0.0, rdot)
+    assert det.events["accel_y"] == 0 and det.events["yaw_rate"] == 0
+
+
 def test_gnss_disagreeing_with_trusted_wheels_is_isolated_then_returns():
     det = fd.FaultDetector(DT, TRACK)
     _run(det, 200)

@@ -124,7 +124,7 @@ class Estimator:
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.adapt_cornering_stiffness, learned)
         self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
-                                 self.wheels.measured_speed, self._model_vy)
+                                 self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned

@@ -140,9 +140,11 @@ class FaultDetector:
     """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
 
     def __init__(self, dt: float, track_m: float, lf_m: float = 1.2, driven_axle: str = "front",
-                 measured_speed=None, model_vy=None):
+                 measured_speed=None, model_vy=None, lr_m: float = 1.5):
         """``measured_speed(fl, fr, rl, rr)``: the wheel speed the filter fuses (``WheelSpeedFusion``);
-        ``model_vy(vx, r, ay, rdot)``: the single-track model's vy (None: no lateral window check)."""
+        ``model_vy(vx, r, ay, rdot)``: the single-track model's vy (None: no lateral window check);
+        ``lr_m``: CG to rear axle (the kinematic dvy/dt = lr * rdot in the ay / vx check)."""
+        self.lr_m = lr_m
         self.dt = dt
         self.track = track_m
         self.lf = lf_m
@@ -376,9 +378,13 @@ class FaultDetector:
         else:
             self.r_wheels = math.nan
         ay = ay_m - x[BAY] - x[GAY] * ay_m
+        self._lateral(vx, r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
         if have_a:
-            d = r_g - ay / vx
+            # ay = dvy/dt + r vx: the kinematic dvy/dt = lr * rdot (the large term at low speed:
+            # 0.25 rad/s at 6 m/s and 1 rad/s^2) is taken out, the rest of the transient is in
+            # ``wide`` (not the model's full dvy/dt: it differentiates ay's noise)
+            d = r_g - (ay - self.lr_m * rdot) / vx
             self.e_a += self._a_yaw * (d - self.e_a)
             self.e_as += self._a_slow * (d - self.e_as)
         ref = abs(self.r_wheels) if have_w else abs(r_g)
@@ -392,7 +398,6 @@ class FaultDetector:
                 and not abs(self.r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
         self._r_prev = r_m
         self._rw_prev = self.r_wheels
-        self._lateral(vx, r_g, ay, rdot)
         if jump:  # no car turns that fast: not integrated even for the steps the vote needs
             w_fail = a_fail = True
             self.gyro.bad = max(self.gyro.bad, self.gyro.on - 1)
