@@ -245,6 +245,10 @@ FAULTS = {
     # off while valid); the lateral window says so before the ay / vx vote isolates it
     "accel_y_offset": (lambda r: fault_can(r, ("accel_y",), T0 + 22.0, T0 + 27.0, lambda t, v: v + 2.0),
                        fd.ACCEL_Y),
+    # all four wheels 2 m/s high: both suspects until a GNSS fix sides with the accelerometer; the
+    # wheels must not return while 2 m/s off (they did once the isolation had widened the vx std)
+    "wheels_offset": (lambda r: fault_can(r, WHEEL_INPUTS, FAULT_START, FAULT_END, lambda t, v: v + 2.0),
+                      fd.WHEELS | fd.ACCEL_X),
     "accel_x_stuck_29.9": (lambda r: fault_can(r, ("accel_x",), FAULT_START, FAULT_END, lambda t, v: 29.9),
                            fd.ACCEL_X),
     "gnss_tripled": (lambda r: fault_gnss(r, FAULT_START, FAULT_END, lambda n, e: (3 * n, 3 * e)), fd.GNSS),

@@ -446,7 +446,11 @@ class Estimator:
         new = self.fdi.new_isolation
         dt = self.dt
         if iso & (ACCEL_X | WHEELS):
-            P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+            # the random walk only while ax is substituted: with the wheels out and a trusted
+            # accelerometer, vx is dead reckoning at its own noise between GNSS fixes (a wide vx
+            # std here also let wheels 2 m/s off pass the return test, fault_wheels_offset)
+            P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + (ISO_ACCEL_NOISE ** 2 * dt
+                                                                      if iso & ACCEL_X else 0.0)
         if iso & (YAW_RATE | ACCEL_Y):
             P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
         if iso & YAW_RATE:
