@@ -78,6 +78,8 @@ HEADING_FRESH_S = 2.0  # a dual-antenna heading this recent, not the course, set
 COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
 
 
+LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step over this
+
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
 
 
@@ -127,7 +129,7 @@ class Estimator:
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt)
         self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
-                                 self.wheels.measured_speed)
+                                 self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned
@@ -384,6 +386,8 @@ class Estimator:
             self._widen(iso, P)
         if self.fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
             self._widen_unverified(P, x[VX], self.fdi.yaw_disagreement)
+        if self.fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
+            self._widen_lateral(P, self.fdi.lat_excess)
         if imu_ok:
             _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
             r = r_m - b_r
@@ -449,7 +453,11 @@ class Estimator:
         new = self.fdi.new_isolation
         dt = self.dt
         if iso & (ACCEL_X | WHEELS):
-            P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+            # the random walk only while ax is substituted: with the wheels out and a trusted
+            # accelerometer, vx is dead reckoning at its own noise between GNSS fixes (a wide vx
+            # std here also let wheels 2 m/s off pass the return test, fault_wheels_offset)
+            P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + (ISO_ACCEL_NOISE ** 2 * dt
+                                                                      if iso & ACCEL_X else 0.0)
         if iso & (YAW_RATE | ACCEL_Y):
             P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
         if iso & YAW_RATE:
@@ -462,6 +470,18 @@ class Estimator:
         dt = self.dt
         for j, rate in ((PSI, e), (VY, e * abs(vx))):
             P[j, j] = (math.sqrt(max(P[j, j], 0.0)) + rate * dt) ** 2
+
+    def _widen_lateral(self, P: np.ndarray, e: float) -> None:
+        """ay disagrees with r * vx and the model's vy by ``e`` (m/s^2) more than bank, roll and
+        model errors explain: vy may be drifting that fast unseen (an ay offset, a steep bank), a
+        bias, so its std grows linearly until GNSS brings it back; the ay bias may move too."""
+        dt = self.dt
+        P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * dt) ** 2
+        P[BAY, BAY] += (e * dt) ** 2 / LAT_BIAS_STEPS
+
+    def _model_vy(self, vx: float, r: float, ay: float, rdot: float) -> float:
+        """The single-track model's vy (the lateral cross-check's third voter)."""
+        return self.single_track.pseudo_measurement(vx, r, ay, rdot)[0]
 
     def _fresh_gnss_speed(self, t: float) -> float:
         return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan

@@ -12,6 +12,14 @@ alive, in range and with good CRCs, is caught by physics rather than by its own 
 * yaw: the gyro against the rear-wheel speed difference ``(v_rr - v_rl) / track`` and against
   ``ay / vx`` (the gyro is blamed only when both disagree with it; ``ay`` when only ``ay / vx``
   does);
+* lateral: over a sliding window, the change of vy the accelerometer implies, the integral of
+  ``ay - r vx``, against the change of the single-track model's vy. A constant ``ay`` error
+  integrates into this residual while it only shifts the model's vy (a constant that cancels in
+  the change), so it shows within a second even in transients, where ``ay / vx`` needs a wide
+  tolerance. It is not an isolation test: a banked road puts the same signature into ``ay``
+  (gravity), up to ~1.4 m/s^2 on the Revs track. The residual's rate beyond what bank, roll and
+  model errors explain (:attr:`FaultDetector.lat_excess`) is how fast vy may be drifting
+  unseen, and the core grows the vy std by it: sideslip is not promised while it lasts;
 * GNSS speed against the wheel speed at its time of validity (or, with the wheels out, against the
   filter's velocity; the comparison itself is ``core.Estimator._gnss_agrees_with_wheels``);
 * standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree.
@@ -71,6 +79,13 @@ YAW_TOL_AY_REL = 0.25
 LR_TAU_S = 60.0  # learning of the left/right wheel-radius mismatch (tyre pressure, wear)
 LR_MAX = 0.005
 WHEELS_BACK_TOL_MPS = 1.0  # isolated wheels return within this (or 4 sigma) of the filter's vx
+# --- lateral: window integral of (ay - r vx) vs the single-track model's change of vy
+LAT_WINDOW_S = 1.0
+LAT_TOL_MPS = 0.3  # model and sensor noise over the window (a difference of two model errors)
+LAT_TOL_RDOT_M = 0.5  # x |change of r|: IMU lever arm (rdot * x_imu integrates to x_imu * dr)
+LAT_RATE_TOL = 0.8  # m/s^2 beyond which the residual's rate is unexplained (Revs: 99 % below 0.75)
+LAT_RATE_TOL_REL = 0.05  # x mean |ay|: roll (gravity in ay) and ay scale errors
+LAT_MIN_SPEED = 6.0
 # --- standstill
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
 # --- hysteresis (steps at 6 ms)
@@ -125,8 +140,11 @@ class FaultDetector:
     """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
 
     def __init__(self, dt: float, track_m: float, lf_m: float = 1.2, driven_axle: str = "front",
-                 measured_speed=None):
-        """``measured_speed(fl, fr, rl, rr)``: the wheel speed the filter fuses (``WheelSpeedFusion``)."""
+                 measured_speed=None, model_vy=None, lr_m: float = 1.5):
+        """``measured_speed(fl, fr, rl, rr)``: the wheel speed the filter fuses (``WheelSpeedFusion``);
+        ``model_vy(vx, r, ay, rdot)``: the single-track model's vy (None: no lateral window check);
+        ``lr_m``: CG to rear axle (the kinematic dvy/dt = lr * rdot in the ay / vx check)."""
+        self.lr_m = lr_m
         self.dt = dt
         self.track = track_m
         self.lf = lf_m
@@ -143,6 +161,15 @@ class FaultDetector:
         self._v_prev = math.nan
         self._ax_prev = math.nan
         self.lon = _Latch(ON_STEPS, OFF_STEPS)
+        self._model_vy = model_vy
+        nl = max(2, int(round(LAT_WINDOW_S / dt)))
+        self._lat_n = nl
+        self._lat_ring = [None] * nl  # per step: (integral of ay - r vx, integral of |ay|, model vy, r)
+        self._lat_cum = 0.0
+        self._lat_k = 0
+        self._lat_abs = 0.0
+        self.lat_residual = 0.0  # m/s, the last window's residual (0 when no verdict)
+        self.lat_excess = 0.0  # m/s^2, its rate beyond the explained (0 when none or no verdict)
         self.lon_onset = -1  # step at which the present longitudinal disagreement started
         self.lon_culprit = 0  # WHEELS | ACCEL_X while the longitudinal check fails
         self._wheel_jump_k = -10 ** 9
@@ -351,9 +378,13 @@ class FaultDetector:
         else:
             self.r_wheels = math.nan
         ay = ay_m - x[BAY] - x[GAY] * ay_m
+        self._lateral(vx, r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
         if have_a:
-            d = r_g - ay / vx
+            # ay = dvy/dt + r vx: the kinematic dvy/dt = lr * rdot (the large term at low speed:
+            # 0.25 rad/s at 6 m/s and 1 rad/s^2) is taken out, the rest of the transient is in
+            # ``wide`` (not the model's full dvy/dt: it differentiates ay's noise)
+            d = r_g - (ay - self.lr_m * rdot) / vx
             self.e_a += self._a_yaw * (d - self.e_a)
             self.e_as += self._a_slow * (d - self.e_as)
         ref = abs(self.r_wheels) if have_w else abs(r_g)
@@ -387,6 +418,31 @@ class FaultDetector:
             mis = ((rr - rl) * x[KW] - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    def _lateral(self, vx: float, r: float, ay: float, rdot: float) -> None:
+        """Residual of ay against r * vx plus the model's change of vy over the last window, and
+        the rate of it no bank, roll or model error explains (:attr:`lat_excess`)."""
+        if self._model_vy is None:
+            return
+        if not vx > LAT_MIN_SPEED:
+            self._lat_ring = [None] * self._lat_n
+            self.lat_residual = self.lat_excess = 0.0
+            return
+        dt = self.dt
+        self._lat_cum += (ay - r * vx) * dt
+        self._lat_abs += abs(ay) * dt
+        vy_m = self._model_vy(vx, r, ay, rdot)
+        i = self._lat_k % self._lat_n
+        self._lat_k += 1
+        old = self._lat_ring[i]
+        self._lat_ring[i] = (self._lat_cum, self._lat_abs, vy_m, r)
+        if old is None:
+            return
+        w = self._lat_n * dt
+        res = (self._lat_cum - old[0]) - (vy_m - old[2])
+        self.lat_residual = res
+        unexplained = max(abs(res) - LAT_TOL_MPS - LAT_TOL_RDOT_M * abs(r - old[3]), 0.0) / w
+        self.lat_excess = max(unexplained - LAT_RATE_TOL - LAT_RATE_TOL_REL * (self._lat_abs - old[1]) / w, 0.0)
 
     # ------------------------------------------------------------------------------------------
     def check_gnss(self, s: int, wheels_agree: bool | None, filter_agree: bool) -> bool | None:
