@@ -43,7 +43,7 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
-from .latency import LatencyEstimator
+from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, YawIntegral
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
                                                    "wheel_speed_rl", "wheel_speed_rr"))
@@ -108,8 +108,11 @@ class Estimator:
         self.uses_velocity = [rx.role == "velocity" for rx in receivers]
         self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
                                            gn.max_delay_s, gn.estimate_delay,
-                                           prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf))
+                                           prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf),
+                                           min_spread=MIN_SPEED_SPREAD if rx.role == "velocity" else HEADING_SPREAD_RAD)
                           for i, rx in enumerate(receivers)]
+        # a heading-only receiver identifies its latency from its heading changes against the gyro
+        self.yaw_integral = YawIntegral(dt, gn.max_delay_s) if not all(self.uses_velocity) else None
         self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
@@ -401,6 +404,8 @@ class Estimator:
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        if self.yaw_integral is not None:
+            self.yaw_integral.step(k, r)
         self.slip_hold = max(self.wheels.slip_bound(x[VX], ax), self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------
@@ -692,6 +697,8 @@ class Estimator:
             fus.rejected += 1
             return
         lat = self.latencies[min(g.source, len(self.latencies) - 1)]
+        if self.yaw_integral is not None and g.source < len(self.uses_velocity) and not self.uses_velocity[g.source]:
+            self.yaw_integral.pair(g.source, k, fus.vehicle_heading(g), lat)
         delay = lat.delay_s if self.delay_compensation else 0.0
         s, _ = h.clamp_step(round((g.t - delay) / self.dt))
         std = lat.std_s
