@@ -406,8 +406,8 @@ def _validate(cfg: Config) -> None:
         raise ConfigError("missing input mapping(s): " + ", ".join(f"[inputs.{n}]" for n in missing))
     mags = [n for n in MAG_INPUTS if n in cfg.inputs]
     if mags and len(mags) != len(MAG_INPUTS):
-        raise ConfigError("a magnetometer needs all three axes mapped: "
-                          + ", ".join(f"[inputs.{n}]" for n in MAG_INPUTS if n not in cfg.inputs) + " missing")
+        raise ConfigError(", ".join(f"[inputs.{n}]" for n in MAG_INPUTS if n not in cfg.inputs)
+                          + " missing: a magnetometer needs all three axes mapped")
 
 
 def _validate_receiver(where: str, rx) -> None:

@@ -306,6 +306,9 @@ COLUMNS = (  # header, key, format
     ("h ttv", "heading_time_to_valid_after_fix_s", "{:.1f}"),
     ("lat err", "latency_error_s", "{:+.3f}"),
     ("lat2 err", "latency2_error_s", "{:+.3f}"),
+    ("mag h", "mag_heading_rms_deg", "{:.2f}"),
+    ("mag jump", "mag_jump_deg", "{:.2f}"),
+    ("no-mag h", "no_mag_heading_rms_deg", "{:.2f}"),
 )
 
 
@@ -328,7 +331,8 @@ def format_table(rows: list[dict]) -> str:
     out.append(f"{n_pass} of {len(rows)} scenarios meet every target (b = sideslip, h = heading; rms after"
                f" the first {SETTLE_S:g} s; val>5 = valid on rows above 5 m/s once converged; 3sig = valid rows"
                " within 3 sigma; worst = worst error while valid; ttv = time to valid after the first good"
-               " GNSS fix above 5 m/s)")
+               " GNSS fix above 5 m/s; mag h / mag jump = magnetometer cases' heading RMS from 5 s after it is first valid"
+               " and largest heading-error change over a disturbance, no-mag h = the same replayed without it)")
     return "\n".join(out)
 
 
