@@ -165,3 +165,21 @@ def test_without_the_disturbance_detector_the_same_drive_jumps(outage_drive, tmp
     run_replay(cfg, str(src / "drive.log"), [str(src / "drive_gnss.log")], str(tmp_path / "estimate.csv"))
     fig = _magnetometer_figures(case.scenario, truth, read_csv(tmp_path / "estimate.csv", ("t",), "estimate"))
     assert fig["mag_jump_deg"] > 2.0 > row["mag_jump_deg"]
+
+
+def test_a_nominal_field_learned_in_a_steel_garage_is_learned_again():
+    """Started in a garage (the field 20 % weak): the real field outside reads as disturbed, and
+    is refused for RELEARN_S, then the nominal field is learned again and the samples are used."""
+    f = _fusion()
+    b = 48e-6 * np.array([math.cos(math.radians(64.0)), 0.0, -math.sin(math.radians(64.0))])
+    t = 0.0
+    for _ in range(mg.NOMINAL_N):
+        _feed(f, t, 0.8 * b)
+        t += 0.02
+    used = []
+    while t < mg.RELEARN_S + 5.0:
+        used.append((t, _feed(f, t, b)))
+        t += 0.02
+    first = next(tt for tt, ok in used if ok)
+    assert mg.RELEARN_S < first < mg.RELEARN_S + 3.0
+    assert f.nominal_norm == pytest.approx(48e-6)

@@ -16,7 +16,8 @@ Why each part:
   ``mag_norm_tol`` (the thesis' 0.015), or an inclination off by more than ``mag_dip_tol_deg``,
   rejects the sample (the thesis' R inflated by eta^2 with eta >= 10 b_o / sigma, i.e. rejection)
   and keeps rejecting for ``HOLD_S`` after the field looks normal again (its edges). The nominal
-  norm and inclination are learned from the undisturbed field itself.
+  norm and inclination are learned from the undisturbed field itself (again after ``RELEARN_S``
+  of uninterrupted disturbance: then the first samples were the disturbed ones, a steel garage).
 * **Offset.** Mounting yaw and declination together: learned (a scalar filter) from the residual
   against the filter's heading while a good GNSS heading exists, its std added to the
   measurement noise. No heading is fused before it is learned.
@@ -51,6 +52,9 @@ G = 9.80665
 NOMINAL_N = 50  # samples averaged for the first nominal field norm / inclination
 NOMINAL_TAU_S = 60.0  # then followed this slowly, from undisturbed samples only
 HOLD_S = 1.0  # rejection outlasts a detected disturbance by this much (its fading edges)
+#: disturbed without a break for this long: the nominal field is what is wrong (learned in a steel
+#: garage at start-up), so it is learned again; a disturbance this long is rejected until then
+RELEARN_S = 60.0
 CORR_S = 2.0  # the filter averages the slow heading error over no more than this (module docstring)
 #: a clean field (the detector sees no disturbance) the gate keeps refusing for this long: the
 #: filter's heading, not the magnetometer, has drifted (a gyro bias shift in a GNSS outage); the
@@ -79,6 +83,7 @@ class MagnetometerFusion:
         self.last_t = -math.inf  # receive time of the last sample
         self.last_fused_t = -math.inf
         self.disturbed_t = -math.inf  # last time a disturbance was seen
+        self._disturbed_since = math.inf  # first of the current unbroken run of disturbed samples
         self.norm = math.nan  # of the last sample (T)
         self.dip = math.nan  # inclination of the last sample (rad, positive down)
         self.nominal_norm = math.nan
@@ -141,14 +146,18 @@ class MagnetometerFusion:
             return False
         rel = norm / self.nominal_norm - 1.0
         ddip = dip - self.nominal_dip
-        if abs(rel) > self.norm_tol:
-            self.state, self.last_reason = STATE_NORM, f"field norm {rel:+.3f} off nominal"
+        if abs(rel) > self.norm_tol or abs(ddip) > self.dip_tol:
+            if abs(rel) > self.norm_tol:
+                self.state, self.last_reason = STATE_NORM, f"field norm {rel:+.3f} off nominal"
+            else:
+                self.state, self.last_reason = STATE_DIP, f"inclination {math.degrees(ddip):+.2f} deg off nominal"
             self.disturbed_t = t
+            self._disturbed_since = min(self._disturbed_since, t)
+            if t - self._disturbed_since > RELEARN_S:
+                self._n = 0  # learn the nominal field again from the next samples
+                self._disturbed_since = math.inf
             return False
-        if abs(ddip) > self.dip_tol:
-            self.state, self.last_reason = STATE_DIP, f"inclination {math.degrees(ddip):+.2f} deg off nominal"
-            self.disturbed_t = t
-            return False
+        self._disturbed_since = math.inf
         a = self.period / NOMINAL_TAU_S
         self.nominal_norm += a * (norm - self.nominal_norm)
         self.nominal_dip += a * ddip
