@@ -18,7 +18,7 @@ from typing import Any
 
 import tomli_w
 
-from .samples import INPUT_NAMES
+from .samples import INPUT_NAMES, MAG_INPUTS, REQUIRED_INPUTS
 
 #: ``[inputs.NAME] checksum`` values (implemented in checksums.py)
 CHECKSUM_SCHEMES = ("none", "e2e_p2", "toyota", "honda", "subaru", "hyundai_canfd", "hyundai_bitcount",
@@ -157,6 +157,13 @@ class InputMapping:
         return list(self.signals) if self.signals else [self.signal]
 
 
+def magnetometer_inputs() -> dict[str, InputMapping]:
+    """The magnetometer's mapping on our chassis DBC (message MAGNETOMETER, microtesla -> T);
+    not in the defaults: a car without one maps nothing and gets no magnetometer aid."""
+    return {n: InputMapping(message="MAGNETOMETER", signal=n.upper(), scale=1e-6, min=-1e-3, max=1e-3,
+                            counter="COUNTER", checksum="e2e_p2") for n in MAG_INPUTS}
+
+
 def _default_inputs() -> dict[str, InputMapping]:
     """The mapping for our own chassis DBC (``dbc/ecu_daemon_inputs.dbc``), already SI."""
     m = {}
@@ -188,6 +195,17 @@ class EstimatorSettings:
     accel_bias_walk: float = 1.5e-3
     wheel_scale_walk: float = 2e-5
     wheel_speed_noise_mps: float = 0.08
+    # magnetometer heading aid (only with [inputs.mag_x/y/z]; estimator/fusion/magnetometer.py)
+    mag_tilt: str = "accel"  # "accel": roll/pitch from the accelerometers' gravity part; "level": none
+    mag_noise_deg: float = 1.0  # white heading noise of one sample (sensor noise, vibration)
+    mag_bias_deg: float = 0.5  # slowly varying heading error left after the learned offset (soft iron...)
+    mag_tilt_std_deg: float = 0.5  # tilt error the accelerometers cannot tell from their bias
+    mag_norm_tol: float = 0.015  # |field norm / nominal - 1| above this: disturbed (thesis 5.3.1)
+    mag_dip_tol_deg: float = 2.0  # inclination this far off its nominal value: disturbed
+    mag_gate_sigma: float = 3.0  # innovation gate of the magnetometer's heading
+
+
+_MAG_TILT = ("accel", "level")
 
 
 @dataclass
@@ -300,6 +318,12 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("estimator", "accel_bias_walk"): (0.0, 10.0, "m/s^2/sqrt(s)"),
     ("estimator", "wheel_scale_walk"): (0.0, 1.0, "1/sqrt(s)"),
     ("estimator", "wheel_speed_noise_mps"): (1e-4, 100.0, "m/s"),
+    ("estimator", "mag_noise_deg"): (0.001, 90.0, "deg"),
+    ("estimator", "mag_bias_deg"): (0.0, 90.0, "deg"),
+    ("estimator", "mag_tilt_std_deg"): (0.0, 90.0, "deg"),
+    ("estimator", "mag_norm_tol"): (1e-4, 1.0, ""),
+    ("estimator", "mag_dip_tol_deg"): (0.01, 90.0, "deg"),
+    ("estimator", "mag_gate_sigma"): (1.0, 1000.0, ""),
     ("daemon", "realtime_priority"): (0, 99, ""),
     # per [inputs.NAME]
     ("inputs", "scale"): (-1e12, 1e12, ""),
@@ -325,6 +349,8 @@ def _validate(cfg: Config) -> None:
     if abs(cfg.vehicle.steering_ratio) < MIN_STEERING_RATIO:
         raise ConfigError(f"[vehicle] steering_ratio = {cfg.vehicle.steering_ratio!r} is out of range: allowed"
                           f" {MIN_STEERING_RATIO:g} to 100 (negative flips the sign)")
+    if cfg.estimator.mag_tilt not in _MAG_TILT:
+        raise ConfigError(f"[estimator] mag_tilt must be {' or '.join(_MAG_TILT)}, got {cfg.estimator.mag_tilt!r}")
     if cfg.vehicle.driven_axle not in ("front", "rear", "all"):
         raise ConfigError(f"[vehicle] driven_axle must be front, rear or all, got {cfg.vehicle.driven_axle!r}")
     g = cfg.gnss
@@ -375,9 +401,13 @@ def _validate(cfg: Config) -> None:
         if not m.min < m.max:  # also NaN
             raise ConfigError(f"[inputs.{name}] min = {m.min!r}, max = {m.max!r}: min must be below max"
                               " (either may be inf)")
-    missing = [n for n in INPUT_NAMES if n not in cfg.inputs]
+    missing = [n for n in REQUIRED_INPUTS if n not in cfg.inputs]
     if missing:
         raise ConfigError("missing input mapping(s): " + ", ".join(f"[inputs.{n}]" for n in missing))
+    mags = [n for n in MAG_INPUTS if n in cfg.inputs]
+    if mags and len(mags) != len(MAG_INPUTS):
+        raise ConfigError(", ".join(f"[inputs.{n}]" for n in MAG_INPUTS if n not in cfg.inputs)
+                          + " missing: a magnetometer needs all three axes mapped")
 
 
 def _validate_receiver(where: str, rx) -> None:
@@ -478,7 +508,7 @@ def to_dict(cfg: Config) -> dict:
     else:
         del g["receiver"]
     inputs = {}
-    for name in INPUT_NAMES:
+    for name in (n for n in INPUT_NAMES if n in cfg.inputs):
         d = dataclasses.asdict(cfg.inputs[name])
         d = {k: v for k, v in d.items()
              if not ((k in ("signals", "signal", "sign_signal") and not v) or (k == "data_id" and v is None)

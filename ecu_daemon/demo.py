@@ -253,6 +253,11 @@ class DemoSession:
         self.out = out if out is not None else sys.stdout
         self.tui = tui
         self.master, port = open_gnss_pty()
+        # a second receiver (front-rear): its own pty, as the daemon opens one port per receiver
+        self.master2 = None
+        if len(cfg.gnss.receiver) >= 2:
+            self.master2, port2 = open_gnss_pty()
+            cfg.gnss.receiver[0].port, cfg.gnss.receiver[1].port = port, port2
         bus_config = dict(bus_config or {"interface": "virtual", "channel": f"ecu-daemon-demo-{os.getpid()}"})
         self.channel = str(bus_config["channel"])
         cfg.can.interface = bus_config["interface"]
@@ -261,7 +266,8 @@ class DemoSession:
         cfg.daemon.state_file = ""  # the demo must not touch a real installation's learned state
         self.cfg = cfg
         self.clock = time.monotonic if speed == 1.0 else ScaledClock(speed)
-        self.feeder = Feeder(sim, self.channel, self.master, clock=self.clock, speed=speed, bus_config=bus_config)
+        self.feeder = Feeder(sim, self.channel, self.master, clock=self.clock, speed=speed, bus_config=bus_config,
+                             gnss2_fd=self.master2)
         self.truth = TruthTracker(sim, self.feeder.sim_time)
         self.daemon = Daemon(cfg, bus_config=bus_config,
                              clock=self.clock, speed=speed, estimate_sink=self.truth.add, record_dir=record_dir)
@@ -277,6 +283,8 @@ class DemoSession:
         finally:
             self.feeder.stop()
             os.close(self.master)
+            if self.master2 is not None:
+                os.close(self.master2)
             if self.tui:
                 self.out.write("\x1b[?25h")
                 self.out.flush()
@@ -312,7 +320,7 @@ class DemoSession:
         now_s = f.sim_time(self.clock()) - sim.t0 if math.isfinite(f.c0) else 0.0
         dur = sim.t_end - sim.t0
         lines = [f"ecu-daemon demo: simulated drive '{sim.scenario.name}' on {self.cfg.can.interface}:{self.channel},"
-                 f" GNSS on {self.cfg.gnss.port}",
+                 f" GNSS on {', '.join(rx.port for rx in self.cfg.gnss.receivers())}",
                  f"t = {min(max(now_s, 0.0), dur):5.1f} / {dur:.1f} s   speed x{self.speed:g}   "
                  f"frames {f.frames_sent}  GNSS bytes {f.gnss_bytes}", ""]
         last = self.truth.last
@@ -409,6 +417,11 @@ class DemoSession:
             lines.append(f"  final: yaw-rate bias {e.yaw_rate_bias_radps * DEG:+.3f} deg/s (truth"
                          f" {t['yaw_rate_bias_radps'] * DEG:+.3f}), GNSS latency {e.gnss_delay_s:.3f} s"
                          f" (truth {t['gnss_delay_s']:.3f})")
+        est = d.estimator
+        if est is not None and len(est.receivers) > 1:
+            lines.append("  GNSS receivers: " + "; ".join(
+                f"#{i + 1} fused {f.fused}, latency {lat.delay_s:.3f} s" for i, (f, lat)
+                in enumerate(zip(est.receivers, est.latencies))))
         lines.append(f"  tick lateness p50 {ts.late_p50_s * 1e6:.0f} us, p99 {ts.late_p99_s * 1e6:.0f} us,"
                      f" max {ts.late_max_total_s * 1e6:.0f} us; {ts.overruns} overruns; {d.late_samples}"
                      f" late samples; {d.frames_sent} frames sent")
@@ -422,9 +435,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-tui", action="store_true", help="periodic lines instead of the live view")
     parser.add_argument("--config", "-C", help="base configuration (DBC, mapping); the vehicle comes from the scenario")
     parser.add_argument("--record", metavar="DIR", help="record what the daemon received, as `run --record` does")
-    parser.add_argument("--gnss", choices=("velocity", "dual-antenna"), default="velocity",
-                        help="the simulated receiver: velocity only (default), or a dual-antenna moving-base pair"
-                        " that adds the heading (UBX NAV-RELPOSNED, 1.2 m baseline across the car)")
+    parser.add_argument("--gnss", choices=("velocity", "dual-antenna", "front-rear"), default="velocity",
+                        help="the simulated receiver: velocity only (default), a dual-antenna moving-base pair"
+                        " that adds the heading (UBX NAV-RELPOSNED, 1.2 m baseline across the car), or two"
+                        " velocity receivers front and rear (2.5 m apart, own latency each, one pty each)")
     from can.cli import add_bus_arguments
 
     add_bus_arguments(parser, group_title="CAN bus (default: an in-process virtual bus; to watch the demo with"

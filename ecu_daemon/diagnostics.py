@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from .estimator.fault_detection import SOURCE_BITS
-from .samples import INPUT_NAMES
+from .samples import REQUIRED_INPUTS
 
 # CAN controller state (EST_DIAG.CAN_BUS_STATE); same numbering as io/can_bus.py (ordinal = severity)
 BUS_ACTIVE = 0
@@ -64,7 +64,7 @@ class SourceDiagnostics:
 
 
 def _all_inputs() -> dict[str, InputDiagnostics]:
-    return {name: InputDiagnostics() for name in INPUT_NAMES}
+    return {name: InputDiagnostics() for name in REQUIRED_INPUTS}
 
 
 def _all_sources() -> dict[str, SourceDiagnostics]:
@@ -75,7 +75,7 @@ def _all_sources() -> dict[str, SourceDiagnostics]:
 class Diagnostics:
     """One health snapshot of the whole daemon."""
 
-    inputs: dict[str, InputDiagnostics] = field(default_factory=_all_inputs)  # keyed by INPUT_NAMES
+    inputs: dict[str, InputDiagnostics] = field(default_factory=_all_inputs)  # keyed by input name (the mapped ones)
     sources: dict[str, SourceDiagnostics] = field(default_factory=_all_sources)  # keyed as SOURCE_BITS
     gnss_fix_type: int = 0  # samples.FIX_* numbering
     gnss_num_sv: int = 0
@@ -92,6 +92,13 @@ class Diagnostics:
     gnss_heading_baseline_m: float = math.nan  # measured antenna distance
     gnss_heading_fused: int = 0
     gnss_heading_rejected: int = 0
+    # magnetometer (estimator/fusion/magnetometer.py STATE_*), only with [inputs.mag_x/y/z]
+    mag_state: int = 0
+    mag_field_norm_t: float = math.nan  # of the last sample
+    mag_inclination_rad: float = math.nan  # of the last sample, tilt-compensated, positive down
+    mag_offset_rad: float = math.nan  # learned magnetic minus vehicle heading
+    mag_offset_std_rad: float = math.nan
+    mag_rejected: int = 0
     can_bus_state: int = BUS_ACTIVE
     can_error_frames: int = 0
     can_tx_failures: int = 0

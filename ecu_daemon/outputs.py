@@ -113,7 +113,13 @@ _DIAG_FIELDS = {
     "GNSS_HEADING_BASELINE": ("gnss_heading_baseline_m", _UNKNOWN_HI),
     "GNSS_HEADING_FUSED": ("gnss_heading_fused", _WRAP),
     "GNSS_HEADING_REJECTED": ("gnss_heading_rejected", _WRAP),
+    "MAG_STATE": ("mag_state", _CLAMP), "MAG_FIELD_NORM": ("mag_field_norm_t", _UNKNOWN_HI),
+    "MAG_INCLINATION": ("mag_inclination_rad", _CLAMP), "MAG_OFFSET": ("mag_offset_rad", _CLAMP),
+    "MAG_OFFSET_STD": ("mag_offset_std_rad", _UNKNOWN_HI), "MAG_REJECTED": ("mag_rejected", _WRAP),
 }
+#: EST_DIAG pages of an optional source, sent only when the config maps it (a car without one sends
+#: the same pages, in the same rotation, as before the source existed)
+_OPTIONAL_PAGE_PREFIX = {"MAG_": ("mag_x", "mag_y", "mag_z")}
 
 
 class OutputFrameError(ValueError):
@@ -249,6 +255,7 @@ class OutputEncoder:
         self.dbc_path: Path = cfg.output_dbc_path()
         self.db = load_dbc(self.dbc_path, "[can] output_dbc", allow_non_strict=False)
         self.dt_s = float(cfg.estimator.dt_s)
+        self._mapped = set(cfg.inputs)
         self._log = RateLimitedLog(log, log_interval_s)
         self.saturated: dict[str, int] = {}
         self.non_finite: dict[str, int] = {}
@@ -310,6 +317,10 @@ class OutputEncoder:
         if len(tree) != 1 or _DIAG_MUX not in tree[0]:
             raise ConfigError(f"{where}: a multiplexed output message must be multiplexed by {_DIAG_MUX}")
         for page, signal_names in sorted(tree[0][_DIAG_MUX].items()):
+            if any(all(isinstance(n, str) and n.startswith(prefix) for n in signal_names)
+                   and not self._mapped.issuperset(inputs)
+                   for prefix, inputs in _OPTIONAL_PAGE_PREFIX.items()):
+                continue
             values = {"CHECKSUM": 0, "COUNTER": 0, _DIAG_MUX: page}
             fields = []
             for name in signal_names:

@@ -38,10 +38,11 @@ from .estimator import Estimate, Estimator
 from .estimator.estimate import STATUS_INPUT_STALE
 from .gnss.stream import GnssStreamParser, sum_stats
 from .io.health import build_diagnostics
-from .samples import GnssSample, InputSample
+from .samples import INPUT_INDEX, GnssSample, InputSample
 from .signals import SignalDecoder
 from .step_grid import step_of
 
+MAG_INDEX = INPUT_INDEX["mag_x"]
 DIAG_S = 0.05  # diagnostics (and the input staleness behind the validity mask) every 50 ms of steps
 
 CAN = "can"
@@ -333,7 +334,8 @@ class Pipeline:
             t, decoder=self.decoder, gnss_stats=self.gnss_stats(), gnss_last=self.gnss_last,
             gnss_delay_s=e.gnss_delay_s, host=self.host, gnss_connected=self.gnss_connected,
             error_frames=self.error_frames, status=e.status, isolation_events=dict(self.estimator.fdi.events),
-            gnss_heading=self.estimator.heading, gnss_timeout_s=self.cfg.gnss.timeout_s)
+            gnss_heading=self.estimator.heading, gnss_timeout_s=self.cfg.gnss.timeout_s,
+            mag=self.estimator.mag, mag_timeout_s=self.estimator.timeouts[MAG_INDEX])
 
     def gnss_stats(self) -> dict:
         """GNSS parser counters summed over every receiver's ports."""

@@ -20,7 +20,16 @@ INPUT_NAMES = (
     "yaw_rate",
     "accel_x",
     "accel_y",
+    # optional: a 3-axis magnetometer on CAN (tesla, ISO 8855 body axes), see fusion/magnetometer.py
+    "mag_x",
+    "mag_y",
+    "mag_z",
 )
+
+#: The inputs every config must map (the magnetometer is optional).
+REQUIRED_INPUTS = INPUT_NAMES[:8]
+#: The magnetometer's three axes: mapped all together or not at all.
+MAG_INPUTS = INPUT_NAMES[8:11]
 
 #: Integer index of each input, used by the estimator's fast path.
 INPUT_INDEX = {name: i for i, name in enumerate(INPUT_NAMES)}
@@ -32,7 +41,7 @@ class InputSample(NamedTuple):
     ``t`` is seconds on the input time base (the log's clock in replay, the monotonic clock live).
     ``index`` is ``INPUT_INDEX[name]``. Units: wheel speeds m/s (ground speed of that wheel
     computed with the configured wheel radius), steering-wheel angle rad (positive left),
-    yaw rate rad/s (positive left), accelerations m/s^2.
+    yaw rate rad/s (positive left), accelerations m/s^2, magnetic flux density T (body axes).
     """
 
     t: float

@@ -84,7 +84,9 @@ def _merge_inputs(doc: dict) -> dict:
     """A partial [inputs.NAME] table replaces the default mapping: give it the default message/signal."""
     doc = dict(doc)
     if "inputs" in doc:
-        defaults = config_mod.to_dict(config_mod.Config())["inputs"]
+        cfg = config_mod.Config()
+        cfg.inputs.update(config_mod.magnetometer_inputs())  # the optional inputs' defaults too
+        defaults = config_mod.to_dict(cfg)["inputs"]
         doc["inputs"] = {n: {**defaults[n], **t} for n, t in doc["inputs"].items()}
     return doc
 

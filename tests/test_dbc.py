@@ -72,7 +72,8 @@ def test_input_dbc_layout_matches_the_default_mapping(inputs_db):
     st = inputs_db.get_message_by_name("STEERING")
     imu = inputs_db.get_message_by_name("IMU")
     assert (ws.frame_id, st.frame_id, imu.frame_id) == (0x0B0, 0x0B2, 0x0B4)
-    assert {m.cycle_time for m in inputs_db.messages} == {10}
+    assert {m.name: m.cycle_time for m in inputs_db.messages} == {"WHEEL_SPEEDS": 10, "STEERING": 10, "IMU": 10,
+                                                                  "MAGNETOMETER": 20}  # optional, 50 Hz
     assert (ws.senders, st.senders, imu.senders) == (["ABS"], ["SAS"], ["IMU"])
     for corner in ("FL", "FR", "RL", "RR"):
         s = ws.get_signal_by_name(f"WHEEL_SPEED_{corner}")
@@ -136,7 +137,9 @@ def test_every_estimate_and_diagnostics_field_has_an_output_signal(outputs_db):
 
 def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     """What a person does on the bench: candump -L | cantools decode dbc/ecu_daemon_outputs.dbc."""
-    enc = OutputEncoder(config.Config())
+    cfg = config.Config()
+    cfg.inputs.update(config.magnetometer_inputs())  # its EST_DIAG pages are sent only with one mapped
+    enc = OutputEncoder(cfg)
     est = Estimate(t=12.5, sideslip_rad=0.01, sideslip_std_rad=0.002, heading_rad=1.0, heading_std_rad=0.02,
                    vx_mps=20.0, vy_mps=0.2, vx_std_mps=0.05, vy_std_mps=0.1, yaw_rate_radps=0.1,
                    yaw_rate_bias_radps=-0.007, yaw_rate_bias_std_radps=0.001, accel_x_bias_mps2=0.1,
@@ -148,7 +151,7 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     log = tmp_path / "out.log"
     with CandumpWriter(log) as w:
         period = max(p for _, _, p, _ in enc.schedule)
-        for k in range(max(period, 2 * 25)):  # every message, and all 25 EST_DIAG pages
+        for k in range(max(period, 2 * 27)):  # every message, and all 27 EST_DIAG pages
             for msg in enc.frames(k, est, Diagnostics()):
                 w.write(msg)
     r = subprocess.run([sys.executable, "-m", "cantools", "decode", str(OUTPUTS_DBC)],
@@ -170,7 +173,7 @@ def test_every_validity_and_status_bit_has_a_value_table(outputs_db):
     """So that `cantools decode` (and any DBC tool) shows names, not bare 0/1."""
     bits = [(m.name, s) for m in outputs_db.messages for s in m.signals
             if s.name.endswith("_VALID") or s.name.startswith("STATUS_")]
-    assert len(bits) == 23
+    assert len(bits) == 24
     for msg, s in bits:
         assert s.choices is not None and set(s.choices) == {0, 1}, f"{msg}.{s.name}"
     decoded = outputs_db.decode_message("EST_HEADING", outputs_db.encode_message(

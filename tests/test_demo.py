@@ -60,3 +60,13 @@ def test_dual_antenna_demo_has_the_heading_before_the_car_moves(capsys):
     # standing still the whole 3 s: only the baseline can give the heading (velocity alone: 0 valid steps)
     m = re.search(r"heading\s+RMS error ([0-9.]+) deg over (\d+) valid steps", out)
     assert m and int(m.group(2)) > 200 and float(m.group(1)) < 0.5
+
+
+def test_front_rear_demo_feeds_both_receivers_through_their_own_ptys(capsys):
+    """Two receivers (issue 11): each gets its own pty and the daemon fuses both, each with its
+    own latency (the summary names them; without the second pty the second fuses nothing)."""
+    assert cli_main(["demo", "--gnss", "front-rear", "--duration", "14", "--speed", "4", "--no-tui"]) == 0
+    out = capsys.readouterr().out
+    m = re.search(r"GNSS receivers: #1 fused (\d+), latency ([0-9.]+) s; #2 fused (\d+), latency ([0-9.]+) s", out)
+    assert m, out
+    assert int(m.group(1)) > 10 and int(m.group(3)) > 10

@@ -15,7 +15,7 @@ from ecu_daemon.canlog import read_can_log
 from ecu_daemon.config import ConfigError
 from ecu_daemon.integrity import (CounterCheck, e2e_p2_apply, e2e_p2_check, e2e_p2_crc, toyota_check,
                                   toyota_checksum)
-from ecu_daemon.samples import INPUT_INDEX, INPUT_NAMES
+from ecu_daemon.samples import INPUT_INDEX, INPUT_NAMES, REQUIRED_INPUTS
 from ecu_daemon.io.logging_setup import RateLimitedLog
 from ecu_daemon.signals import DEFAULT_STALE_S, SignalDecoder
 
@@ -283,7 +283,8 @@ def test_stale_inputs_are_flagged_counted_and_recover(dec, clock):
     assert dec.health["yaw_rate"].rate_hz == pytest.approx(100.0)
     assert dec.timeout_s("yaw_rate") == pytest.approx(0.1)  # 10 cycle times
     assert "yaw_rate" not in stale
-    assert set(stale) == {n for n in INPUT_NAMES if n not in ("yaw_rate", "accel_x", "accel_y")}  # never seen
+    assert set(stale) == {n for n in dec.health if n not in ("yaw_rate", "accel_x", "accel_y")}  # never seen
+    assert set(dec.health) == set(REQUIRED_INPUTS)  # the mapped ones (no magnetometer by default)
     assert dec.timeout_s("wheel_speed_fl") == DEFAULT_STALE_S
     assert "yaw_rate" in dec.check_stale(1.7)
     assert "yaw_rate" in dec.check_stale(1.8)

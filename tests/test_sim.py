@@ -169,7 +169,7 @@ def _expected_inputs(res, t: np.ndarray) -> dict[str, np.ndarray]:
 
 def _round_trip_errors(log: Path, cfg) -> tuple[dict, dict, SignalDecoder]:
     dec = SignalDecoder(cfg)
-    got = {n: ([], []) for n in INPUT_NAMES}
+    got = {n: ([], []) for n in INPUT_NAMES if n in cfg.inputs}
     for msg in can.LogReader(str(log)):
         for s in dec.decode(msg.timestamp, msg.arbitration_id, bytes(msg.data)):
             got[INPUT_NAMES[s.index]][0].append(s.t)

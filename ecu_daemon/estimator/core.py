@@ -36,6 +36,7 @@ from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
 from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
+from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion
 from .fusion.stiffness_regression import StiffnessRegression
@@ -43,7 +44,7 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
-from .latency import LatencyEstimator
+from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, YawIntegral
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
                                                    "wheel_speed_rl", "wheel_speed_rr"))
@@ -51,6 +52,7 @@ I_STEER = INPUT_INDEX["steering_wheel_angle"]
 I_YAW = INPUT_INDEX["yaw_rate"]
 I_AX = INPUT_INDEX["accel_x"]
 I_AY = INPUT_INDEX["accel_y"]
+I_MX, I_MY, I_MZ = (INPUT_INDEX[n] for n in ("mag_x", "mag_y", "mag_z"))
 WHEEL_INPUTS = (I_FL, I_FR, I_RL, I_RR)
 assert sorted(WHEEL_INPUTS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
 I_RR_MAX = 3
@@ -75,6 +77,8 @@ TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives th
 SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
 HEADING_FRESH_S = 2.0  # a dual-antenna heading this recent, not the course, sets the heading std
+MAG_LEARN_SPEED = 5.0  # m/s: the GNSS course (so the filter's heading) is good enough to learn the offset from
+MAG_LEARN_STD = math.radians(1.0)  # ... and the filter's heading std is below this
 COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
 
 
@@ -107,8 +111,11 @@ class Estimator:
         self.uses_velocity = [rx.role == "velocity" for rx in receivers]
         self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
                                            gn.max_delay_s, gn.estimate_delay,
-                                           prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf))
+                                           prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf),
+                                           min_spread=MIN_SPEED_SPREAD if rx.role == "velocity" else HEADING_SPREAD_RAD)
                           for i, rx in enumerate(receivers)]
+        # a heading-only receiver identifies its latency from its heading changes against the gyro
+        self.yaw_integral = YawIntegral(dt, gn.max_delay_s) if not all(self.uses_velocity) else None
         self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
@@ -118,6 +125,12 @@ class Estimator:
                                          gn.baseline_tol_m, gn.max_heading_acc_deg, gn.nmea_heading_acc_deg,
                                          es.gnss_gate_sigma)
         self.last_heading_fused_t = -math.inf
+        # the optional magnetometer ([inputs.mag_x/y/z]): None when not mapped
+        self.mag = None
+        if all(n in cfg.inputs for n in ("mag_x", "mag_y", "mag_z")):
+            self.mag = MagnetometerFusion(es.mag_tilt, es.mag_noise_deg, es.mag_bias_deg, es.mag_tilt_std_deg,
+                                          es.mag_norm_tol, es.mag_dip_tol_deg, es.mag_gate_sigma)
+        self.mag_new = False
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
         self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
         self.single_track = SingleTrackFusion(
@@ -272,6 +285,8 @@ class Estimator:
             self.held_t[i] = t
             if i <= I_RR_MAX:
                 self.wheel_new = True
+            elif i >= I_MX:
+                self.mag_new = True
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
         elif type(s) is GnssHeadingSample:
@@ -400,6 +415,8 @@ class Estimator:
         self.r_lp += self._lp_r * (r - self.r_lp)
         self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        if self.yaw_integral is not None:
+            self.yaw_integral.step(k, r)
         self.slip_hold = max(self.wheels.slip_bound(x[VX], ax), self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------
@@ -422,6 +439,10 @@ class Estimator:
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
+        if self.mag_new:
+            self.mag_new = False
+            if self.mag is not None and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
+                self._on_mag(t, x, P, A, ay_m)
         for j, v in self.fdi.frozen.items():
             x[j] = v
         clamp_learned(x)
@@ -434,6 +455,31 @@ class Estimator:
             self._reset(k)
             return self._invalid(t)
         return self._estimate(t, xl, pd, P[VX, VY], r, status | iso, imu_ok, wheels_ok, iso)
+
+    def _on_mag(self, t: float, x, P, A, ay_m: float) -> None:
+        """The magnetometer's sample (all three axes of one frame) at this step: tilt-compensated
+        heading, disturbance check, offset learning while GNSS backs the heading, then fusion."""
+        held, held_t = self.held, self.held_t
+        tm = held_t[I_MX]
+        if not (held_t[I_MY] == tm and held_t[I_MZ] == tm):  # axes from different frames
+            return
+        mag = self.mag
+        roll, pitch = mag.tilt_angles(x[BAX], x[BAY], x[GAY], ay_m)
+        psi_mag = mag.measure(tm, held[I_MX], held[I_MY], held[I_MZ], roll, pitch)
+        if not mag.undisturbed(tm):
+            mag.rejected += 1
+            return
+        filter_tilt = math.sqrt(max(P[BAY, BAY], 0.0)) / 9.80665
+        slow = mag.slow_var(filter_tilt)
+        if (self.aligned and t - self.last_gnss_fused_t <= GNSS_FRESH_S and x[VX] > MAG_LEARN_SPEED
+                and P[PSI, PSI] < MAG_LEARN_STD ** 2):
+            mag.learn_offset(tm, psi_mag, x[PSI], P[PSI, PSI], slow)
+        if not (self.aligned and mag.offset_known(tm)):
+            mag.state = MAG_LEARNING
+            mag.last_reason = "offset not learned yet (needs a GNSS heading)"
+            return
+        mag.fuse(tm, x, P, A, psi_mag, slow, t - self.last_gnss_fused_t > HEADING_FRESH_S
+                 and t - self.last_heading_fused_t > HEADING_FRESH_S)
 
     def _substitute(self, iso: int, x, r_m: float, ax_m: float, ay_m: float) -> tuple[float, float, float]:
         """Stand-ins for isolated IMU signals (as raw readings): yaw rate from the rear wheels,
@@ -561,6 +607,13 @@ class Estimator:
         hd = self.heading
         floor = 0.0 if (hd.fused and hd.last is not None and t - hd.last.t < HEADING_FRESH_S
                         and hd.consecutive_rejects == 0) else COURSE_FLOOR_RAD
+        mag = self.mag
+        if mag is not None and t - mag.last_fused_t <= GNSS_FRESH_S:
+            status |= est_mod.STATUS_MAGNETOMETER
+            if floor and t - self.last_gnss_fused_t > HEADING_FRESH_S:
+                # the magnetometer holds the heading: its slow error is a bias the filter cannot
+                # average away (module docstring of fusion/magnetometer.py)
+                floor = math.sqrt(COURSE_FLOOR_RAD ** 2 + mag.last_slow_var)
         psi_std = math.sqrt(sd[PSI] ** 2 + (self.turn_lp * self._latency_std()) ** 2 + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -578,7 +631,8 @@ class Estimator:
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and all(f.consecutive_rejects == 0 for f in self.receivers) and self.heading.consecutive_rejects < 2,
+            and all(f.consecutive_rejects == 0 for f in self.receivers) and self.heading.consecutive_rejects < 2
+            and (mag is None or mag.consecutive_rejects < 2),
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, *self.gnss_counts())
@@ -672,6 +726,8 @@ class Estimator:
             fus.rejected += 1
             return
         lat = self.latencies[min(g.source, len(self.latencies) - 1)]
+        if self.yaw_integral is not None and g.source < len(self.uses_velocity) and not self.uses_velocity[g.source]:
+            self.yaw_integral.pair(g.source, k, fus.vehicle_heading(g), lat)
         delay = lat.delay_s if self.delay_compensation else 0.0
         s, _ = h.clamp_step(round((g.t - delay) / self.dt))
         std = lat.std_s

@@ -20,6 +20,7 @@ STATUS_ACCEL_Y_ISOLATED = 1 << 11
 STATUS_GNSS_ISOLATED = 1 << 12
 STATUS_WHEEL_SPEED_ISOLATED = 1 << 13  # one fused wheel disagrees with the others: its axle partner stands in
 STATUS_GNSS_HEADING = 1 << 14  # a dual-antenna GNSS heading was fused within the last second
+STATUS_MAGNETOMETER = 1 << 15  # a magnetometer heading was fused within the last second
 
 
 class Estimate(NamedTuple):

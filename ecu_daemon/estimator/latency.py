@@ -27,6 +27,12 @@ changes against the integrated yaw rate would add lateral information, but they 
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
 simulator.) ``std_s`` is the 1-sigma of the estimate, which the GNSS fusion turns into velocity
 noise (|a| * std), so GNSS is de-weighted in hard manoeuvres until the delay is known.
+
+A heading-only receiver (``role = "heading"``) has no speed to regress: its heading change
+between two samples is regressed on the integrated yaw rate over the same interval delayed by
+each candidate (:meth:`LatencyEstimator.observe_series`, fed by :class:`YawIntegral`), the
+same statistics and decision rule; the integrated gyro, not the filter's heading, because the
+filter's heading is pulled towards the receiver at the current latency estimate.
 """
 from __future__ import annotations
 
@@ -49,8 +55,9 @@ MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its 
 
 class LatencyEstimator:
     def __init__(self, dt: float, prior_s: float, max_s: float, enabled: bool = True,
-                 forgetting: float = 0.995, prior_std_s: float = PRIOR_STD_S):
+                 forgetting: float = 0.995, prior_std_s: float = PRIOR_STD_S, min_spread: float = MIN_SPEED_SPREAD):
         self.dt = dt
+        self.min_spread = min_spread  # of the regressor (its unit) for the timing to be informative
         self.enabled = enabled
         self.delay_s = prior_s
         # a fixed (configured, not estimated) latency is taken as good to a few ms; an estimated
@@ -82,11 +89,18 @@ class LatencyEstimator:
         x = hist.aux[slot, AUX_WHEEL]
         if not np.isfinite(x).all() or x.min() < MIN_SPEED:
             return
+        self.observe_series(x, speed)
+
+    def observe_series(self, x: np.ndarray, y: float) -> None:
+        """One observation ``y ~ a * x[m] + b`` for every candidate m (``x[m]``: the reference
+        signal at the candidate validity step, a delay of m + 1 steps)."""
+        if not self.enabled:
+            return
         z = np.stack((x, np.ones_like(x)), axis=1)
         lam = self.forgetting
         self.zz = lam * self.zz + z[:, :, None] * z[:, None, :]
-        self.zy = lam * self.zy + z * speed
-        self.syy = lam * self.syy + speed * speed
+        self.zy = lam * self.zy + z * y
+        self.syy = lam * self.syy + y * y
         self.updates += 1
         self._refine()
 
@@ -96,8 +110,8 @@ class LatencyEstimator:
         zz = self.zz
         n = zz[0, 1, 1]
         cxx = zz[:, 0, 0] - zz[:, 0, 1] ** 2 / n
-        if not (cxx.min() > MIN_SPEED_SPREAD ** 2 * n * 0.1):
-            return  # speed has hardly varied: no timing information
+        if not (cxx.min() > self.min_spread ** 2 * n * 0.1):
+            return  # the regressor has hardly varied: no timing information
         # residual sum of squares of the least-squares fit per candidate
         theta = np.linalg.solve(zz, self.zy[:, :, None])[:, :, 0]
         c = np.maximum(self.syy - np.einsum("ki,ki->k", theta, self.zy), 0.0)
@@ -131,3 +145,46 @@ class LatencyEstimator:
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
         self.std_s = max(std, STD_FALL * self.std_s)
+
+
+HEADING_SPREAD_RAD = 0.01  # heading change between samples: turning, not straight-line noise
+MAX_HEADING_GAP_S = 1.5  # two heading samples further apart than this are not paired
+
+
+class YawIntegral:
+    """The yaw rate integrated step by step (clockwise, as a heading), kept for the last
+    ``n`` steps: the reference of a heading-only receiver's latency identification."""
+
+    def __init__(self, dt: float, max_delay_s: float):
+        self.dt = dt
+        self.n = int(math.ceil((max_delay_s + MAX_HEADING_GAP_S) / dt)) + 4
+        self.psi = np.zeros(self.n)
+        self.total = 0.0
+        self.last = -1  # last step stored
+        self.first = 0  # first step of the current unbroken run
+        self.prev: dict[int, tuple[int, float]] = {}  # receiver -> (step received, vehicle heading)
+
+    def step(self, k: int, r: float) -> None:
+        if k != self.last + 1:
+            self.first = k
+            self.prev.clear()
+        self.total -= r * self.dt
+        self.psi[k % self.n] = self.total
+        self.last = k
+
+    def pair(self, receiver: int, k_rx: int, heading: float, lat: LatencyEstimator) -> None:
+        """A heading sample of ``receiver`` received just before step ``k_rx``: regress its change
+        since the previous one on the gyro's over the same interval, delayed by each candidate."""
+        prev = self.prev.get(receiver)
+        self.prev[receiver] = (k_rx, heading)
+        if prev is None:
+            return
+        k0, h0 = prev
+        m = np.arange(lat.max_steps + 1)
+        c1, c0 = k_rx - 1 - m, k0 - 1 - m
+        if not (0 < (k_rx - k0) * self.dt <= MAX_HEADING_GAP_S and c0[-1] >= max(self.first, self.last - self.n + 1)
+                and c1[0] <= self.last):
+            return
+        x = self.psi[c1 % self.n] - self.psi[c0 % self.n]
+        y = math.remainder(heading - h0, 2.0 * math.pi)
+        lat.observe_series(x, y)

@@ -14,6 +14,7 @@ import time
 from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics, HostStatus
 from ..estimator.fault_detection import SOURCE_BITS
 from ..estimator.fusion.gnss_heading import STATE_STALE
+from ..estimator.fusion.magnetometer import STATE_STALE as MAG_STALE
 from ..samples import GnssSample
 from . import can_bus
 from .tick import TickSnapshot
@@ -53,14 +54,16 @@ def thread_cpu_s(native_id: int | None) -> float:
 def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: GnssSample | None,
                       gnss_delay_s: float, host: HostStatus | None, gnss_connected: bool = False,
                       error_frames: int = 0, status: int = 0, isolation_events: dict | None = None,
-                      gnss_heading=None, gnss_timeout_s: float = math.inf) -> Diagnostics:
+                      gnss_heading=None, gnss_timeout_s: float = math.inf, mag=None,
+                      mag_timeout_s: float = 0.25) -> Diagnostics:
     """The snapshot at step time ``t``. ``host``: the live host's part (:func:`host_status`);
     offline (replay of a foreign log) there is none: "not available" bus state, tick and CPU,
     ``gnss_connected`` as given and the log's own ``error_frames``. ``status``: the latest
     Estimate.status (its isolation bits); ``isolation_events``: the estimator's per-source
     isolation counts (``FaultDetector.events``); ``gnss_heading``: the estimator's
     ``GnssHeadingFusion`` (its last sample and what became of it), silent for longer than
-    ``gnss_timeout_s`` reads as stale."""
+    ``gnss_timeout_s`` reads as stale; ``mag``: the estimator's ``MagnetometerFusion`` (None: no
+    magnetometer mapped), silent for longer than ``mag_timeout_s`` reads as stale."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     for name, src in d.sources.items():
@@ -84,6 +87,13 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.gnss_heading_baseline_m = g.baseline_m
         d.gnss_heading_fused = gnss_heading.fused
         d.gnss_heading_rejected = gnss_heading.rejected
+    if mag is not None and math.isfinite(mag.last_t):
+        d.mag_state = MAG_STALE if t - mag.last_t > mag_timeout_s else mag.state
+        d.mag_field_norm_t = mag.norm
+        d.mag_inclination_rad = mag.dip
+        d.mag_offset_rad = mag.offset
+        d.mag_offset_std_rad = math.sqrt(mag.offset_var)
+        d.mag_rejected = mag.rejected
     if host is None:
         d.gnss_serial_connected = gnss_connected
         d.can_bus_state = BUS_NOT_AVAILABLE

@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Config, GnssReceiver
+from ..config import Config, GnssReceiver, magnetometer_inputs
+from ..samples import MAG_INPUTS
 from . import sensors as sens
 from .can_encoder import FrameEncoder
 from .manoeuvres import Circle, Driver
@@ -130,6 +131,8 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     v.cornering_stiffness_rear_n_per_rad = round(cr * f["cr"], 1)
     v.cg_height_m = vp.cg_height_m
     v.driven_axle = vp.driven_axle
+    if scenario.sensors.magnetometer is not None and not any(n in cfg.inputs for n in MAG_INPUTS):
+        cfg.inputs.update(magnetometer_inputs())  # on our chassis DBC's MAGNETOMETER message
     g = cfg.gnss
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
@@ -171,7 +174,7 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
                       v0=v0, vy0=vy0, r0=r0, steer0=steer0)
     seq = np.random.SeedSequence(scenario.seed)
     rng_values, rng_timing, rng_gnss = (np.random.default_rng(s) for s in seq.spawn(3))
-    sensors = sens.CanSensors(truth, scenario.sensors, rng_values)
+    sensors = sens.CanSensors(truth, scenario.sensors, rng_values, scenario.bank_rad, scenario.grade_rad)
     encoder = FrameEncoder(cfg)
     frames = []
     extended = set()

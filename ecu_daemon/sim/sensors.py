@@ -13,6 +13,11 @@ Sensor errors (all configurable in :class:`SensorParams`):
   so tyre slip and the radius error show up; below ``wheel_speed_min_mps`` the ABS reports 0
   (too few tooth edges), as real ones do.
 * steering-wheel angle: true angle ``+ offset + noise`` (offset at the steering wheel).
+* magnetometer (optional, :class:`MagParams`): the Earth's field (norm, inclination,
+  declination) rotated into the body by heading, pitch (grade) and roll (bank + body roll), the
+  sensor yawed by its mounting offset, white noise per axis, and disturbance events
+  (:class:`MagEvent`: a passing truck's hard-iron field, a steel bridge's soft iron) that fade
+  in and out.
 * quantisation is done by the DBC encoding, not here.
 
 CAN timing: each message is sent periodically with a random phase; it arrives after a small
@@ -97,6 +102,64 @@ def apply_fault(fault: Fault, t: np.ndarray, v: np.ndarray, t0: float, rng: np.r
 
 
 @dataclass(frozen=True)
+class MagEvent:
+    """A magnetic disturbance during ``[t_rel, t_rel + duration_s)``: at its peak the body-axis
+    field is ``soft_iron`` x the Earth's plus ``hard_iron_t`` (T, body x, y, z); it fades in and out
+    over ``ramp_s`` (a truck passing: ramp = half the duration; a bridge: a short ramp, a plateau)."""
+
+    t_rel: float
+    duration_s: float
+    hard_iron_t: tuple = (0.0, 0.0, 0.0)
+    soft_iron: float = 1.0
+    ramp_s: float = 0.5
+
+    def weight(self, t: np.ndarray, t0: float) -> np.ndarray:
+        a = t - (t0 + self.t_rel)
+        b = t0 + self.t_rel + self.duration_s - t
+        w = np.clip(np.minimum(a, b) / max(self.ramp_s, 1e-3), 0.0, 1.0)
+        return np.sin(0.5 * np.pi * w) ** 2  # smooth edges
+
+
+@dataclass(frozen=True)
+class MagParams:
+    field_t: float = 48e-6  # Earth's field norm (Munich, WMM: ~48 uT)
+    inclination_deg: float = 64.0  # dip, positive down
+    declination_deg: float = 3.5  # magnetic north east of true north
+    mount_yaw_deg: float = 1.5  # sensor x axis turned left of the vehicle's (ISO, about z up)
+    noise_t: float = 0.15e-6  # white, per axis
+    events: tuple = ()  # MagEvent s
+
+
+def magnetometer(truth: TruthArrays, p: MagParams, t: np.ndarray, rng: np.random.Generator,
+                 bank_rad: float = 0.0, grade_rad: float = 0.0) -> np.ndarray:
+    """Body-axis (ISO 8855) field of the magnetometer at times ``t``, shape (n, 3), tesla."""
+    inc, dec = math.radians(p.inclination_deg), math.radians(p.declination_deg)
+    m_ned = p.field_t * np.array([math.cos(inc) * math.cos(dec), math.cos(inc) * math.sin(dec), math.sin(inc)])
+    psi = sample(truth, "psi", t)
+    roll = sample(truth, "roll", t) + bank_rad  # ISO = NED roll sense (left side up)
+    th = grade_rad  # NED pitch, nose up
+    cps, sps = np.cos(psi), np.sin(psi)
+    # Rz(psi)^T m_ned, then Ry(theta)^T, then Rx(roll)^T: the field in the FRD body frame
+    x1 = cps * m_ned[0] + sps * m_ned[1]
+    y1 = -sps * m_ned[0] + cps * m_ned[1]
+    z1 = np.full_like(psi, m_ned[2])
+    ct, st = math.cos(th), math.sin(th)
+    x2, z2 = ct * x1 - st * z1, st * x1 + ct * z1
+    cr, sr = np.cos(roll), np.sin(roll)
+    y3, z3 = cr * y1 + sr * z2, -sr * y1 + cr * z2
+    m = np.stack([x2, -y3, -z3], axis=1)  # FRD -> ISO (x forward, y left, z up)
+    t0 = float(truth.t[0])
+    for ev in p.events:
+        w = ev.weight(t, t0)[:, None]
+        m = m * (1.0 + (ev.soft_iron - 1.0) * w) + w * np.asarray(ev.hard_iron_t)[None, :]
+    a = math.radians(p.mount_yaw_deg)  # the sensor's axes: the body's turned by a about z
+    mx = math.cos(a) * m[:, 0] + math.sin(a) * m[:, 1]
+    my = -math.sin(a) * m[:, 0] + math.cos(a) * m[:, 1]
+    out = np.stack([mx, my, m[:, 2]], axis=1)
+    return out + p.noise_t * rng.standard_normal(out.shape)
+
+
+@dataclass(frozen=True)
 class SensorParams:
     can_rate_hz: float | None = None  # None: the DBC's GenMsgCycleTime, else 100 Hz
     jitter_s: float = 0.0003  # 1-sigma of the half-normal arrival delay of a frame
@@ -112,6 +175,7 @@ class SensorParams:
     steering_noise_rad: float = math.radians(0.1)
     wheel_speed_min_mps: float = 0.15
     faults: tuple = ()  # Fault s on the CAN inputs
+    magnetometer: MagParams | None = None  # a magnetometer on CAN ([inputs.mag_x/y/z])
 
 
 @dataclass(frozen=True)
@@ -143,12 +207,15 @@ def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
 
 
 class CanSensors:
-    """Measured values (SI, ISO 8855) of the estimator's eight inputs at arbitrary send times."""
+    """Measured values (SI, ISO 8855) of the estimator's inputs at arbitrary send times."""
 
-    def __init__(self, truth: TruthArrays, params: SensorParams, rng: np.random.Generator):
+    def __init__(self, truth: TruthArrays, params: SensorParams, rng: np.random.Generator,
+                 bank_rad: float = 0.0, grade_rad: float = 0.0):
         self.truth = truth
         self.p = params
         self.rng = rng
+        self.bank_rad, self.grade_rad = bank_rad, grade_rad
+        self._mag: tuple | None = None  # (send times, field) of the last magnetometer frame times
 
     def measure(self, name: str, t: np.ndarray) -> np.ndarray:
         v = self._healthy(name, t)
@@ -174,6 +241,11 @@ class CanSensors:
             return sample(tr, "acc_x", t) + p.accel_x_bias_mps2 + p.accel_noise_mps2 * noise
         if name == "accel_y":
             return sample(tr, "acc_y", t) + p.accel_y_bias_mps2 + p.accel_noise_mps2 * noise
+        if name in ("mag_x", "mag_y", "mag_z") and p.magnetometer is not None:
+            # the three axes of one frame: one field vector per send time
+            if self._mag is None or len(self._mag[0]) != n or not np.array_equal(self._mag[0], t):
+                self._mag = (t.copy(), magnetometer(tr, p.magnetometer, t, self.rng, self.bank_rad, self.grade_rad))
+            return self._mag[1][:, "xyz".index(name[-1])].copy()
         raise KeyError(f"unknown input {name!r}")
 
 

@@ -5,7 +5,8 @@ Each :class:`SuiteCase` is a :class:`~ecu_daemon.sim.scenario.Scenario` plus how
 apply. ``ecu-daemon evaluate --suite`` (:mod:`ecu_daemon.suite`) runs them. The families follow
 issue 7: flying starts, a restart mid-drive, reversing, GNSS outage / rate / latency / faults,
 road bank and grade, low friction, wrong vehicle parameters in the config, a sign-magnitude DBC,
-faults on every CAN input, and low-speed handling; and from issue 11, a dual-antenna receiver.
+faults on every CAN input, and low-speed handling; and from issue 11, a dual-antenna receiver,
+two receivers and a magnetometer with magnetic disturbances.
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import math
 from dataclasses import dataclass
 
 from .scenario import GNSS_SETUPS, SCENARIOS, Scenario
-from .sensors import CAN_FAULT_KINDS, Fault
+from .sensors import CAN_FAULT_KINDS, Fault, MagEvent, MagParams
 
 
 @dataclass(frozen=True)
@@ -157,8 +158,35 @@ def _two_receivers() -> list[SuiteCase]:
     return out
 
 
+#: magnetic disturbances of the magnetometer family (times after the drive's start): a truck passing
+#: (hard iron, 2 s, 6 uT mostly sideways: its field turns the heading more than it changes the
+#: norm), a steel bridge (soft iron -25 % plus hard iron, 4 s), a tram line's field (8 s, vertical)
+MAG_EVENTS = (MagEvent(15.0, 2.0, (1e-6, 6e-6, -1e-6), 1.0, 1.0),
+              MagEvent(35.0, 4.0, (3e-6, -2e-6, 5e-6), 0.75, 0.5),
+              MagEvent(47.0, 8.0, (0.0, 0.0, 4e-6), 1.0, 2.0))
+
+
+def _magnetometer() -> list[SuiteCase]:
+    """A magnetometer on CAN (48 uT, 64 deg dip, 3.5 deg declination, 1.5 deg mounting yaw) with
+    the disturbances above; a GNSS outage (30 s, the gyro's bias shifting by 0.05 deg/s) where the magnetometer
+    must hold the heading,
+    on the mixed demo drive, a circle (body roll: tilt compensation) and a banked lane change."""
+    mag = MagParams(events=MAG_EVENTS)
+    outage = (Fault("gnss", "dropout", 25.0, 30.0),)
+    out = []
+    # the gyro's bias shifts by 0.05 deg/s during the outage (temperature): 1.25 deg in 25 s unaided
+    drift = (Fault("yaw_rate", "offset", 30.0, 25.0, math.radians(0.05)),)
+    for name, kind, extra in (("mag_outage_30s", "demo", {"gnss_faults": outage, "sensor_faults": drift}),
+                              ("mag_dlc", "dlc_dry", {}),
+                              ("mag_circle_outage", "circle_dry", {"gnss_faults": (Fault("gnss", "dropout", 30.0, 20.0),)}),
+                              ("mag_bank_dlc", "dlc_dry_bank", {})):
+        out.append(SuiteCase(name, "magnetometer", _base(name, kind, sensor_magnetometer=mag, **extra)))
+    return out
+
+
 def build_suite() -> list[SuiteCase]:
-    return _flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna() + _two_receivers()
+    return (_flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna() + _two_receivers()
+            + _magnetometer())
 
 
 SUITE: list[SuiteCase] = build_suite()
