@@ -188,6 +188,9 @@ class EstimatorSettings:
     accel_bias_walk: float = 1.5e-3
     wheel_scale_walk: float = 2e-5
     wheel_speed_noise_mps: float = 0.08
+    # 1-sigma zero offset of the accelerometers (datasheet, after end-of-line calibration): what
+    # separates road grade / bank from sensor offset until GNSS vertical velocity measures grade
+    accel_offset_std_mps2: float = 0.1
 
 
 @dataclass
@@ -300,6 +303,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("estimator", "accel_bias_walk"): (0.0, 10.0, "m/s^2/sqrt(s)"),
     ("estimator", "wheel_scale_walk"): (0.0, 1.0, "1/sqrt(s)"),
     ("estimator", "wheel_speed_noise_mps"): (1e-4, 100.0, "m/s"),
+    ("estimator", "accel_offset_std_mps2"): (1e-4, 10.0, "m/s^2"),
     ("daemon", "realtime_priority"): (0, 99, ""),
     # per [inputs.NAME]
     ("inputs", "scale"): (-1e12, 1e12, ""),
