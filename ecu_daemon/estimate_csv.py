@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from .estimator.estimate import ESTIMATE_FIELDS
 
-_BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
+_BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid", "bank_valid",
+                "grade_valid", "roll_valid"}
 _INT_FIELDS = {"status", "gnss_fused", "gnss_rejected", "gnss_late"}
 
 
