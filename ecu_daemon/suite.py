@@ -26,6 +26,8 @@ Issue 11 (more aiding sources), per family:
   ``vs1-b`` / ``vs1-h`` no worse than the same drive with the first receiver only (within 5 % +
   0.005 deg: the two runs share every other noise); every case ``lat2`` the second receiver's own
   latency identified within 0.03 s.
+* every case: ``cov-r`` valid bank / grade / roll rows within 3 reported sigma >= 99 %; ``road``
+  cases on a graded / banked road: ``rms-g`` / ``rms-k`` grade / bank RMS <= 0.5 deg.
 """
 from __future__ import annotations
 
@@ -62,6 +64,7 @@ TARGETS = {
     "dual_antenna_sideslip_rms_above_5mps_deg": 0.1,
     "two_receivers_sideslip_rms_deg": 0.15,
     "two_receivers_heading_rms_deg": 0.2,
+    "road_angle_rms_deg": 0.5,
 }
 
 
@@ -192,9 +195,19 @@ def summarise(case: SuiteCase, r: dict, baseline_rms: float, extra: dict | None 
         "has_fix": math.isfinite(r["first_good_fix_above_5mps"]),
         "latency2_error_s": math.nan, "single_sideslip_rms_deg": math.nan, "single_heading_rms_deg": math.nan,
         **(extra or {}),
+        **_road_figures(r),
     }
     row["failed"] = failed_targets(row, case)
     return row
+
+
+def _road_figures(r: dict) -> dict:
+    """Bank / grade / roll RMS (deg) and the worst of their 3-sigma coverages (NaN: never valid)."""
+    out = {f"{q}_rms_deg": r[q]["rms"] * DEG if q in r else math.nan for q in ("bank", "grade", "roll")}
+    cov = [r[q]["validity"]["coverage_3sigma"] for q in ("bank", "grade", "roll") if "validity" in r.get(q, {})]
+    cov = [c for c in cov if math.isfinite(c)]
+    out["road_coverage_3sigma"] = min(cov) if cov else math.nan
+    return out
 
 
 def failed_targets(row: dict, case: SuiteCase) -> list[str]:
@@ -225,6 +238,14 @@ def failed_targets(row: dict, case: SuiteCase) -> list[str]:
     if case.low_speed and (bad(row["sideslip_rms_deg"], T["low_speed_sideslip_rms_deg"])
                            or bad(row["ratio_to_baseline"], T["low_speed_ratio_to_baseline"])):
         fails.append("rms-b")
+    cov_r = row.get("road_coverage_3sigma", math.nan)
+    if math.isfinite(cov_r) and cov_r < T["coverage_3sigma"]:
+        fails.append("cov-r")
+    if case.family == "road":
+        if case.scenario.grade_rad and bad(row.get("grade_rms_deg", math.nan), T["road_angle_rms_deg"]):
+            fails.append("rms-g")
+        if case.scenario.bank_rad and bad(row.get("bank_rms_deg", math.nan), T["road_angle_rms_deg"]):
+            fails.append("rms-k")
     if case.family == "dual_antenna":
         if bad(row["heading_rms_deg"], T["dual_antenna_heading_rms_deg"]):
             fails.append("rms-h")
@@ -263,6 +284,10 @@ COLUMNS = (  # header, key, format
     ("h ttv", "heading_time_to_valid_after_fix_s", "{:.1f}"),
     ("lat err", "latency_error_s", "{:+.3f}"),
     ("lat2 err", "latency2_error_s", "{:+.3f}"),
+    ("bank", "bank_rms_deg", "{:.2f}"),
+    ("grade", "grade_rms_deg", "{:.2f}"),
+    ("roll", "roll_rms_deg", "{:.2f}"),
+    ("r 3sig", "road_coverage_3sigma", "{:.1%}"),
 )
 
 
@@ -285,7 +310,7 @@ def format_table(rows: list[dict]) -> str:
     out.append(f"{n_pass} of {len(rows)} scenarios meet every target (b = sideslip, h = heading; rms after"
                f" the first {SETTLE_S:g} s; val>5 = valid on rows above 5 m/s once converged; 3sig = valid rows"
                " within 3 sigma; worst = worst error while valid; ttv = time to valid after the first good"
-               " GNSS fix above 5 m/s)")
+               " GNSS fix above 5 m/s; bank / grade / roll: rms, r 3sig: their worst 3-sigma coverage)")
     return "\n".join(out)
 
 
