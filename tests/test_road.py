@@ -70,6 +70,15 @@ def test_without_vertical_velocity_grade_is_only_as_good_as_the_offset_prior():
     assert not road.valid(road.grade) and abs(err) < 3 * road.grade.std
 
 
+def test_a_velocity_down_of_exactly_zero_is_no_measurement_of_a_flat_road():
+    """Encoders without vertical velocity write velD = 0; a 10 % grade must not turn valid at 0."""
+    grade, offset = math.atan(0.10), 0.1
+    road = RoadAttitude(DT, 0.1, {})
+    _run(road, 30.0, offset + G * math.sin(grade), 0.0, vel_d=0.0)
+    assert road.vertical_fused == 0 and road.vertical_zero > 100
+    assert not road.valid(road.grade) and abs(road.grade.x[0] - grade) < 3 * road.grade.std
+
+
 def test_a_constant_bank_is_not_separable_from_the_offset_and_never_valid_without_one():
     bank, offset = math.atan(0.06), 0.15
     road = RoadAttitude(DT, 0.1, {})

@@ -9,7 +9,10 @@ offsets, so two 2-state Kalman filters do it here and the 8-state filter stays a
 * grade ``[grade, o_x]``: the main filter's ``b_ax`` (its variance inflated for the correlation of
   successive values), and the GNSS vertical velocity (UBX velD): at speed
   ``tan(grade) = -v_down / v_horizontal`` measures grade directly and so makes ``o_x`` observable.
-  NMEA has no vertical velocity: grade then rests on the offset's prior.
+  NMEA has no vertical velocity: grade then rests on the offset's prior. Nor, in effect, does a
+  capture whose velD is exactly 0: that is what encoders write when they have no vertical velocity
+  (our own real-data tools do), while a real receiver's noise makes an exact 0 mm/s rare at speed;
+  such fixes are skipped and counted, never taken as "flat".
 * bank ``[bank, o_y]``: the main filter's ``b_ay`` only. A constant bank and a constant offset
   read the same in every sensor the daemon has, so ``o_y`` keeps its prior (configured, or what
   earlier drives left) and the bank's std never drops below ``prior / g``: it is flagged valid
@@ -95,6 +98,7 @@ class RoadAttitude:
         self.grade = _Channel(*prior("accel_x_offset_mps2"))
         self.bank = _Channel(*prior("accel_y_offset_mps2"))
         self.vertical_fused = 0
+        self.vertical_zero = 0  # exact-0 velD fixes skipped (see module doc)
         self.roll = 0.0
         self.roll_std = math.pi
         self.fy_lp = math.nan
@@ -114,6 +118,9 @@ class RoadAttitude:
     def fuse_vertical(self, vel_d: float, speed: float, speed_acc: float) -> bool:
         """A GNSS vertical velocity with its horizontal speed (m/s) and speed accuracy."""
         if not (math.isfinite(vel_d) and math.isfinite(speed_acc) and speed >= VERTICAL_MIN_SPEED):
+            return False
+        if vel_d == 0.0:
+            self.vertical_zero += 1
             return False
         z = math.atan2(-vel_d, speed)
         R = (VERTICAL_ACC_FACTOR * speed_acc / speed) ** 2
