@@ -45,7 +45,7 @@ VERTICAL_MIN_SPEED = 5.0  # m/s: below, v_down / v_horizontal is noise
 VERTICAL_ACC_FACTOR = 1.5  # receivers' vertical velocity accuracy / their (horizontal) sAcc
 GATE_SIGMA = 5.0
 ANGLE_STD_VALID = math.radians(0.5)  # a valid grade / bank / roll promises this 1-sigma or better
-GAIN_FLOOR = 0.01  # accelerometer scale error the main filter's gain state holds besides roll
+GAIN_FLOOR = 0.02  # accelerometer scale error (datasheet sensitivity) the gain state holds besides roll
 ROLL_LAG_S = 0.05  # the body follows the lateral force through its suspension, about this late
 
 
