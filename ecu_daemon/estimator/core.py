@@ -424,7 +424,7 @@ class Estimator:
         clamp_learned(x)
         if imu_ok and not iso & (ACCEL_X | ACCEL_Y):
             self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY])
-            self.road.set_roll(ay_m, x[GAY], P[GAY, GAY])
+            self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
         h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
@@ -574,7 +574,8 @@ class Estimator:
         lat_ok = imu_ok and not iso & ACCEL_Y
         return (float(b.x[0]), b.std, float(g.x[0]), g.std, float(rd.roll), rd.roll_std,
                 lat_ok and rd.valid(b), imu_ok and not iso & ACCEL_X and rd.valid(g),
-                lat_ok and rd.roll_std < ROLL_STD_VALID)
+                # roll is ay through a gain: not promised while ay's yaw-rate witnesses disagree
+                lat_ok and not self.fdi.yaw_suspect and rd.roll_std < ROLL_STD_VALID)
 
     def gnss_counts(self) -> tuple[int, int, int]:
         """GNSS velocity samples fused, rejected and late, over every receiver."""

@@ -129,14 +129,16 @@ class RoadAttitude:
             return True
         return False
 
-    def set_roll(self, ay_m: float, g_ay: float, var_gay: float) -> None:
-        """Body roll from the measured lateral acceleration ``ay_m`` and the gain state."""
+    def set_roll(self, ay_m: float, g_ay: float, var_gay: float, ay_doubt: float = 0.0) -> None:
+        """Body roll from the measured lateral acceleration ``ay_m`` and the gain state;
+        ``ay_doubt`` (m/s^2): how far ``ay_m`` disagrees with its witness (yaw rate x speed), a
+        possible error of the force the roll is computed from (a sensor fault not yet isolated)."""
         fy = (ay_m - self.bank.x[1]) / (1.0 + g_ay)
         lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
         self.roll = g_ay / G * lp
         k2 = (g_ay * g_ay + var_gay) / (G * G)  # the roll gradient's square, its uncertainty included
         self.roll_std = math.sqrt((lp / G) ** 2 * (var_gay + GAIN_FLOOR ** 2) + k2 * (fy - lp) ** 2
-                                  + k2 * self.bank.P[1, 1])
+                                  + k2 * (self.bank.P[1, 1] + ay_doubt * ay_doubt))
 
     def valid(self, ch: _Channel) -> bool:
         return ch.updates > 0 and ch.std < ANGLE_STD_VALID
