@@ -203,6 +203,9 @@ class EstimatorSettings:
     mag_norm_tol: float = 0.015  # |field norm / nominal - 1| above this: disturbed (thesis 5.3.1)
     mag_dip_tol_deg: float = 2.0  # inclination this far off its nominal value: disturbed
     mag_gate_sigma: float = 3.0  # innovation gate of the magnetometer's heading
+    # 1-sigma zero offset of the accelerometers (datasheet, after end-of-line calibration): what
+    # separates road grade / bank from sensor offset until GNSS vertical velocity measures grade
+    accel_offset_std_mps2: float = 0.1
 
 
 _MAG_TILT = ("accel", "level")
@@ -324,6 +327,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("estimator", "mag_norm_tol"): (1e-4, 1.0, ""),
     ("estimator", "mag_dip_tol_deg"): (0.01, 90.0, "deg"),
     ("estimator", "mag_gate_sigma"): (1.0, 1000.0, ""),
+    ("estimator", "accel_offset_std_mps2"): (1e-4, 10.0, "m/s^2"),
     ("daemon", "realtime_priority"): (0, 99, ""),
     # per [inputs.NAME]
     ("inputs", "scale"): (-1e12, 1e12, ""),

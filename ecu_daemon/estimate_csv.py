@@ -12,7 +12,8 @@ try:
 except ImportError:
     _format_rows_compiled = None
 
-_BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid"}
+_BOOL_FIELDS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid", "bank_valid",
+                "grade_valid", "roll_valid"}
 _INT_FIELDS = {"status", "gnss_fused", "gnss_rejected", "gnss_late"}
 
 

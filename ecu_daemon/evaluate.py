@@ -46,9 +46,15 @@ SIGNALS = {
     "vx": ("vx_mps", "vx_mps", "velocity_valid", "m/s", 1.0),
     "vy": ("vy_mps", "vy_mps", "velocity_valid", "m/s", 1.0),
 }
+#: road and body attitude (issue 11): scored like SIGNALS where both files have the columns
+ROAD_SIGNALS = {
+    "bank": ("bank_rad", "bank_rad", "bank_valid", "deg", 180 / math.pi),
+    "grade": ("grade_rad", "grade_rad", "grade_valid", "deg", 180 / math.pi),
+    "roll": ("roll_rad", "roll_rad", "roll_valid", "deg", 180 / math.pi),
+}
 #: quantity -> the estimate's reported 1-sigma column (validity metrics need it)
 STD_COLUMNS = {"sideslip": "sideslip_std_rad", "heading": "heading_std_rad", "vx": "vx_std_mps",
-               "vy": "vy_std_mps"}
+               "vy": "vy_std_mps", "bank": "bank_std_rad", "grade": "grade_std_rad", "roll": "roll_std_rad"}
 VALID_SPEED_MPS = 5.0  # rows above this speed are where sideslip and heading must be valid
 CONVERGE_S = 3.0  # time after the first good fix above VALID_SPEED_MPS the targets allow
 #: bias-like quantities: (truth column(s) in order of preference, estimate column, unit, factor)
@@ -204,7 +210,8 @@ def _evaluate(truth: dict, est: dict, settle_s: float) -> dict:
                       else np.hypot(truth["vx_mps"], truth["vy_mps"]))
     out: dict = {"rows": int(sel.sum()), "t_start": float(t[0]), "t_end": float(t[-1]), "settle_s": settle_s,
                  "drive_start": float(t_all[0]), "first_good_fix_above_5mps": t_fix}
-    for name, (tc, ec, vc, _, _) in SIGNALS.items():
+    road = {n: v for n, v in ROAD_SIGNALS.items() if v[0] in truth and v[1] in est}
+    for name, (tc, ec, vc, _, _) in {**SIGNALS, **road}.items():
         if name in ("heading", "sideslip"):  # angles: +-180 deg apart is 0 (heading north, reversing)
             ref = np.interp(t_all, tt, np.unwrap(truth[tc]))
             err_all = wrap(est[ec][span] - ref)
@@ -262,7 +269,8 @@ def format_table(result: dict) -> str:
              f" (first {result['settle_s']:g} s excluded)",
              f"{'quantity':<26}{'unit':>7}{'rms':>10}{'max':>10}{'mean':>10}{'rms@valid':>11}{'valid':>7}"
              f"{'in 2sig':>8}"]
-    for name, (_, _, _, unit, k) in SIGNALS.items():
+    shown = {**SIGNALS, **{n: v for n, v in ROAD_SIGNALS.items() if n in result}}
+    for name, (_, _, _, unit, k) in shown.items():
         s = result[name]
         rv = s.get("rms_valid", math.nan)
         fv = s.get("fraction_valid", math.nan)
@@ -278,7 +286,7 @@ def format_table(result: dict) -> str:
                  f"{'t valid':>8}{'after fix':>10}{'valid':>7}{'>5m/s':>7}")
     pct = lambda v: f"{v * 100:.1f}%" if v == v else "-"  # noqa: E731
     num = lambda v, k=1.0: f"{v * k:.3g}" if v == v else "-"  # noqa: E731
-    for name, (_, _, _, unit, k) in SIGNALS.items():
+    for name, (_, _, _, unit, k) in shown.items():
         v = result[name].get("validity")
         if v is None:
             continue

@@ -39,6 +39,9 @@ ROWS = (
     ("ay bias [m/s2]", "EST_BIASES", "ACCEL_Y_BIAS", ("EST_BIAS_STD", "ACCEL_Y_BIAS_STD"), "BIASES_VALID", 1.0),
     ("GNSS latency [s]", "EST_CALIBRATION", "GNSS_DELAY", None, "CALIBRATION_VALID", 1.0),
     ("wheel scale", "EST_CALIBRATION", "WHEEL_SCALE", None, "CALIBRATION_VALID", 1.0),
+    ("bank [deg]", "EST_ROAD", "BANK", ("EST_ROAD_STD", "BANK_STD"), "BANK_VALID", DEG),
+    ("grade [deg]", "EST_ROAD", "GRADE", ("EST_ROAD_STD", "GRADE_STD"), "GRADE_VALID", DEG),
+    ("roll [deg]", "EST_ROAD", "ROLL", ("EST_ROAD_STD", "ROLL_STD"), "ROLL_VALID", DEG),
 )
 #: EST_DIAG input prefixes, in the order the daemon's inputs are listed
 INPUTS = ("WS_FL", "WS_FR", "WS_RL", "WS_RR", "STEER", "YAW_RATE", "ACCEL_X", "ACCEL_Y")

@@ -64,7 +64,7 @@ class GnssSample:
 
     ``t`` is the host receive time (same clock as the CAN inputs); the fix is valid earlier, at
     ``t - latency``; the estimator owns the latency estimate. Velocities are of the antenna,
-    north/east in m/s. ``speed_acc_mps`` is the receiver's 1-sigma speed accuracy, or NaN when
+    north/east (and down, when the protocol has it) in m/s. ``speed_acc_mps`` is the receiver's 1-sigma speed accuracy, or NaN when
     the protocol does not report it (NMEA RMC/VTG). ``fix_ok`` is the receiver's own validity
     (UBX gnssFixOK flag / NMEA status 'A' and mode not 'N').
     """
@@ -85,6 +85,7 @@ class GnssSample:
     course_known: bool = True
     ground_speed_mps: float = float("nan")  # only when course_known is False
     source: int = 0  # index of the receiver in the config's receiver list
+    vel_d_mps: float = float("nan")  # antenna velocity down (UBX NAV-PVT / NAV-VELNED velD; NMEA has none)
 
     @property
     def speed_mps(self) -> float:

@@ -31,6 +31,8 @@ Issue 11 (more aiding sources), per family:
   moves the heading error by more than 2 deg (from its start to 5 s after its end). The same
   drive is also replayed without the magnetometer mapped (``no mag`` columns of the row) to show
   what it holds.
+* every case: ``cov-r`` valid bank / grade / roll rows within 3 reported sigma >= 99 %; ``road``
+  cases on a graded / banked road: ``rms-g`` / ``rms-k`` grade / bank RMS <= 0.5 deg.
 """
 from __future__ import annotations
 
@@ -69,6 +71,7 @@ TARGETS = {
     "two_receivers_heading_rms_deg": 0.2,
     "magnetometer_heading_rms_deg": 1.0,
     "magnetometer_jump_deg": 2.0,
+    "road_angle_rms_deg": 0.5,
 }
 
 
@@ -230,9 +233,19 @@ def summarise(case: SuiteCase, r: dict, baseline_rms: float, extra: dict | None 
         "mag_heading_rms_deg": math.nan, "mag_jump_deg": math.nan,
         "no_mag_heading_rms_deg": math.nan, "no_mag_jump_deg": math.nan,
         **(extra or {}),
+        **_road_figures(r),
     }
     row["failed"] = failed_targets(row, case)
     return row
+
+
+def _road_figures(r: dict) -> dict:
+    """Bank / grade / roll RMS (deg) and the worst of their 3-sigma coverages (NaN: never valid)."""
+    out = {f"{q}_rms_deg": r[q]["rms"] * DEG if q in r else math.nan for q in ("bank", "grade", "roll")}
+    cov = [r[q]["validity"]["coverage_3sigma"] for q in ("bank", "grade", "roll") if "validity" in r.get(q, {})]
+    cov = [c for c in cov if math.isfinite(c)]
+    out["road_coverage_3sigma"] = min(cov) if cov else math.nan
+    return out
 
 
 def failed_targets(row: dict, case: SuiteCase) -> list[str]:
@@ -263,6 +276,14 @@ def failed_targets(row: dict, case: SuiteCase) -> list[str]:
     if case.low_speed and (bad(row["sideslip_rms_deg"], T["low_speed_sideslip_rms_deg"])
                            or bad(row["ratio_to_baseline"], T["low_speed_ratio_to_baseline"])):
         fails.append("rms-b")
+    cov_r = row.get("road_coverage_3sigma", math.nan)
+    if math.isfinite(cov_r) and cov_r < T["coverage_3sigma"]:
+        fails.append("cov-r")
+    if case.family == "road":
+        if case.scenario.grade_rad and bad(row.get("grade_rms_deg", math.nan), T["road_angle_rms_deg"]):
+            fails.append("rms-g")
+        if case.scenario.bank_rad and bad(row.get("bank_rms_deg", math.nan), T["road_angle_rms_deg"]):
+            fails.append("rms-k")
     if case.family == "dual_antenna":
         if bad(row["heading_rms_deg"], T["dual_antenna_heading_rms_deg"]):
             fails.append("rms-h")
@@ -309,6 +330,10 @@ COLUMNS = (  # header, key, format
     ("mag h", "mag_heading_rms_deg", "{:.2f}"),
     ("mag jump", "mag_jump_deg", "{:.2f}"),
     ("no-mag h", "no_mag_heading_rms_deg", "{:.2f}"),
+    ("bank", "bank_rms_deg", "{:.2f}"),
+    ("grade", "grade_rms_deg", "{:.2f}"),
+    ("roll", "roll_rms_deg", "{:.2f}"),
+    ("r 3sig", "road_coverage_3sigma", "{:.1%}"),
 )
 
 
@@ -332,7 +357,8 @@ def format_table(rows: list[dict]) -> str:
                f" the first {SETTLE_S:g} s; val>5 = valid on rows above 5 m/s once converged; 3sig = valid rows"
                " within 3 sigma; worst = worst error while valid; ttv = time to valid after the first good"
                " GNSS fix above 5 m/s; mag h / mag jump = magnetometer cases' heading RMS from 5 s after it is first valid"
-               " and largest heading-error change over a disturbance, no-mag h = the same replayed without it)")
+               " and largest heading-error change over a disturbance, no-mag h = the same replayed without it;"
+               " bank / grade / roll: rms, r 3sig: their worst 3-sigma coverage)")
     return "\n".join(out)
 
 

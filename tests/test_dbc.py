@@ -173,7 +173,7 @@ def test_every_validity_and_status_bit_has_a_value_table(outputs_db):
     """So that `cantools decode` (and any DBC tool) shows names, not bare 0/1."""
     bits = [(m.name, s) for m in outputs_db.messages for s in m.signals
             if s.name.endswith("_VALID") or s.name.startswith("STATUS_")]
-    assert len(bits) == 24
+    assert len(bits) == 30  # 24 + bank, grade and roll validity in EST_ROAD and EST_ROAD_STD
     for msg, s in bits:
         assert s.choices is not None and set(s.choices) == {0, 1}, f"{msg}.{s.name}"
     decoded = outputs_db.decode_message("EST_HEADING", outputs_db.encode_message(

@@ -11,8 +11,7 @@ from ecu_daemon import estimate_csv
 from ecu_daemon.estimate_csv import ROW_FORMAT, format_row, format_rows
 from ecu_daemon.estimator.estimate import ESTIMATE_FIELDS, Estimate
 
-_INTS = {"sideslip_valid", "heading_valid", "velocity_valid", "biases_valid", "status", "gnss_fused",
-         "gnss_rejected", "gnss_late"}
+_INTS = estimate_csv._BOOL_FIELDS | estimate_csv._INT_FIELDS  # the "%d" columns
 
 
 def _float(rng: random.Random) -> float:

@@ -33,7 +33,8 @@ ESTIMATE = Estimate(t=12.5, sideslip_rad=0.02, sideslip_std_rad=0.002, heading_r
                     cornering_stiffness_front_n_per_rad=1e5, cornering_stiffness_rear_n_per_rad=1.2e5,
                     sideslip_valid=True, heading_valid=False, velocity_valid=True, biases_valid=True,
                     status=est_mod.STATUS_HEADING_ALIGNED | est_mod.STATUS_GNSS_FRESH,
-                    gnss_fused=7, gnss_rejected=1, gnss_late=0)
+                    gnss_fused=7, gnss_rejected=1, gnss_late=0,
+                    grade_rad=0.05, grade_std_rad=0.0035, grade_valid=True)
 
 
 def _frames(steps: int = 250, diag: Diagnostics | None = None):
@@ -75,9 +76,12 @@ def test_render_shows_names_values_validity_and_status():
     con.print(render(st, "virtual:test", frames[-1].timestamp))
     text = con.file.getvalue()
     for s in ("sideslip [deg]", "1.146", "heading [deg]", "INVALID", "vx [m/s]", "20.000",
-              "status: GNSS_FRESH HEADING_ALIGNED", "GNSS: fix FIX_3D  sv 11", "WS_FL", "tick lateness p50"):
+              "status: GNSS_FRESH HEADING_ALIGNED", "GNSS: fix FIX_3D  sv 11", "WS_FL", "tick lateness p50",
+              "bank [deg]", "grade [deg]", "roll [deg]"):
         assert s in text, s
     assert "GNSS heading" not in text  # no dual-antenna receiver: no line for it
+    grade = next(line for line in text.splitlines() if "grade [deg]" in line)
+    assert "2.865" in grade and "0.201" in grade and "VALID" in grade and "INVALID" not in grade  # deg
 
 
 def test_render_shows_the_dual_antenna_heading_once_there_is_one():

@@ -10,7 +10,9 @@ Design (one filter, several aiding sources, see the package docstring for the co
 * ``fusion/gnss_velocity.py`` fuses late GNSS velocity at its time of validity, through the step
   history (``history.py``), and ``latency.py`` identifies the latency online;
 * ``fusion/gnss_heading.py`` fuses a dual-antenna heading the same way (and sets the heading
-  directly when the filter has none, at standstill too).
+  directly when the filter has none, at standstill too);
+* ``road.py`` splits the accelerometer-bias states into road grade / bank and sensor offset (with
+  GNSS vertical velocity) beside the filter, and gives the body roll.
 
 Start-up and recovery (``_initialize``, ``_align``, ``_wheels_diverged``): the filter starts from
 the wheels in whatever state the car is in, takes its heading from a GNSS course that the wheels
@@ -45,6 +47,8 @@ from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, YawIntegral
+from .road import ANGLE_STD_VALID as ROLL_STD_VALID
+from .road import RoadAttitude
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
                                                    "wheel_speed_rl", "wheel_speed_rr"))
@@ -143,6 +147,7 @@ class Estimator:
             es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt)
         self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
                                  self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
+        self.road = RoadAttitude(dt, es.accel_offset_std_mps2, learned)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned
@@ -232,6 +237,7 @@ class Estimator:
             **self.single_track.learned(),
             **self.stiffness.learned(),
             "steering_offset_rad": float(self.steer_offset),
+            **self.road.learned(),
             **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
                for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
         }
@@ -262,7 +268,9 @@ class Estimator:
                   "wheel_scale": (0.8, 1.2), "accel_y_gain": 0.2, "kappa_r": (1e-4, 1.0), "kappa_f": (1e-4, 1.0),
                   "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
                   "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0),
-                  "gnss_delay_std_s": (0.0, 1.0)}
+                  "gnss_delay_std_s": (0.0, 1.0),
+                  "accel_x_offset_mps2": 2.0, "accel_y_offset_mps2": 2.0,
+                  "accel_x_offset_std_mps2": (0.0, 10.0), "accel_y_offset_std_mps2": (0.0, 10.0)}
         for i in range(1, MAX_RECEIVERS):
             limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
             limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]
@@ -446,6 +454,9 @@ class Estimator:
         for j, v in self.fdi.frozen.items():
             x[j] = v
         clamp_learned(x)
+        if imu_ok and not iso & (ACCEL_X | ACCEL_Y):
+            self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY])
+            self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
         h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
         h.last = k
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
@@ -635,7 +646,17 @@ class Estimator:
             and (mag is None or mag.consecutive_rejects < 2),
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
-            status, *self.gnss_counts())
+            status, *self.gnss_counts(), *self._road(imu_ok, iso))
+
+    def _road(self, imu_ok: bool, iso: int) -> tuple:
+        """The road / roll fields of an Estimate: values, stds and validity (road.py)."""
+        rd = self.road
+        g, b = rd.grade, rd.bank
+        lat_ok = imu_ok and not iso & ACCEL_Y
+        return (float(b.x[0]), b.std, float(g.x[0]), g.std, float(rd.roll), rd.roll_std,
+                lat_ok and rd.valid(b), imu_ok and not iso & ACCEL_X and rd.valid(g),
+                # roll is ay through a gain: not promised while ay's yaw-rate witnesses disagree
+                lat_ok and not self.fdi.yaw_suspect and rd.roll_std < ROLL_STD_VALID)
 
     def gnss_counts(self) -> tuple[int, int, int]:
         """GNSS velocity samples fused, rejected and late, over every receiver."""
@@ -713,6 +734,8 @@ class Estimator:
         if ok:
             self.last_gnss_fused_t = k * self.dt
             self.last_gnss_speed = speed
+            if not self.fdi.isolated & ACCEL_X:
+                self.road.fuse_vertical(g.vel_d_mps, speed, fus.sigma(g))
 
     def _on_heading(self, g: GnssHeadingSample, k: int) -> None:
         """Fuse a dual-antenna heading received just before step k, at its time of validity (the

@@ -1,6 +1,7 @@
 """The estimator's per-step output record (one per 6 ms step)."""
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 # status bits (Estimate.status)
@@ -53,6 +54,17 @@ class Estimate(NamedTuple):
     gnss_fused: int  # cumulative count of GNSS samples fused
     gnss_rejected: int  # cumulative count rejected (quality or gate)
     gnss_late: int  # cumulative count older than the ring buffer (clamped to its oldest step)
+    # road and body attitude (estimator/road.py); rad, ISO signs: bank left side up, grade uphill
+    # ahead, roll = the body on its suspension relative to the road plane, left side up
+    bank_rad: float = 0.0
+    bank_std_rad: float = math.pi
+    grade_rad: float = 0.0
+    grade_std_rad: float = math.pi
+    roll_rad: float = 0.0
+    roll_std_rad: float = math.pi
+    bank_valid: bool = False
+    grade_valid: bool = False
+    roll_valid: bool = False
 
 
 ESTIMATE_FIELDS = Estimate._fields

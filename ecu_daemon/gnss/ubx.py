@@ -179,6 +179,7 @@ class UbxDecoder:
             t=t,
             vel_n_mps=m.velN / 1000,
             vel_e_mps=m.velE / 1000,
+            vel_d_mps=m.velD / 1000,
             speed_acc_mps=m.sAcc / 1000,
             fix_type=int(m.fixType),
             fix_ok=bool(m.gnssFixOk),
@@ -241,6 +242,6 @@ class UbxDecoder:
         self._legacy_itow = m.iTOW
         _, fix_type, fix_ok, num_sv = st
         return GnssSample(
-            t=t, vel_n_mps=m.velN / 100, vel_e_mps=m.velE / 100, speed_acc_mps=m.sAcc / 100,
-            fix_type=fix_type, fix_ok=fix_ok, num_sv=int(num_sv), protocol="ubx", head_acc_rad=math.radians(m.cAcc),
+            t=t, vel_n_mps=m.velN / 100, vel_e_mps=m.velE / 100, vel_d_mps=m.velD / 100,
+            speed_acc_mps=m.sAcc / 100, fix_type=fix_type, fix_ok=fix_ok, num_sv=int(num_sv), protocol="ubx", head_acc_rad=math.radians(m.cAcc),
         )

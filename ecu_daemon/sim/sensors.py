@@ -24,8 +24,8 @@ CAN timing: each message is sent periodically with a random phase; it arrives af
 half-normal jitter; optionally the adapter delivers frames in USB batches that share one
 timestamp (as comma's panda does). The value in a frame is the truth at its *send* time.
 
-GNSS: epochs on the UTC grid of ``1/rate_hz``; each reports the *antenna* velocity (lever arm)
-with white noise, and reaches the host ``latency_s`` (+ jitter) after its time of validity.
+GNSS: epochs on the UTC grid of ``1/rate_hz``; each reports the *antenna* velocity (lever arm;
+vertical too, on a graded or banked road, in UBX velD) with white noise, and reaches the host ``latency_s`` (+ jitter) after its time of validity.
 UBX: one NAV-PVT per epoch. NMEA: RMC, VTG, GGA per epoch, each sentence a few ms after the
 previous one (serial transmission). A dual-antenna receiver (moving base + rover, ``dual_antenna``)
 adds the baseline's heading to every epoch (UBX NAV-RELPOSNED after the NAV-PVT, NMEA THS): the
@@ -280,6 +280,7 @@ class GnssEpoch:
     lon_deg: float
     good: bool = True  # False while a fault corrupts it (the truth's gnss_good column)
     heading_deg: float = math.nan  # baseline heading (dual antenna), clockwise from north
+    vel_d: float = 0.0  # antenna velocity down (UBX velD)
 
 
 def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator) -> list[GnssEpoch]:
@@ -315,6 +316,12 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     t_rx = tv + params.latency_s + jitter
     t_rx = np.maximum.accumulate(t_rx)  # a receiver never reorders its output
     vn, ve = vn_true + noise[:, 0], ve_true + noise[:, 1]
+    # vertical: climbing a grade along x, a bank along y (positive bank: left side up). Its noise
+    # (1.5 x horizontal, as receivers' vertical is) comes from its own stream seeded by the epoch
+    # grid, so adding it left every horizontal draw, and thus every older drive, as it was.
+    sg, sb = math.sin(truth.road.grade_rad), math.sin(truth.road.bank_rad)
+    vd_true = -((vx - r * ly) * sg + (vy + r * lx) * sb * cg)
+    vd = vd_true + 1.5 * params.vel_noise_mps * np.random.default_rng([int(k0), n, 4]).standard_normal(n)
     head = np.full(n, math.nan)
     if params.dual_antenna:
         sig = math.radians(params.heading_noise_deg_1m) / params.baseline_m
@@ -326,6 +333,7 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
         if f.kind == "scaled":
             vn[on] *= f.value
             ve[on] *= f.value
+            vd[on] *= f.value
         elif f.kind == "constant":
             vn[on] = ve[on] = f.value
         elif f.kind == "dropout":
@@ -342,7 +350,7 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
             break
         if sent[i]:
             out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn[i]), float(ve[i]), float(lat[i]),
-                                 float(lon[i]), bool(good[i]), float(head[i])))
+                                 float(lon[i]), bool(good[i]), float(head[i]), float(vd[i])))
     return out
 
 
@@ -355,7 +363,8 @@ def encode_epoch(ep: GnssEpoch, params: GnssParams) -> list[tuple[float, bytes]]
         frame = encode.nav_pvt(**encode.utc_fields(utc), fix_type=3, fix_ok=True, num_sv=params.num_sv,
                                lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, height_m=params.height_m,
                                h_acc_m=max(0.5, 1.5 * params.pos_noise_m),
-                               vel_n_mps=ep.vel_n, vel_e_mps=ep.vel_e, speed_acc_mps=params.speed_acc_mps)
+                               vel_n_mps=ep.vel_n, vel_e_mps=ep.vel_e, vel_d_mps=ep.vel_d,
+                               speed_acc_mps=params.speed_acc_mps)
         out = [(ep.t_rx, frame)]
         if math.isfinite(ep.heading_deg):
             acc = 1.5 * params.heading_noise_deg_1m / params.baseline_m  # receivers' accHeading: pessimistic

@@ -72,6 +72,13 @@ def _conditions() -> list[SuiteCase]:
     for pct in (10, -10):
         out.append(SuiteCase(f"grade_{pct:+d}pct", "road", _base(f"grade_{pct:+d}pct", "dlc_dry",
                                                                 grade_rad=math.atan(pct / 100))))
+    # issue 11: grade from GNSS vertical velocity needs UBX; NMEA has none (grade from ax only);
+    # a banked circle (bank and body roll together); the 5 % bank of a lane change at 30 m/s
+    out.append(SuiteCase("grade_+10pct_nmea", "road", _base("grade_+10pct_nmea", "dlc_dry",
+                                                            grade_rad=math.atan(0.1), gnss_protocol="nmea")))
+    out.append(SuiteCase("grade_-6pct_slalom", "road", _base("grade_-6pct_slalom", "slalom_dry",
+                                                             grade_rad=math.atan(-0.06))))
+    out.append(SuiteCase("bank_circle", "road", _base("bank_circle", "circle_dry_bank")))
     for kind in ("dlc", "circle"):
         out.append(SuiteCase(f"mu03_{kind}", "road", _base(f"mu03_{kind}", f"{kind}_mu03")))
     for key in ("mass", "inertia", "cf", "cr"):
