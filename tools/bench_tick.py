@@ -7,8 +7,9 @@ messages at 100 Hz, UBX NAV-PVT at 5 Hz) plus filler frames of ids the daemon do
 for a total of ``--rate`` frames/s, in real time. The daemon sends its own outputs (~900 frames/s).
 
 Printed: tick lateness p50/p99/max (whole run, 10 us histogram bins), overruns and skipped
-deadlines, samples that missed their step, CPU of the process, of the tick thread and of the
-feeder (which stands in for the kernel and would not exist on a vehicle).
+deadlines, samples that missed their step, and CPU time per thread (``/proc/self/task``): the
+daemon's own (every thread but the feeder's, which stands in for the kernel and would not exist
+on a vehicle), split into the tick thread, the event loop and the rest, and the feeder's.
 
     python3 tools/bench_tick.py [--seconds 20] [--rate 2000] [--realtime-priority 10]
 """
@@ -18,6 +19,7 @@ import argparse
 import asyncio
 import os
 import sys
+import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -40,6 +42,20 @@ def with_filler(sim, total_rate: float):
     filler = [(sim.t0 + (i + 0.5) * dur / n, ids[i % len(ids)], bytes([i & 0xFF] * 8)) for i in range(n)]
     frames = sorted(sim.can_frames + filler, key=lambda f: f[0])
     return replace(sim, can_frames=frames)
+
+
+def threads_cpu_s() -> dict[int, float]:
+    """CPU seconds of every thread of this process now, by native thread id."""
+    out = {}
+    for name in os.listdir("/proc/self/task"):
+        out[int(name)] = thread_cpu_s(int(name))
+    return out
+
+
+def cpu_used(before: dict[int, float], after: dict[int, float]) -> dict[int, float]:
+    """CPU seconds per thread between two snapshots (threads that ended in between are lost:
+    the daemon's threads all live through the measurement)."""
+    return {tid: c - before.get(tid, 0.0) for tid, c in after.items() if c == c}
 
 
 def main() -> int:
@@ -73,14 +89,18 @@ def main() -> int:
         await asyncio.sleep(0.2)
         tick_id, feed_id = daemon.tick.native_id, feeder.native_id
         w0, c0 = time.monotonic(), time.process_time()
-        t0, f0 = thread_cpu_s(tick_id), thread_cpu_s(feed_id)
+        threads0 = threads_cpu_s()
         rx0, tx0 = daemon.canio.rx_frames + daemon.canio.rx_ignored, daemon.frames_sent
         late0 = daemon.late_samples
         await asyncio.sleep(args.seconds)
+        used = cpu_used(threads0, threads_cpu_s())
         w = time.monotonic() - w0
+        pct = {tid: c / w * 100 for tid, c in used.items()}
+        feeder_cpu = pct.pop(feed_id, 0.0)
         result.update(
-            wall=w, cpu=(time.process_time() - c0) / w * 100, tick_cpu=(thread_cpu_s(tick_id) - t0) / w * 100,
-            feeder_cpu=(thread_cpu_s(feed_id) - f0) / w * 100,
+            wall=w, cpu=(time.process_time() - c0) / w * 100, daemon_cpu=sum(pct.values()),
+            tick_cpu=pct.get(tick_id, 0.0), loop_cpu=pct.get(threading.main_thread().native_id, 0.0),
+            feeder_cpu=feeder_cpu,
             rx_rate=(daemon.canio.rx_frames + daemon.canio.rx_ignored - rx0) / w,
             tx_rate=(daemon.frames_sent - tx0) / w, late=daemon.late_samples - late0)
         daemon.request_stop()
@@ -101,8 +121,10 @@ def main() -> int:
           f" max {snap.late_max_total_s * 1e6:.0f} us")
     print(f"  overruns {snap.overruns}, skipped deadlines {snap.skipped},"
           f" tick work p99 {snap.work_p99_s * 1e6:.0f} us, samples late for their step {result['late']}")
-    print(f"  CPU: process {result['cpu']:.1f} % of one core (tick thread {result['tick_cpu']:.1f} %,"
-          f" feeder standing in for the kernel {result['feeder_cpu']:.1f} %)")
+    other = result["daemon_cpu"] - result["tick_cpu"] - result["loop_cpu"]
+    print(f"  CPU: daemon {result['daemon_cpu']:.1f} % of one core (tick thread {result['tick_cpu']:.1f} %,"
+          f" event loop {result['loop_cpu']:.1f} %, other threads {other:.1f} %);"
+          f" feeder standing in for the kernel {result['feeder_cpu']:.1f} %; process {result['cpu']:.1f} %")
     return 0
 
 
