@@ -412,8 +412,7 @@ class Daemon:
             if kind == "est":
                 batch.extend(payload)
                 if rec is not None:
-                    for e in payload:
-                        rec.on_estimate(e)
+                    rec.on_estimates(payload)
             elif rec is None:
                 continue
             elif kind == "tick":

@@ -94,8 +94,7 @@ def live(tmp_path_factory, request):
         for m in out[-1].frames:
             rec.on_output(m.timestamp, m)
             sent.append(m)
-        for st in out:
-            rec.on_estimate(st.estimate)
+        rec.on_estimates([st.estimate for st in out])
     rec.on_tick_record(TickRecord.line("end", last))
     rec.close()
     gnss = [str(tmp / "rec" / "gnss.log")] + ([str(tmp / "rec" / "gnss2.log")] if two else [])

@@ -28,7 +28,7 @@ import can
 from ..canlog import CandumpWriter, CanLogError
 from ..gnss.logfile import GnssLogWriter
 from ..errors import UserError
-from ..estimate_csv import csv_header, format_row
+from ..estimate_csv import csv_header, format_rows
 
 log = logging.getLogger("ecu_daemon.record")
 
@@ -80,9 +80,10 @@ class Recorder:
     def on_output(self, t: float, msg: can.Message) -> None:
         self._guard(self.outputs.write_frame, t, msg.arbitration_id, bytes(msg.data), False, False)
 
-    def on_estimate(self, est) -> None:
-        self.estimates += 1
-        self._guard(self._csv.write, format_row(est))
+    def on_estimates(self, ests: list) -> None:
+        """A tick's published estimates (one, or the steps of a catch-up), formatted together."""
+        self.estimates += len(ests)
+        self._guard(self._csv.write, format_rows(ests))
 
     def flush(self) -> None:
         for f in (self.can, self.outputs, self.gnss, *self.gnss_extra, self._csv, self._ticks):
