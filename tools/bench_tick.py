@@ -121,7 +121,7 @@ def main() -> int:
           f" max {snap.late_max_total_s * 1e6:.0f} us")
     print(f"  overruns {snap.overruns}, skipped deadlines {snap.skipped},"
           f" tick work p99 {snap.work_p99_s * 1e6:.0f} us, samples late for their step {result['late']}")
-    other = result["daemon_cpu"] - result["tick_cpu"] - result["loop_cpu"]
+    other = max(0.0, result["daemon_cpu"] - result["tick_cpu"] - result["loop_cpu"])
     print(f"  CPU: daemon {result['daemon_cpu']:.1f} % of one core (tick thread {result['tick_cpu']:.1f} %,"
           f" event loop {result['loop_cpu']:.1f} %, other threads {other:.1f} %);"
           f" feeder standing in for the kernel {result['feeder_cpu']:.1f} %; process {result['cpu']:.1f} %")
