@@ -149,6 +149,7 @@ class FaultDetector:
         self.track = track_m
         self.lf = lf_m
         self.fused_wheels = {"all": (0, 1, 2, 3), "rear": (0, 1)}.get(driven_axle, (2, 3))
+        self._other_wheels = tuple(j for j in range(4) if j not in self.fused_wheels)
         self._measured = measured_speed or (lambda fl, fr, rl, rr: 0.5 * (rl + rr))
         self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
         self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
@@ -202,15 +203,16 @@ class FaultDetector:
 
     # ------------------------------------------------------------------------------------------
     def step(self, k: int, wheels: tuple, wheels_ok: bool, r_m: float, ax_m: float, ay_m: float,
-             imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float, delta: float = 0.0,
+             imu_ok: bool, x, p_vx: float, wheel_r2: float, delta: float = 0.0,
              rdot: float = 0.0) -> int:
-        """Run every check for step k (x: the latest state). Returns the isolation mask.
+        """Run every check for step k (x: the latest state, a list or an array). Returns the isolation mask.
 
         ``wheels``: (fl, fr, rl, rr) raw readings; ``p_vx``: variance of vx; ``wheel_r2``: the
         wheel measurement's noise variance; ``delta``: road-wheel angle (NaN: unknown).
         """
         before = self.isolated
-        x = x.tolist()  # Python floats: every check below is scalar arithmetic
+        if type(x) is not list:
+            x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
         fl, fr, rl, rr = wheels
         if wheels_ok:
@@ -263,8 +265,8 @@ class FaultDetector:
             med = 0.5 * (srt[1] + srt[2])
         else:  # the fused pair and the other axle's mean (driven wheels slip: one vote, not two)
             a, b = fused
-            o = [j for j in range(4) if j not in fused]
-            med = sorted((cv[a], cv[b], 0.5 * (cv[o[0]] + cv[o[1]])))[1]
+            o0, o1 = self._other_wheels
+            med = sorted((cv[a], cv[b], 0.5 * (cv[o0] + cv[o1])))[1]
         tol = WHEEL_TOL_MPS + WHEEL_TOL_REL * abs(med)
         mask = 0
         for j in fused:
