@@ -412,12 +412,12 @@ class Estimator:
         A = h.Ar[i]
         P = h.Pr[i]
         if predict:  # predict from the previous step
-            np.copyto(x, xp)
+            x[:] = xp
             if imu_ok:
                 self.model.predict(x, Pp, P, r_m, ax_m, ay_m)
             else:  # hold: no rotation, no acceleration, covariance still grows
                 self.model.predict(x, Pp, P, x[BR], x[BAX], x[BAY])
-            np.copyto(A, self.model.F)
+            A[:] = self.model.F
         if iso:
             self._widen(iso, P)
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
