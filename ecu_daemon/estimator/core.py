@@ -34,7 +34,7 @@ from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from . import estimate as est_mod
 from .estimate import Estimate
-from .fault_detection import ACCEL_X, ACCEL_Y, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector, clamp_learned
+from .fault_detection import ACCEL_X, ACCEL_Y, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector
 from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
