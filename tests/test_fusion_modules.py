@@ -99,6 +99,19 @@ def test_single_track_fuses_vy_only_and_not_at_a_crawl():
 
 # ---- standstill --------------------------------------------------------------------------------
 
+def test_single_track_model_vy_is_the_pseudo_measurements_vy_to_the_bit():
+    """The fault detector's per-step shortcut (vy without the variance) must be the same number
+    the filter fuses, also after the RLS has moved both parameters."""
+    rng = np.random.default_rng(3)
+    st = SingleTrackFusion(1500.0, 2500.0, 1.2, 1.5, 100000.0, 120000.0, True)
+    for n in range(3000):
+        vx, r, ay, rdot = rng.uniform(-5, 60), rng.normal(0, 0.5), rng.normal(0, 6), rng.normal(0, 2)
+        assert st.model_vy(vx, r, ay, rdot) == st.pseudo_measurement(vx, r, ay, rdot)[0]
+        if n % 10 == 0:
+            st.adapt_from(max(vx, 9.0), rng.normal(0, 0.5), 1e-4, r, ay, rdot, rng.normal(0, 0.05))
+    assert st.rear.updates > 0
+
+
 def test_standstill_needs_the_hold_time():
     s = StandstillFusion(0.006, 0.01)
     assert not any(s.detect(0.0) for _ in range(s.hold_steps - 1))

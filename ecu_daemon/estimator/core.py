@@ -36,7 +36,7 @@ from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from . import estimate as est_mod
 from .estimate import Estimate
-from .fault_detection import ACCEL_X, ACCEL_Y, WHEELS, YAW_RATE, FaultDetector, clamp_learned
+from .fault_detection import ACCEL_X, ACCEL_Y, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector
 from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
@@ -89,6 +89,7 @@ COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseli
 LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step over this
 
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
+LEARNED_BOUNDS_LIST = tuple((j, lo, hi) for j, (lo, hi) in LEARNED_BOUNDS.items())
 
 
 def _learned_key(key: str, receiver: int) -> str:
@@ -124,6 +125,7 @@ class Estimator:
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
         self.latency = self.latencies[0]
+        self._velocity_latencies = [lat for lat, v in zip(self.latencies, self.uses_velocity) if v]
         self.gnss = self.receivers[0]
         self.heading = GnssHeadingFusion([(rx.heading_offset_deg, rx.baseline_m) for rx in receivers],
                                          gn.baseline_tol_m, gn.max_heading_acc_deg, gn.nmea_heading_acc_deg,
@@ -211,13 +213,28 @@ class Estimator:
         k = self.k
         k_end = last_step_at(t, dt)
         gap = self.gap_s
+        held = self.held
+        held_t = self.held_t
         while k <= k_end:
             tk = k * dt
             if (q[0].t if q else t) - tk > gap:
                 k = self.k = self._skip_gap(k, q[0].t if q else t, bool(q))
+                held_t = self.held_t  # replaced by the gap
                 continue
             while q and step_of(q[0].t, dt) <= k:
-                self._apply(q.popleft(), k)
+                s = q.popleft()
+                if type(s) is InputSample:  # _apply's first branch, inline: ~5 per step
+                    ts, j, v = s
+                    if ts < (k - 1) * dt - 1e-9 and self.initialized:
+                        self.late_inputs += 1
+                    held[j] = v
+                    held_t[j] = ts
+                    if j <= I_RR_MAX:
+                        self.wheel_new = True
+                    elif j >= I_MX:
+                        self.mag_new = True
+                else:
+                    self._apply(s, k)
             out.append(self._step(k, tk))
             k += 1
             self.k = k
@@ -359,6 +376,8 @@ class Estimator:
 
     # ----------------------------------------------------------------------------------------
     def _step(self, k: int, t: float) -> Estimate:
+        # hot path (every 6 ms): row views instead of numpy indexing, Python floats from one
+        # tolist() instead of numpy scalars, locals instead of repeated attribute look-ups
         held = self.held
         held_t = self.held_t
         r_m = held[I_YAW]
@@ -370,80 +389,83 @@ class Estimator:
         fl, fr, rl, rr = held[0], held[1], held[2], held[3]
         wheels_ok = (t - held_t[0] <= tmo[0] and t - held_t[1] <= tmo[1] and t - held_t[2] <= tmo[2]
                      and t - held_t[3] <= tmo[3])
-        wheel_z = self.wheels.measured_speed(fl, fr, rl, rr) if wheels_ok else math.nan
+        fdi = self.fdi
+        h = self.hist
         if not self.initialized:
+            wheel_z = self.wheels.measured_speed(fl, fr, rl, rr) if wheels_ok else math.nan
             # velocity comes from the wheels at once, so the filter waits for them: starting at
             # vx = 0 while the car moves puts every wheel sample outside its gate (the divergence
             # of issue 7) and a flying start looks like a standstill
-            if not (imu_ok and math.isfinite(wheel_z)) or self.fdi.isolated & WHEELS:
+            if not (imu_ok and math.isfinite(wheel_z)) or fdi.isolated & WHEELS:
                 return self._invalid(t)
             self._initialize(k, wheel_z, r_m, ay_m)
-            self.r_lp = r_m - self.hist.X[self.hist.slot(k)][BR]
-        h = self.hist
-        i = h.slot(k)
+            self.r_lp = r_m - h.Xr[k % h.n][BR]
+        n = h.n
+        i = k % n
         predict = h.last >= h.first
-        ip = h.slot(k - 1) if predict else i
+        ip = (k - 1) % n if predict else i
+        xp = h.Xr[ip]
+        Pp = h.Pr[ip]
         steer_sw = held[I_STEER]
         steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
         delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
-        iso = self.fdi.step(k, (fl, fr, rl, rr), wheels_ok, r_m, ax_m, ay_m, imu_ok, h.X[ip],
-                            h.P[ip][VX, VX], self.wheels.noise2, delta,
-                            0.0 if self.fdi.isolated & YAW_RATE else self.rdot)
-        wheel_z = self.fdi.wheel_z
+        xpl = xp.tolist()
+        iso = fdi.step(k, (fl, fr, rl, rr), wheels_ok, r_m, ax_m, ay_m, imu_ok, xpl,
+                       float(Pp[VX, VX]), self.wheels.noise2, delta,
+                       0.0 if fdi.isolated & YAW_RATE else self.rdot)
+        wheel_z = fdi.wheel_z
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
-            r_m, ax_m, ay_m = self._substitute(iso, h.X[ip], r_m, ax_m, ay_m)
+            r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
+        x = h.Xr[i]
+        A = h.Ar[i]
+        P = h.Pr[i]
         if predict:  # predict from the previous step
-            x = h.X[i]
-            np.copyto(x, h.X[ip])
+            x[:] = xp
             if imu_ok:
-                self.model.predict(x, h.P[ip], h.P[i], r_m, ax_m, ay_m)
+                self.model.predict(x, Pp, P, r_m, ax_m, ay_m)
             else:  # hold: no rotation, no acceleration, covariance still grows
-                self.model.predict(x, h.P[ip], h.P[i], x[BR], x[BAX], x[BAY])
-            A = h.A[i]
-            np.copyto(A, self.model.F)
-        else:
-            x = h.X[i]
-            A = h.A[i]
-        P = h.P[i]
+                self.model.predict(x, Pp, P, x[BR], x[BAX], x[BAY])
+            A[:] = self.model.F
         if iso:
             self._widen(iso, P)
-        if self.fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
-            self._widen_unverified(P, x[VX], self.fdi.yaw_disagreement)
-        if self.fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
-            self._widen_lateral(P, self.fdi.lat_excess)
+        if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
+            self._widen_unverified(P, x[VX], fdi.yaw_disagreement)
+        if fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
+            self._widen_lateral(P, fdi.lat_excess)
+        xl = x.tolist()
+        vx = xl[VX]
         if imu_ok:
-            _, _, _, b_r, b_ax, b_ay, _, g_ay = x.tolist()
-            r = r_m - b_r
-            ay = ay_m - b_ay - g_ay * ay_m
-            ax = ax_m - b_ax
+            r = r_m - xl[BR]
+            ay = ay_m - xl[BAY] - xl[GAY] * ay_m
+            ax = ax_m - xl[BAX]
         else:
             r = ay = ax = 0.0
-        dt = self.dt
         r_lp_prev = self.r_lp
-        self.r_lp += self._lp_r * (r - self.r_lp)
-        self.rdot += self._lp_rdot * ((self.r_lp - r_lp_prev) / dt - self.rdot)
+        r_lp = self.r_lp = r_lp_prev + self._lp_r * (r - r_lp_prev)
+        rdot = self.rdot = self.rdot + self._lp_rdot * ((r_lp - r_lp_prev) / self.dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
-        self.slip_hold = max(self.wheels.slip_bound(x[VX], ax), self.slip_hold * self._slip_decay)
+        wheels = self.wheels
+        self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
         if (self.standstill.detect(wheels_max) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
-                and self.fdi.standstill_plausible(x[VX], self._fresh_gnss_speed(t))):
+                and fdi.standstill_plausible(vx, self._fresh_gnss_speed(t))):
             status |= est_mod.STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS:
-                if self.wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
+                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
                     self.wheel_reject_t = math.inf
                 elif self._wheels_diverged(t):
                     self._reset(k)
                     return self._invalid(t)
             if imu_ok and k % MODEL_EVERY == 0 and not iso & (YAW_RATE | ACCEL_Y):
-                self.single_track.fuse(x, P, r, ay, self.rdot, A, MODEL_EVERY)
+                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY)
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
@@ -451,16 +473,23 @@ class Estimator:
             self.mag_new = False
             if self.mag is not None and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
                 self._on_mag(t, x, P, A, ay_m)
-        for j, v in self.fdi.frozen.items():
-            x[j] = v
-        clamp_learned(x)
+        frozen = fdi.frozen
+        if frozen:
+            for j, v in frozen.items():
+                x[j] = v
+        xl = x.tolist()
+        for j, lo, hi in LEARNED_BOUNDS_LIST:  # clamp_learned, on the list and the row together
+            v = xl[j]
+            if v < lo:
+                x[j] = xl[j] = lo
+            elif v > hi:
+                x[j] = xl[j] = hi
         if imu_ok and not iso & (ACCEL_X | ACCEL_Y):
             self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY])
             self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
-        h.aux[i] = (r, ay, self.rdot, wheel_z, delta, ax)
+        h.auxr[i][:] = (r, ay, rdot, wheel_z, delta, ax)
         h.last = k
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
-        xl = x.tolist()
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
@@ -538,7 +567,7 @@ class Estimator:
 
     def _model_vy(self, vx: float, r: float, ay: float, rdot: float) -> float:
         """The single-track model's vy (the lateral cross-check's third voter)."""
-        return self.single_track.pseudo_measurement(vx, r, ay, rdot)[0]
+        return self.single_track.model_vy(vx, r, ay, rdot)
 
     def _fresh_gnss_speed(self, t: float) -> float:
         return self.last_gnss_speed if t - self.last_gnss_fused_t <= GNSS_FRESH_S else math.nan
@@ -660,13 +689,19 @@ class Estimator:
 
     def gnss_counts(self) -> tuple[int, int, int]:
         """GNSS velocity samples fused, rejected and late, over every receiver."""
+        if len(self.receivers) == 1:  # every step: no generators for the usual single receiver
+            f = self.receivers[0]
+            return f.fused, f.rejected, f.late
         return (sum(f.fused for f in self.receivers), sum(f.rejected for f in self.receivers),
                 sum(f.late for f in self.receivers))
 
     def _latency_std(self) -> float:
         """The largest latency uncertainty of the velocity receivers (the heading error it causes
         while turning is a bias, whichever receiver it comes from)."""
-        return max(lat.std_s for lat, v in zip(self.latencies, self.uses_velocity) if v)
+        vel = self._velocity_latencies
+        if len(vel) == 1:
+            return vel[0].std_s
+        return max(lat.std_s for lat in vel)
 
     # ----------------------------------------------------------------------------------------
     def _on_gnss(self, g: GnssSample, k: int) -> None:

@@ -149,6 +149,7 @@ class FaultDetector:
         self.track = track_m
         self.lf = lf_m
         self.fused_wheels = {"all": (0, 1, 2, 3), "rear": (0, 1)}.get(driven_axle, (2, 3))
+        self._other_wheels = tuple(j for j in range(4) if j not in self.fused_wheels)
         self._measured = measured_speed or (lambda fl, fr, rl, rr: 0.5 * (rl + rr))
         self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
         self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
@@ -165,6 +166,7 @@ class FaultDetector:
         nl = max(2, int(round(LAT_WINDOW_S / dt)))
         self._lat_n = nl
         self._lat_ring = [None] * nl  # per step: (integral of ay - r vx, integral of |ay|, model vy, r)
+        self._lat_filled = False  # any entry of the ring set since it was last emptied
         self._lat_cum = 0.0
         self._lat_k = 0
         self._lat_abs = 0.0
@@ -202,15 +204,16 @@ class FaultDetector:
 
     # ------------------------------------------------------------------------------------------
     def step(self, k: int, wheels: tuple, wheels_ok: bool, r_m: float, ax_m: float, ay_m: float,
-             imu_ok: bool, x: np.ndarray, p_vx: float, wheel_r2: float, delta: float = 0.0,
+             imu_ok: bool, x, p_vx: float, wheel_r2: float, delta: float = 0.0,
              rdot: float = 0.0) -> int:
-        """Run every check for step k (x: the latest state). Returns the isolation mask.
+        """Run every check for step k (x: the latest state, a list or an array). Returns the isolation mask.
 
         ``wheels``: (fl, fr, rl, rr) raw readings; ``p_vx``: variance of vx; ``wheel_r2``: the
         wheel measurement's noise variance; ``delta``: road-wheel angle (NaN: unknown).
         """
         before = self.isolated
-        x = x.tolist()  # Python floats: every check below is scalar arithmetic
+        if type(x) is not list:
+            x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
         fl, fr, rl, rr = wheels
         if wheels_ok:
@@ -224,9 +227,7 @@ class FaultDetector:
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
         self._yaw(rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
-        iso = 0
-        if self.wheel_mask:
-            iso |= WHEEL_SPEED
+        iso = WHEEL_SPEED if self.wheel_mask else 0
         if self.lon.active:
             iso |= self.lon_culprit
         if self.wheels_isolated:
@@ -237,17 +238,19 @@ class FaultDetector:
             iso |= ACCEL_Y
         if self.gnss.active:
             iso |= GNSS
+        if iso == before:  # the usual step: nothing newly isolated or released
+            self.new_isolation = 0
+            return iso
         self.new_isolation = iso & ~before
-        if iso != before:  # (the loops below do nothing while the mask stays)
-            for bit, states in FROZEN_STATES.items():
-                if iso & bit and not before & bit:
-                    self.frozen.update((j, x[j]) for j in states)
-                elif before & bit and not iso & bit:
-                    for j in states:
-                        self.frozen.pop(j, None)
-            for name, bit in SOURCE_BITS.items():
-                if self.new_isolation & bit:
-                    self.events[name] += 1
+        for bit, states in FROZEN_STATES.items():
+            if iso & bit and not before & bit:
+                self.frozen.update((j, x[j]) for j in states)
+            elif before & bit and not iso & bit:
+                for j in states:
+                    self.frozen.pop(j, None)
+        for name, bit in SOURCE_BITS.items():
+            if self.new_isolation & bit:
+                self.events[name] += 1
         self.isolated = iso
         return iso
 
@@ -263,8 +266,8 @@ class FaultDetector:
             med = 0.5 * (srt[1] + srt[2])
         else:  # the fused pair and the other axle's mean (driven wheels slip: one vote, not two)
             a, b = fused
-            o = [j for j in range(4) if j not in fused]
-            med = sorted((cv[a], cv[b], 0.5 * (cv[o[0]] + cv[o[1]])))[1]
+            o0, o1 = self._other_wheels
+            med = sorted((cv[a], cv[b], 0.5 * (cv[o0] + cv[o1])))[1]
         tol = WHEEL_TOL_MPS + WHEEL_TOL_REL * abs(med)
         mask = 0
         for j in fused:
@@ -287,33 +290,40 @@ class FaultDetector:
     def _longitudinal(self, k: int, v: float, ax: float, ax_raw: float) -> None:
         n = self._n
         i = k % n
-        if math.isfinite(ax):
+        isfinite = math.isfinite
+        if isfinite(ax):
             self._cum_a += ax * self.dt
-        v_old = self._ring_v[i]
-        a_old = self._ring_a[i]
-        self._ring_v[i] = v
-        self._ring_a[i] = self._cum_a
-        if math.isfinite(v) and math.isfinite(self._v_prev) and abs(v - self._v_prev) > WHEEL_JUMP_MPS:
+        cum_a = self._cum_a
+        ring_v = self._ring_v
+        ring_a = self._ring_a
+        v_old = ring_v[i]
+        a_old = ring_a[i]
+        ring_v[i] = v
+        ring_a[i] = cum_a
+        v_prev = self._v_prev
+        if isfinite(v) and isfinite(v_prev) and abs(v - v_prev) > WHEEL_JUMP_MPS:
             self._wheel_jump_k = k
-        if math.isfinite(ax_raw) and (abs(ax_raw) > AX_IMPLAUSIBLE_MPS2 or (
-                math.isfinite(self._ax_prev) and abs(ax_raw - self._ax_prev) > AX_JUMP_MPS2)):
+        ax_ok = isfinite(ax_raw)
+        if ax_ok and (abs(ax_raw) > AX_IMPLAUSIBLE_MPS2 or (
+                isfinite(self._ax_prev) and abs(ax_raw - self._ax_prev) > AX_JUMP_MPS2)):
             self._ax_jump_k = k
         self._v_prev = v
         self._ax_prev = ax_raw
         verdict = None
-        if math.isfinite(v) and math.isfinite(v_old) and math.isfinite(ax):
+        if isfinite(v) and isfinite(v_old) and isfinite(ax):
             dv = v - v_old
             self.ax_wheels = dv / (n * self.dt)
-            res = dv - (self._cum_a - a_old)
+            res = dv - (cum_a - a_old)
             verdict = abs(res) > LON_TOL_MPS + LON_TOL_REL * abs(v)
-        if math.isfinite(ax_raw) and abs(ax_raw) > AX_IMPLAUSIBLE_MPS2:
+        lon = self.lon
+        if ax_ok and abs(ax_raw) > AX_IMPLAUSIBLE_MPS2:
             verdict = True  # beyond any tyre: not fused even for the steps the window needs
-            self.lon.bad = max(self.lon.bad, self.lon.on - 1)
-        was = self.lon.active
-        if self.lon.update(verdict) and not was:
+            lon.bad = max(lon.bad, lon.on - 1)
+        was = lon.active
+        if lon.update(verdict) and not was:
             self.lon_onset = k
             self.lon_culprit = WHEELS | ACCEL_X
-        if self.lon.active:
+        if lon.active:
             self._attribute(k)
         else:
             self.lon_culprit = 0
@@ -364,58 +374,67 @@ class FaultDetector:
              x: list, rdot: float) -> None:
         if not imu_ok:
             return
-        self.rdot_abs = max(abs(rdot), self.rdot_abs - self._a_slow * self.rdot_abs)
-        wide = YAW_TOL_RDOT * self.rdot_abs
+        a_slow = self._a_slow
+        a_yaw = self._a_yaw
+        rdot_abs = self.rdot_abs = max(abs(rdot), self.rdot_abs - a_slow * self.rdot_abs)
+        wide = YAW_TOL_RDOT * rdot_abs
         vx = x[VX]
+        kw = x[KW]
         r_g = r_m - x[BR]
-        v_rear = 0.5 * (rl + rr) * x[KW]
+        v_rear = 0.5 * (rl + rr) * kw
         have_w = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
+        e_w = self.e_w
+        e_ws = self.e_ws
         if have_w:
-            self.r_wheels = ((rr - rl) * x[KW] - self.lr * v_rear) / self.track
-            d = r_g - self.r_wheels
-            self.e_w += self._a_yaw * (d - self.e_w)
-            self.e_ws += self._a_slow * (d - self.e_ws)
+            r_wheels = self.r_wheels = ((rr - rl) * kw - self.lr * v_rear) / self.track
+            d = r_g - r_wheels
+            e_w = self.e_w = e_w + a_yaw * (d - e_w)
+            e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
         else:
-            self.r_wheels = math.nan
+            r_wheels = self.r_wheels = math.nan
         ay = ay_m - x[BAY] - x[GAY] * ay_m
         self._lateral(vx, r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
+        e_a = self.e_a
+        e_as = self.e_as
         if have_a:
             # ay = dvy/dt + r vx: the kinematic dvy/dt = lr * rdot (the large term at low speed:
             # 0.25 rad/s at 6 m/s and 1 rad/s^2) is taken out, the rest of the transient is in
             # ``wide`` (not the model's full dvy/dt: it differentiates ay's noise)
             d = r_g - (ay - self.lr_m * rdot) / vx
-            self.e_a += self._a_yaw * (d - self.e_a)
-            self.e_as += self._a_slow * (d - self.e_as)
-        ref = abs(self.r_wheels) if have_w else abs(r_g)
+            e_a = self.e_a = e_a + a_yaw * (d - e_a)
+            e_as = self.e_as = e_as + a_slow * (d - e_as)
+        ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
         slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
-        w_fail = have_w and (abs(self.e_w) > tol_w or abs(self.e_ws) > slow)
-        a_fail = have_a and (abs(self.e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
-                             or abs(self.e_as) > slow + wide)
+        w_fail = have_w and (abs(e_w) > tol_w or abs(e_ws) > slow)
+        a_fail = have_a and (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
+                             or abs(e_as) > slow + wide)
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
-                and not abs(self.r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
+                and not abs(r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
         self._r_prev = r_m
-        self._rw_prev = self.r_wheels
+        self._rw_prev = r_wheels
+        gyro = self.gyro
+        ay_latch = self.ay
         if jump:  # no car turns that fast: not integrated even for the steps the vote needs
             w_fail = a_fail = True
-            self.gyro.bad = max(self.gyro.bad, self.gyro.on - 1)
+            gyro.bad = max(gyro.bad, gyro.on - 1)
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
-        a_witness = have_a and not self.ay.active
+        a_witness = have_a and not ay_latch.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
         self.yaw_suspect = w_fail or a_fail
         # how fast the heading may be drifting meanwhile, when the gyro is the one the check
         # points at (the wheels disagree with it, or ay does and no wheels can say otherwise)
         gyro_suspect = w_fail or (a_fail and not have_w)
-        self.yaw_disagreement = ((abs(self.e_w) if have_w else abs(self.e_a) if have_a else 0.0)
+        self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
-        self.gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
+        gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
-        self.ay.update((a_fail and not w_fail) if (have_w and have_a and not self.gyro.active) else None)
-        if have_w and not w_fail and not self.gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
-            mis = ((rr - rl) * x[KW] - self.track * r_g) / v_rear
+        ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
+        if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
+            mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
 
@@ -425,24 +444,29 @@ class FaultDetector:
         if self._model_vy is None:
             return
         if not vx > LAT_MIN_SPEED:
-            self._lat_ring = [None] * self._lat_n
+            if self._lat_filled:  # (emptied once, not re-allocated every slow step)
+                self._lat_ring = [None] * self._lat_n
+                self._lat_filled = False
             self.lat_residual = self.lat_excess = 0.0
             return
         dt = self.dt
-        self._lat_cum += (ay - r * vx) * dt
-        self._lat_abs += abs(ay) * dt
+        lat_cum = self._lat_cum = self._lat_cum + (ay - r * vx) * dt
+        lat_abs = self._lat_abs = self._lat_abs + abs(ay) * dt
         vy_m = self._model_vy(vx, r, ay, rdot)
-        i = self._lat_k % self._lat_n
+        n = self._lat_n
+        i = self._lat_k % n
         self._lat_k += 1
-        old = self._lat_ring[i]
-        self._lat_ring[i] = (self._lat_cum, self._lat_abs, vy_m, r)
+        ring = self._lat_ring
+        old = ring[i]
+        ring[i] = (lat_cum, lat_abs, vy_m, r)
+        self._lat_filled = True
         if old is None:
             return
-        w = self._lat_n * dt
-        res = (self._lat_cum - old[0]) - (vy_m - old[2])
+        w = n * dt
+        res = (lat_cum - old[0]) - (vy_m - old[2])
         self.lat_residual = res
         unexplained = max(abs(res) - LAT_TOL_MPS - LAT_TOL_RDOT_M * abs(r - old[3]), 0.0) / w
-        self.lat_excess = max(unexplained - LAT_RATE_TOL - LAT_RATE_TOL_REL * (self._lat_abs - old[1]) / w, 0.0)
+        self.lat_excess = max(unexplained - LAT_RATE_TOL - LAT_RATE_TOL_REL * (lat_abs - old[1]) / w, 0.0)
 
     # ------------------------------------------------------------------------------------------
     def check_gnss(self, s: int, wheels_agree: bool | None, filter_agree: bool) -> bool | None:

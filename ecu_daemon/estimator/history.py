@@ -43,6 +43,11 @@ class StepHistory:
         self.P = np.zeros((length, NX, NX))
         self.A = np.zeros((length, NX, NX))
         self.aux = np.zeros((length, NAUX))
+        # per-slot row views (list indexing is several times cheaper than numpy's, per step)
+        self.Xr = list(self.X)
+        self.Pr = list(self.P)
+        self.Ar = list(self.A)
+        self.auxr = list(self.aux)
         self.first = 0  # first step index stored since the last reset
         self.last = -1  # last step index stored
 

@@ -120,6 +120,14 @@ class SingleTrackFusion:
         var = 16.0 * (self.base_sigma_beta * vx) ** 2 + CORNER_STEPS * (var_par + (nl * vx) ** 2)
         return vy, var
 
+    def model_vy(self, vx: float, r: float, ay: float, rdot: float) -> float:
+        """:meth:`pseudo_measurement`'s vy alone (the same arithmetic; the fault detector's lateral
+        check needs no variance, and it runs every step)."""
+        phi = self.regressor_rear(vx, ay, rdot)
+        n = abs(ay) / G
+        k1, k3 = self.rear.k.tolist()
+        return self.lr * r + (phi * k1 + phi * (n * n) * k3)
+
     def fuse(self, x: np.ndarray, P: np.ndarray, r: float, ay: float, rdot: float, A=None,
              every: int = 1) -> bool:
         """Fuse the pseudo-measurement; ``every``: it is fused every n-th step (noise scaled)."""
