@@ -23,9 +23,8 @@ wide and the heading invalid).
 
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
 the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
-cost profile), with a slew limit, and then follows the data to within 1 sigma of their best;
-otherwise the prior (config ``delay_s``) stands, and nothing drifts on a drive without speed
-changes.
+cost profile), with a slew limit; otherwise the prior (config ``delay_s``) stands, and nothing
+drifts on a drive without speed changes.
 
 Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
@@ -49,7 +48,6 @@ from .history import AUX_WHEEL, StepHistory
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
-LR_SETTLE = 1.0  # ... and once moving, the delay follows the data until within 1 sigma of their best
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
@@ -81,7 +79,6 @@ class LatencyEstimator:
         self.zy = np.zeros((n, self.p))
         self.syy = 0.0
         self.updates = 0
-        self.tracking = False
         self.cost = np.zeros(n)
         self.references = [self]  # the timing references whose statistics decide (attach())
         self.owner: LatencyEstimator | None = None  # the estimator this one's statistics feed
@@ -187,10 +184,7 @@ class LatencyEstimator:
         width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
         cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
-        # hysteresis: once the data reject the current delay, follow them to their minimum (a
-        # delay that stopped at the edge of the rejected set would keep a ~4-sigma error)
-        self.tracking = lr[cur] > (LR_SETTLE if self.tracking else LR_REJECT)
-        if self.tracking:
+        if lr[cur] > LR_REJECT:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
             slew = MAX_SLEW_S * (4.0 if any(p[1] for p in profiles) else 1.0)
