@@ -244,12 +244,12 @@ MAX_RATE_ERROR = 0.02  # m/s^2: the integrand's error budget (0.1 m/s, a GNSS sp
 
 
 class SpeedIntegral:
-    """The car's longitudinal acceleration dvx/dt = ax + r vy integrated step by step, kept for
-    the last steps: a timing reference for GNSS speed that does not go through the wheels.
+    """The rate of the car's speed d|v|/dt = (vx ax + vy ay) / |v| integrated step by step, kept
+    for the last steps: a timing reference for GNSS speed that does not go through the wheels.
 
     Each GNSS speed is regressed on the integral at each candidate validity step, with a scale
-    (accelerometer scale, pitch), an offset and a ramp in time (the integration constant and a
-    residual accelerometer bias or grade: they drift the integral linearly). Wheels lag (real ABS
+    (accelerometer scale, pitch), an offset and a ramp in time (the integration constant and the
+    accelerometer's bias or a grade: they drift the integral linearly). Wheels lag (real ABS
     sensors are filtered) and slip when braking (v * kappa), both of which bias a timing read
     from them; the accelerometer has neither."""
 
