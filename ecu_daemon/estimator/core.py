@@ -46,7 +46,7 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
-from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, YawIntegral
+from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import RoadAttitude
 
@@ -121,11 +121,18 @@ class Estimator:
                           for i, rx in enumerate(receivers)]
         # a heading-only receiver identifies its latency from its heading changes against the gyro
         self.yaw_integral = YawIntegral(dt, gn.max_delay_s) if not all(self.uses_velocity) else None
+        self.speed_integral = SpeedIntegral(dt, gn.max_delay_s)
         self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
         self.latency = self.latencies[0]
         self._velocity_latencies = [lat for lat, v in zip(self.latencies, self.uses_velocity) if v]
+        # each velocity receiver's latency also from its speed against the integrated accelerometer
+        self.speed_latencies = [LatencyEstimator(dt, lat.delay_s, gn.max_delay_s, lat.enabled, extra=1)
+                                for lat in self.latencies]
+        for lat, ref, v in zip(self.latencies, self.speed_latencies, self.uses_velocity):
+            if v:
+                lat.attach(ref)
         self.gnss = self.receivers[0]
         self.heading = GnssHeadingFusion([(rx.heading_offset_deg, rx.baseline_m) for rx in receivers],
                                          gn.baseline_tol_m, gn.max_heading_acc_deg, gn.nmea_heading_acc_deg,
@@ -446,6 +453,8 @@ class Estimator:
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
+        self.speed_integral.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
+                                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y))
         wheels = self.wheels
         self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
 
@@ -736,6 +745,8 @@ class Estimator:
         agree = agree and not self.fdi.isolated & WHEELS
         if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
             lat.observe(k, speed, h)
+        if h.X[h.slot(h.last), VX] > 0:
+            self.speed_integral.observe(g.source, k, speed, self.speed_latencies[g.source], (fus.lever_x, fus.lever_y))
         if late:
             fus.late += 1
         if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \

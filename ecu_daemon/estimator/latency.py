@@ -10,22 +10,25 @@ the same idea online, as a regression per candidate delay:
 with exponentially forgotten sufficient statistics, so the scale a (wheel radius error, and the
 sideslip's cos factor) and the offset b cannot bias the timing.
 
-Known bias, not corrected: a braked wheel turns slower than the car by v * kappa with
-kappa ~ ax * m / C_x, and since a time shift looks like -ax * d, that slip reads as a delay
-error of about v * m / C_x in braking phases (simulated drives: +0.04 s at 25 m/s, +0.07 s at
-50 m/s). Leaving braking fixes out removes it in the simulator but on the real RAV4 highway drive
-moves the estimate from 0.15 to 0.11 s (truth ~0.20 s): there the wheel speeds themselves seem to
-lag, which the braking bias happens to offset. Until that is understood, all fixes are used.
+The wheels are not a clean clock: a braked wheel turns slower than the car by v * kappa
+(kappa ~ ax * m / C_x), which reads as a delay error of about v * m / C_x in braking phases
+(simulated: +0.04 s at 25 m/s, +0.12 s at 50 m/s), and real wheel-speed signals are filtered and
+lag (RAV4). So a velocity receiver's speed is also regressed on the integrated accelerometer
+(:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
+offset in the fit), and the two likelihood-ratio profiles add, each by its information, except
+that wheels whose best delay the accelerometer rejects are left out (``attach``). The
+accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
+mid-corner, and it carries less information than the wheels (on Revs the latency std would stay
+wide and the heading invalid).
 
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
 the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
 cost profile), with a slew limit; otherwise the prior (config ``delay_s``) stands, and nothing
 drifts on a drive without speed changes.
 
-Only the wheel speeds are used: they are independent of GNSS and of any vehicle model. (Course
-changes against the integrated yaw rate would add lateral information, but they carry the
+Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
-simulator.) ``std_s`` is the 1-sigma of the estimate, which the GNSS fusion turns into velocity
+simulator. ``std_s`` is the 1-sigma of the estimate, which the GNSS fusion turns into velocity
 noise (|a| * std), so GNSS is de-weighted in hard manoeuvres until the delay is known.
 
 A heading-only receiver (``role = "heading"``) has no speed to regress: its heading change
@@ -55,7 +58,8 @@ MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its 
 
 class LatencyEstimator:
     def __init__(self, dt: float, prior_s: float, max_s: float, enabled: bool = True,
-                 forgetting: float = 0.995, prior_std_s: float = PRIOR_STD_S, min_spread: float = MIN_SPEED_SPREAD):
+                 forgetting: float = 0.995, prior_std_s: float = PRIOR_STD_S, min_spread: float = MIN_SPEED_SPREAD,
+                 extra: int = 0):
         self.dt = dt
         self.min_spread = min_spread  # of the regressor (its unit) for the timing to be informative
         self.enabled = enabled
@@ -68,13 +72,16 @@ class LatencyEstimator:
         self.max_steps = max(2, int(max_s / dt))
         n = self.max_steps + 1
         self.forgetting = forgetting
-        # sufficient statistics of y = [x, 1] . theta per candidate (x: delayed wheel speed,
-        # y: GNSS speed): Z'Z, Z'y and y'y
-        self.zz = np.zeros((n, 2, 2))
-        self.zy = np.zeros((n, 2))
+        # sufficient statistics of y = [x, e..., 1] . theta per candidate (x: delayed wheel speed,
+        # e: ``extra`` regressors common to all candidates, y: GNSS speed): Z'Z, Z'y and y'y
+        self.p = 2 + extra
+        self.zz = np.zeros((n, self.p, self.p))
+        self.zy = np.zeros((n, self.p))
         self.syy = 0.0
         self.updates = 0
         self.cost = np.zeros(n)
+        self.references = [self]  # the timing references whose statistics decide (attach())
+        self.owner: LatencyEstimator | None = None  # the estimator this one's statistics feed
 
     def observe(self, k_rx: int, speed: float, hist: StepHistory) -> None:
         """Feed one GNSS fix received just before step k_rx (history ends at k_rx - 1)."""
@@ -91,12 +98,12 @@ class LatencyEstimator:
             return
         self.observe_series(x, speed)
 
-    def observe_series(self, x: np.ndarray, y: float) -> None:
-        """One observation ``y ~ a * x[m] + b`` for every candidate m (``x[m]``: the reference
-        signal at the candidate validity step, a delay of m + 1 steps)."""
+    def observe_series(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
+        """One observation ``y ~ a * x[m] + c . extra + b`` for every candidate m (``x[m]``: the
+        reference signal at the candidate validity step, a delay of m + 1 steps)."""
         if not self.enabled:
             return
-        z = np.stack((x, np.ones_like(x)), axis=1)
+        z = np.stack((x, *(np.full_like(x, e) for e in extra), np.ones_like(x)), axis=1)
         lam = self.forgetting
         self.zz = lam * self.zz + z[:, :, None] * z[:, None, :]
         self.zy = lam * self.zy + z * y
@@ -104,40 +111,83 @@ class LatencyEstimator:
         self.updates += 1
         self._refine()
 
-    def _refine(self) -> None:
+    def shift(self, offsets: tuple[float, ...]) -> None:
+        """Re-anchor the regressors: x and the extras from now on are read less ``offsets`` (an
+        integral and a time that would otherwise grow without bound); the fit is unchanged."""
+        m = np.eye(self.p)
+        m[:-1, -1] = -np.asarray(offsets, dtype=float)
+        self.zz = np.einsum("ij,kjl,ml->kim", m, self.zz, m)
+        self.zy = np.einsum("ij,kj->ki", m, self.zy)
+
+    def forget(self) -> None:
+        """Drop the statistics (the reference broke off); the delay and its std stand."""
+        self.zz[:] = 0.0
+        self.zy[:] = 0.0
+        self.syy = 0.0
+        self.updates = 0
+
+    def attach(self, other: "LatencyEstimator") -> None:
+        """Identify the delay from ``other``'s statistics too (another timing reference of the
+        same receiver): the likelihood-ratio profiles add, so each counts by its information."""
+        self.references.append(other)
+        other.owner = self
+
+    def _profile(self) -> tuple[np.ndarray, bool] | None:
+        """The likelihood-ratio statistic of every candidate against the best, and whether the
+        minimum is very clear; None while the statistics carry no timing information."""
         if self.updates < MIN_UPDATES:
-            return
+            return None
         zz = self.zz
-        n = zz[0, 1, 1]
-        cxx = zz[:, 0, 0] - zz[:, 0, 1] ** 2 / n
+        n = zz[0, -1, -1]
+        # the regressor's variation that the offset (and the extras: a ramp) do not explain
+        cxx = zz[:, 0, 0] - np.einsum("ki,ki->k", zz[:, 0, 1:], np.linalg.solve(zz[:, 1:, 1:], zz[:, 1:, 0:1])[:, :, 0])
         if not (cxx.min() > self.min_spread ** 2 * n * 0.1):
-            return  # the regressor has hardly varied: no timing information
+            return None  # the regressor has hardly varied: no timing information
         # residual sum of squares of the least-squares fit per candidate
         theta = np.linalg.solve(zz, self.zy[:, :, None])[:, :, 0]
         c = np.maximum(self.syy - np.einsum("ki,ki->k", theta, self.zy), 0.0)
         self.cost = c
         i = int(np.argmin(c))
-        if i == 0 or i == len(c) - 1:
+        # RSS excess over the residual variance per fix
+        s2 = max(c[i], 1e-12) / max(n - self.p, 1.0)
+        return (c - c[i]) / s2, bool(c[i] < 0.2 * float(np.median(c)))
+
+    def _refine(self) -> None:
+        if self.owner is not None:
+            self.owner._refine()
             return
-        # Likelihood-ratio statistic of every candidate against the best: RSS excess over the
-        # residual variance per fix. Its profile gives both the decision (move only when the
-        # data reject the current delay) and an honest std (the width of the set of delays the
-        # data cannot reject; several near-equal minima, as a weakly excited drive has, make it
-        # wide instead of picking one by noise).
-        s2 = max(c[i], 1e-12) / max(n - 2.0, 1.0)
-        lr = (c - c[i]) / s2
-        y0, y1, y2 = c[i - 1], c[i], c[i + 1]
+        profiles = [ref._profile() for ref in self.references]
+        judge = profiles[-1] if len(profiles) > 1 else None
+        if judge is not None:
+            # The last reference attached (the accelerometer's) has no lag and no slip; the
+            # others (the wheels) have both, and they show as a timing bias. A reference whose
+            # best delay it rejects is biased and left out.
+            profiles = [p for p in profiles[:-1] if p is not None
+                        and judge[0][int(np.argmin(p[0]))] <= LR_REJECT] + [judge]
+        profiles = [p for p in profiles if p is not None]
+        if not profiles:
+            return
+        lr = np.sum([p[0] for p in profiles], axis=0)
+        i = int(np.argmin(lr))
+        if i == 0 or i == len(lr) - 1:
+            return
+        lr = lr - lr[i]
+        # Likelihood-ratio statistic of every candidate against the best. Its profile gives both
+        # the decision (move only when the data reject the current delay) and an honest std (the
+        # width of the set of delays the data cannot reject; several near-equal minima, as a
+        # weakly excited drive has, make it wide instead of picking one by noise).
+        y0, y1, y2 = lr[i - 1], lr[i], lr[i + 1]
         den = y0 - 2 * y1 + y2
         off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
         est = (i + 1 + max(-0.5, min(0.5, off))) * self.dt  # candidate i is a delay of (i+1) steps
         inside = np.flatnonzero(lr < LR_REJECT)
         width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
-        cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(c) - 1)
+        cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
         if lr[cur] > LR_REJECT:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
-            slew = MAX_SLEW_S * (4.0 if y1 < 0.2 * float(np.median(c)) else 1.0)
+            slew = MAX_SLEW_S * (4.0 if any(p[1] for p in profiles) else 1.0)
             self.delay_s += max(-slew, min(slew, 0.3 * (est - self.delay_s)))
             prior_std = math.inf
         data_std = max(width_std, abs(est - self.delay_s))
@@ -188,3 +238,68 @@ class YawIntegral:
         x = self.psi[c1 % self.n] - self.psi[c0 % self.n]
         y = math.remainder(heading - h0, 2.0 * math.pi)
         lat.observe_series(x, y)
+
+
+MAX_RATE_ERROR = 0.02  # m/s^2: the integrand's error budget (0.1 m/s, a GNSS speed noise, in 5 s)
+
+
+class SpeedIntegral:
+    """The rate of the car's speed d|v|/dt = (vx ax + vy ay) / |v| integrated step by step, kept
+    for the last steps: a timing reference for GNSS speed that does not go through the wheels.
+
+    Each GNSS speed is regressed on the integral at each candidate validity step, with a scale
+    (accelerometer scale, pitch), an offset and a ramp in time (the integration constant and the
+    accelerometer's bias or a grade: they drift the integral linearly). Wheels lag (real ABS
+    sensors are filtered) and slip when braking (v * kappa), both of which bias a timing read
+    from them; the accelerometer has neither."""
+
+    def __init__(self, dt: float, max_delay_s: float):
+        self.dt = dt
+        self.n = int(math.ceil(max_delay_s / dt)) + 4
+        self.v = np.zeros(self.n)
+        self.vel = np.zeros((self.n, 3))  # the filter's vx, vy and the yaw rate: the lever arm's share
+        self.total = 0.0
+        self.last = -1
+        self.first = 0
+        self.anchor: dict[int, tuple[int, float]] = {}  # receiver -> (step, integral) its regressors are read from
+
+    def step(self, k: int, vx: float, vy: float, r: float, ax: float, ay: float, vy_std: float = 0.0,
+             usable: bool = True) -> None:
+        """Step k: the filter's velocity at the CG (vy with its std), the yaw rate, the measured
+        longitudinal acceleration (raw: a constant bias is the ramp's, while the filter's bias
+        estimate moves as it converges) and the lateral one. ``usable``: the IMU is.
+
+        The integrand's vy ay / |v| ~ r vy carries the filter's vy error times r; while that
+        exceeds ``MAX_RATE_ERROR`` (sideslip not yet known mid-corner) the integral breaks off
+        and starts again afterwards with a new constant, instead of bending the fit."""
+        if k != self.last + 1 or not usable or abs(r) * vy_std > MAX_RATE_ERROR:
+            self.first = k + 1
+            self.anchor.clear()
+        # the speed's rate d|v|/dt = (vx ax + vy ay) / |v| (turning does not change |v|)
+        v = math.hypot(vx, vy)
+        self.total += ((vx * ax + vy * ay) / v if v > 1.0 else ax) * self.dt
+        self.v[k % self.n] = self.total
+        self.vel[k % self.n] = (vx, vy, r)
+        self.last = k
+
+    def observe(self, receiver: int, k_rx: int, speed: float, lat: LatencyEstimator,
+                lever: tuple[float, float] = (0.0, 0.0)) -> None:
+        """A forward GNSS speed of ``receiver`` (antenna at ``lever`` from the CG) received just
+        before step ``k_rx``. The antenna's speed differs from the CG's by the yaw rate times the
+        lever arm: small, but it changes with the yaw rate, as at a corner's exit, and that change
+        would read as timing, so it is added to the integral from the filter's state."""
+        if not lat.enabled or not math.isfinite(speed) or speed < MIN_SPEED:
+            return
+        m = np.arange(lat.max_steps + 1)
+        c = k_rx - 1 - m
+        if not (c[-1] >= max(self.first, self.last - self.n + 1) and c[0] <= self.last):
+            return
+        prev = self.anchor.get(receiver)
+        if prev is None:
+            lat.forget()  # a new run of the integral: its constant is unknown
+        else:
+            lat.shift((self.total - prev[1], (self.last - prev[0]) * self.dt))
+        self.anchor[receiver] = (self.last, self.total)
+        vx, vy, r = self.vel[c % self.n].T
+        lever_part = np.hypot(vx - r * lever[1], vy + r * lever[0]) - np.hypot(vx, vy)
+        lat.observe_series(self.v[c % self.n] - self.total + lever_part, speed, (0.0,))
