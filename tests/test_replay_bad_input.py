@@ -190,13 +190,20 @@ def test_a_log_out_of_time_order_is_refused_with_one_line(drive, tmp_path, how):
 
 
 # ----------------------------------------------------------------------------------- inputs
-def test_an_input_that_never_decodes_ends_with_the_table_and_exit_3(drive, tmp_path):
+def _config_with(drive, tmp_path, names, key: str, was: str, now: str) -> Path:
+    """The drive's config with ``[inputs.NAME] key`` changed from ``was`` (checked) to ``now``."""
     data = tomllib.loads((drive / "config.toml").read_text())
-    for name in ("yaw_rate", "accel_x", "accel_y"):  # the IMU's checksum configured with the wrong scheme
-        assert data["inputs"][name]["checksum"] == "e2e_p2"
-        data["inputs"][name]["checksum"] = "toyota"
+    for name in names:
+        assert data["inputs"][name][key] == was
+        data["inputs"][name][key] = now
     cfg = tmp_path / "c.toml"
     cfg.write_text(tomli_w.dumps(data))
+    return cfg
+
+
+def test_an_input_that_never_decodes_ends_with_the_table_and_exit_3(drive, tmp_path):
+    # the IMU's checksum configured with the wrong scheme
+    cfg = _config_with(drive, tmp_path, ("yaw_rate", "accel_x", "accel_y"), "checksum", "e2e_p2", "toyota")
     rc, err = replay(drive, "--out-csv", tmp_path / "o.csv", config=cfg)
     assert rc == 3, err
     table = {cells[0]: cells[1:] for cells in (line.split(" ", 2)[-1].split() for line in err)
@@ -218,13 +225,8 @@ def test_an_input_that_never_decodes_ends_with_the_table_and_exit_3(drive, tmp_p
 def test_a_counter_mapped_onto_a_value_signal_ends_with_exit_3(drive, tmp_path):
     """The raw wheel speed steps by exactly one now and then, so some frames pass the "counter"
     check: samples from a quarter of the frames, which is not an input."""
-    data = tomllib.loads((drive / "config.toml").read_text())
-    wheels = [n for n in data["inputs"] if n.startswith("wheel_speed_")]
-    for name in wheels:
-        assert data["inputs"][name]["counter"] == "COUNTER"
-        data["inputs"][name]["counter"] = "WHEEL_SPEED_RR"
-    cfg = tmp_path / "c.toml"
-    cfg.write_text(tomli_w.dumps(data))
+    wheels = [n for n in tomllib.loads((drive / "config.toml").read_text())["inputs"] if n.startswith("wheel_speed_")]
+    cfg = _config_with(drive, tmp_path, wheels, "counter", "COUNTER", "WHEEL_SPEED_RR")
     rc, err = replay(drive, "--out-csv", tmp_path / "o.csv", config=cfg)
     assert rc == 3, err
     assert any("counter 'WHEEL_SPEED_RR' has scale" in line and "value signal?" in line for line in err), err

@@ -34,6 +34,8 @@ import math
 
 import numpy as np
 
+from . import kalman
+
 G = 9.80665
 UPDATE_EVERY = 17  # main-filter steps between updates from its bias states (~0.1 s)
 CORRELATION_S = 5.0  # the main filter's bias estimates are correlated over about this long
@@ -62,14 +64,11 @@ class _Channel:
         self.P[1, 1] += OFFSET_WALK ** 2 * dt
 
     def update(self, innovation: float, H: np.ndarray, R: float) -> bool:
-        PH = self.P @ H
-        S = float(H @ PH) + R
-        if not (S > 0.0 and innovation * innovation <= GATE_SIGMA ** 2 * S):
+        # the numpy scalar update every source shares (Joseph form, gated); the compiled one is
+        # sized for the 8-state filter
+        if not (math.isfinite(innovation)
+                and kalman.scalar_update_reference(self.x, self.P, innovation, H, R, GATE_SIGMA)):
             return False
-        K = PH / S
-        self.x += K * innovation
-        IKH = np.eye(2) - np.outer(K, H)
-        self.P = IKH @ self.P @ IKH.T + R * np.outer(K, K)  # Joseph form
         self.updates += 1
         return True
 
