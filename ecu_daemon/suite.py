@@ -39,6 +39,7 @@ from __future__ import annotations
 import dataclasses
 import fnmatch
 import json
+import logging
 import math
 import os
 import sys
@@ -112,11 +113,28 @@ def _baseline_rms(cfg, can_path: Path, truth: dict, t_from: float) -> float:
     return float(np.sqrt(np.mean(err ** 2)))
 
 
+class _replay_tables_at_debug:
+    """A suite replays each case two to four times; each replay's per-input table (nine INFO
+    lines) would bury the one line per case the suite prints. The tables stay visible with
+    ``--log-level debug``; the replay's warnings and errors are not touched."""
+
+    def __enter__(self):
+        self.log = logging.getLogger("ecu_daemon.replay")
+        self.level = self.log.level
+        if not self.log.isEnabledFor(logging.DEBUG):
+            self.log.setLevel(logging.WARNING)
+
+    def __exit__(self, *exc):
+        self.log.setLevel(self.level)
+        return False
+
+
 def run_case(case: SuiteCase, out_dir: str | Path) -> dict:
     """:func:`score_case`, or a row that says in one line why the case could not run (the suite goes on)."""
     started = time.perf_counter()
     try:
-        return score_case(case, out_dir)
+        with _replay_tables_at_debug():
+            return score_case(case, out_dir)
     except Exception as e:  # noqa: BLE001 - one broken case must not hide the other rows
         row = {key: math.nan for _, key, _ in COLUMNS}
         row.update(scenario=case.name, family=case.family, has_fix=False, spun_out=False,

@@ -7,6 +7,7 @@ with the measured figure, so whoever fixes one sees an XPASS and flips it here.
 from __future__ import annotations
 
 import json
+import logging
 import math
 
 import pytest
@@ -157,3 +158,14 @@ def test_cli_suite_runs_through_the_process_pool_and_writes_strict_json(tmp_path
     doc = json.loads((tmp_path / "suite.json").read_text(), parse_constant=lambda c: pytest.fail(c))
     assert [r["scenario"] for r in doc] == ["gnss_glitch"] and doc[0]["failed"] == []
     assert (tmp_path / "gnss_glitch" / "estimate.csv").exists()
+
+
+def test_suite_prints_one_line_per_case_not_each_replays_input_table(tmp_path, capsys):
+    """The per-input table of every replay (nine INFO lines, two to four replays a case) stays
+    out of the suite's output; the case's own line is there."""
+    rc = cli_main(["evaluate", "--suite", "--only", "gnss_glitch", "--jobs", "1", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert rc == 0
+    assert "gnss_glitch: pass" in err
+    assert "inputs at the end of the replay" not in err and "wheel_speed_fl" not in err
+    assert logging.getLogger("ecu_daemon.replay").level == logging.NOTSET  # restored for what runs next
