@@ -58,6 +58,70 @@ K1, K3, DPSI, EB, TAU, D0 = range(6)
 NS = 6
 
 
+# ------------------------------------------------------------------------------------------------
+# The numerical kernels, numpy reference. ``backend.py`` swaps in the compiled ones of
+# ``_kernels.c`` (same math, within 1e-9: tests/test_kernels.py) under the names without
+# ``_reference``; the methods below look them up on this module at call time.
+
+def axle_propagate_reference(P: np.ndarray, c: float, q_psi: float, q_bias: float) -> None:
+    """P <- F P F' with F = I + c e_dpsi e_eb' (the heading error grows by the bias error times
+    the time c), plus the heading and bias random walks; in place."""
+    F = np.eye(NS)
+    F[DPSI, EB] = c
+    P[:] = F @ P @ F.T
+    P[DPSI, DPSI] += q_psi
+    P[EB, EB] += q_bias
+
+
+def axle_update_reference(x: np.ndarray, P: np.ndarray, z: float, h: np.ndarray, rv: float) -> float:
+    """Scalar update of x, P in place, tau considered (its gain zero; Joseph form, the covariance
+    then stays that of the suboptimal gain); returns the normalised innovation."""
+    Ph = P @ h
+    s = float(h @ Ph) + rv
+    e = z - float(h @ x)
+    g = Ph / s
+    g[TAU] = 0.0
+    x += g * e
+    IKH = np.eye(NS) - np.outer(g, h)
+    P[:] = IKH @ P @ IKH.T + rv * np.outer(g, g)
+    P[:] = 0.5 * (P + P.T)
+    return e / math.sqrt(s)
+
+
+def axle_latency_reference(x: np.ndarray, P: np.ndarray, tau: float, var: float) -> None:
+    """The considered latency moved to tau with variance var, in place: every state moves with
+    it by its regression on tau (P[:, tau] / P[tau, tau]), and its share of every variance is
+    rescaled."""
+    p = P[:, TAU].copy()
+    x += p / p[TAU] * (tau - x[TAU])
+    P -= (1.0 - var / p[TAU]) * np.outer(p, p) / p[TAU]
+    P[:] = 0.5 * (P + P.T)
+
+
+def gyro_sum_reference(aux: np.ndarray, r_col: int, X: np.ndarray, br_col: int, k0: int, k1: int) -> float:
+    """Sum over the steps k0..k1 of the ring buffers of aux[:, r_col] + X[:, br_col]."""
+    idx = np.arange(k0, k1 + 1) % len(aux)
+    return float(np.sum(aux[idx, r_col] + X[idx, br_col]))
+
+
+def window_fit_reference(aux: np.ndarray, r_col: int, ay_col: int, lo: int, hi: int, s: int,
+                         dt: float) -> tuple[float, float, float, float]:
+    """Over the steps lo..hi of the ring buffer: the least-squares line of aux[:, r_col] against
+    t = (k - s) dt (slope r_dot, value r at s), the mean of aux[:, ay_col] and the standard error
+    of that mean."""
+    idx = np.arange(lo, hi + 1) % len(aux)
+    ayw = aux[idx, ay_col]
+    rdot, r = np.polyfit((np.arange(lo, hi + 1) - s) * dt, aux[idx, r_col], 1)
+    return float(rdot), float(r), float(np.mean(ayw)), float(np.std(ayw)) / math.sqrt(len(ayw))
+
+
+axle_propagate = axle_propagate_reference
+axle_update = axle_update_reference
+axle_latency = axle_latency_reference
+gyro_sum = gyro_sum_reference
+window_fit = window_fit_reference
+
+
 class AxleFilter:
     """Kalman filter of one axle's two-term slip compliance [k1, k3] (``AxleRls``'s tyre law) with
     the nuisances of its relation: d_psi the gyro heading's error, e_b the error of the yaw-rate
@@ -207,67 +271,3 @@ class StiffnessRegression:
 
     def learned_std(self) -> dict:
         return {"kappa_r_drive": self.rear.k1_std(), "kappa_f_drive": self.front.k1_std()}
-
-
-# ------------------------------------------------------------------------------------------------
-# The numerical kernels, numpy reference. ``backend.py`` swaps in the compiled ones of
-# ``_kernels.c`` (same math, within 1e-9: tests/test_kernels.py) under the names without
-# ``_reference``; the methods above look them up on this module at call time.
-
-def axle_propagate_reference(P: np.ndarray, c: float, q_psi: float, q_bias: float) -> None:
-    """P <- F P F' with F = I + c e_dpsi e_eb' (the heading error grows by the bias error times
-    the time c), plus the heading and bias random walks; in place."""
-    F = np.eye(NS)
-    F[DPSI, EB] = c
-    P[:] = F @ P @ F.T
-    P[DPSI, DPSI] += q_psi
-    P[EB, EB] += q_bias
-
-
-def axle_update_reference(x: np.ndarray, P: np.ndarray, z: float, h: np.ndarray, rv: float) -> float:
-    """Scalar update of x, P in place, tau considered (its gain zero; Joseph form, the covariance
-    then stays that of the suboptimal gain); returns the normalised innovation."""
-    Ph = P @ h
-    s = float(h @ Ph) + rv
-    e = z - float(h @ x)
-    g = Ph / s
-    g[TAU] = 0.0
-    x += g * e
-    IKH = np.eye(NS) - np.outer(g, h)
-    P[:] = IKH @ P @ IKH.T + rv * np.outer(g, g)
-    P[:] = 0.5 * (P + P.T)
-    return e / math.sqrt(s)
-
-
-def axle_latency_reference(x: np.ndarray, P: np.ndarray, tau: float, var: float) -> None:
-    """The considered latency moved to tau with variance var, in place: every state moves with
-    it by its regression on tau (P[:, tau] / P[tau, tau]), and its share of every variance is
-    rescaled."""
-    p = P[:, TAU].copy()
-    x += p / p[TAU] * (tau - x[TAU])
-    P -= (1.0 - var / p[TAU]) * np.outer(p, p) / p[TAU]
-    P[:] = 0.5 * (P + P.T)
-
-
-def gyro_sum_reference(aux: np.ndarray, r_col: int, X: np.ndarray, br_col: int, k0: int, k1: int) -> float:
-    """Sum over the steps k0..k1 of the ring buffers of aux[:, r_col] + X[:, br_col]."""
-    idx = np.arange(k0, k1 + 1) % len(aux)
-    return float(np.sum(aux[idx, r_col] + X[idx, br_col]))
-
-
-def window_fit_reference(aux: np.ndarray, r_col: int, ay_col: int, lo: int, hi: int, s: int,
-                         dt: float) -> tuple[float, float, float, float]:
-    """Over the steps lo..hi of the ring buffer: the least-squares line of aux[:, r_col] against
-    t = (k - s) dt (slope r_dot, value r at s), the mean of aux[:, ay_col] and the standard error
-    of that mean."""
-    idx = np.arange(lo, hi + 1) % len(aux)
-    ayw = aux[idx, ay_col]
-    rdot, r = np.polyfit((np.arange(lo, hi + 1) - s) * dt, aux[idx, r_col], 1)
-    return float(rdot), float(r), float(np.mean(ayw)), float(np.std(ayw)) / math.sqrt(len(ayw))
-
-
-axle_propagate = axle_propagate_reference
-axle_update = axle_update_reference
-axle_latency = axle_latency_reference
-gyro_sum = gyro_sum_reference
-window_fit = window_fit_reference
