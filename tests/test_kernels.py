@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from ecu_daemon.estimator import Estimator, backend, kalman
-from ecu_daemon.estimator.history import StepHistory, positive_definite
+from ecu_daemon.estimator.fusion import stiffness_regression as sr
+from ecu_daemon.estimator.history import AUX_AY, AUX_R, NAUX, StepHistory, positive_definite
 from ecu_daemon.estimator.kinematic import NX, KinematicModel
 from ecu_daemon.gnss.stream import GnssStreamParser
 from ecu_daemon.signals import SignalDecoder
@@ -219,6 +220,63 @@ def test_positive_definite_check():
 
 
 # ------------------------------------------------------------------------------------------------
+# the stiffness regression's kernels (fusion/stiffness_regression.py)
+
+def spd6():
+    a = RNG.normal(size=(sr.NS, sr.NS))
+    return a @ a.T + 0.1 * np.eye(sr.NS)
+
+
+def _stiffness_kernels(fn):
+    """fn(module) with the module's reference kernels and with the compiled ones."""
+    with backend.selected(False):
+        assert sr.axle_update is sr.axle_update_reference
+        ref = fn()
+    with backend.selected(True):
+        assert sr.axle_update is backend.compiled.axle_update
+        out = fn()
+    return ref, out
+
+
+def test_axle_filter_kernels_agree():
+    """Propagation, the considered-latency shift and the Joseph update of one axle's filter, in
+    place, compiled against numpy on random covariances; the update's covariance exactly symmetric."""
+    x0, P0, h = RNG.normal(size=sr.NS), spd6(), RNG.normal(size=sr.NS)
+
+    def run():
+        x, P = x0.copy(), P0.copy()
+        sr.axle_propagate(P, 0.2, 1e-4, 1e-6)
+        out = [P.copy()]
+        sr.axle_latency(x, P, 0.31, 0.02 ** 2)
+        out += [x.copy(), P.copy()]
+        nu = sr.axle_update(x, P, 0.7, h, 0.05)
+        return out + [x.copy(), P.copy(), np.array([nu])]
+
+    ref, comp = _stiffness_kernels(run)
+    for r, c in zip(ref, comp):
+        np.testing.assert_allclose(c, r, rtol=1e-12, atol=1e-14)
+    P = comp[4]
+    assert np.array_equal(P, P.T) and comp[3][sr.TAU] == comp[1][sr.TAU]  # tau considered: not updated
+    assert comp[1][sr.TAU] == pytest.approx(0.31)
+
+
+@pytest.mark.parametrize("lo,hi,s", [(3, 23, 13), (40, 60, 50), (45, 55, 47), (55, 75, 65)])
+def test_ring_window_kernels_agree(lo, hi, s):
+    """The gyro sum and the windowed line fit / mean / standard error over ring-buffer steps,
+    also across the buffer's wrap-around (a 64-row buffer here)."""
+    aux, X = RNG.normal(size=(64, NAUX)), RNG.normal(size=(64, NX))
+
+    def run():
+        return (sr.gyro_sum(aux, AUX_R, X, 3, lo, hi),
+                *sr.window_fit(aux, AUX_R, AUX_AY, lo, hi, s, 0.006))
+
+    ref, comp = _stiffness_kernels(run)
+    np.testing.assert_allclose(comp, ref, rtol=1e-12, atol=1e-12)
+    with backend.selected(True), pytest.raises(ValueError):
+        sr.window_fit(aux, AUX_R, NAUX, lo, hi, s, 0.006)  # column out of range: an error, not a read
+
+
+# ------------------------------------------------------------------------------------------------
 # a whole drive
 
 @pytest.fixture(scope="module")
@@ -262,6 +320,11 @@ def test_a_whole_drive_compiled_and_reference_agree_within_1e9(drive_events):
             else:
                 assert u == v
     assert worst < 1e-9
+    # the per-drive stiffness regression (reported in the learned state) too
+    assert ec.stiffness.rear.updates == er.stiffness.rear.updates > 20
+    for key, v in er.stiffness.learned().items():
+        assert ec.stiffness.learned()[key] == pytest.approx(v, rel=1e-9)
+        assert ec.stiffness.learned_std()[key] == pytest.approx(er.stiffness.learned_std()[key], rel=1e-9)
     # every step's covariance exactly symmetric (and positive definite) as stored
     stored = [P for P in Ps if P is not None]
     assert len(stored) > 3000

@@ -23,8 +23,11 @@ config, ``[gnss] delay_s = 0.5``, ``estimate_delay = false`` so every rewind is 
    the yardstick for the whole replay's cost per step.
 5. ``--reference``: the step and GNSS rows again with the pure-Python reference kernels
    (``backend.select(False)``), in the same run, for a before/after at the same load.
+6. ``--online-latency``: the step and GNSS rows again with the replay's config (online latency
+   identification on: two latency estimators per velocity receiver run at every fix, which the
+   main rows leave out to keep every rewind at 0.5 s).
 
-    python3 tools/bench_estimator.py [--steps 20000] [--quick] [--json] [--profile] [--reference]
+    python3 tools/bench_estimator.py [--steps 20000] [--quick] [--json] [--profile] [--reference] [--online-latency]
 
 The machine is shared: the load average is printed with the results. Wall-clock percentiles include
 preemption by other processes and GC pauses; the thread-CPU-time rows of the same steps do not
@@ -452,6 +455,13 @@ def print_table(r: dict) -> None:
     row("KinematicModel.predict [us]", f["kinematic_predict_us"])
     row("FilterPy EKF predict (same F, Q) [us]", f["filterpy_predict_us"])
     row("FilterPy EKF step: predict + wheel update [us]", f["filterpy_step_us"])
+    if "online_latency" in r:
+        ol = r["online_latency"]
+        print("with online latency identification on (the config replay and the daemon run by default), same drive:")
+        row("  estimator step, no GNSS [us]", ol["plain_step_us"])
+        row("  estimator step fusing GNSS (0.5 s) [us]", ol["gnss_step_us"])
+        row("  same steps, thread CPU time, GNSS [us]", ol["gnss_step_cpu_us"])
+        row("  Estimator._on_gnss, 2-D fused [us]", ol["gnss"]["on_gnss_fused_2d_us"])
     if "reference" in r:
         ref = r["reference"]
         print(f"with the pure-Python reference kernels (same run), vs compiled ({s['kernels']}):")
@@ -508,6 +518,9 @@ def main() -> int:
     ap.add_argument("--profile", action="store_true", help="also cProfile the measured steps")
     ap.add_argument("--reference", action="store_true",
                     help="also time the steps with the pure-Python reference kernels")
+    ap.add_argument("--online-latency", action="store_true",
+                    help="also time the steps with online GNSS latency identification on (as replay runs;"
+                         " the main rows fix the latency so that every rewind is 0.5 s)")
     args = ap.parse_args()
     steps = 2000 if args.quick else args.steps
     if steps < 100:
@@ -521,6 +534,9 @@ def main() -> int:
     st = bench_steps(cfg, events, steps)
     if args.profile:
         r["profile"] = bench_steps(cfg, events, steps, profile=True)["profile"]
+    if args.online_latency:
+        ol = bench_steps(cfg_replay, events, steps)
+        r["online_latency"] = {k: ol[k] for k in ("plain_step_us", "gnss_step_us", "gnss_step_cpu_us", "gnss")}
     if args.reference:
         backend.select(False)
         ref = bench_steps(cfg, events, steps)

@@ -565,6 +565,252 @@ static PyObject *k_positive_definite(PyObject *self, PyObject *arg)
     return PyBool_FromLong(ok);
 }
 
+/* ---- the per-drive stiffness regression (fusion/stiffness_regression.py) ----------------------
+ * One axle's 6-state filter [k1, k3, d_psi, e_b, tau, d0] and the windowed statistics of the ring
+ * buffer it reads at each fused GNSS sample: the same math as the *_reference functions there,
+ * without numpy's per-call overhead (it was most of a GNSS step). */
+#define NS 6
+#define S_DPSI 2
+#define S_EB 3
+#define S_TAU 4
+
+/* axle_propagate(P, c, q_psi, q_bias): P <- F P F' (F = I + c e_dpsi e_eb'), then the heading and
+ * bias random walks. */
+static PyObject *k_axle_propagate(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "axle_propagate(P, c, q_psi, q_bias)");
+        return NULL;
+    }
+    double c = PyFloat_AsDouble(args[1]), q_psi = PyFloat_AsDouble(args[2]), q_bias = PyFloat_AsDouble(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bp;
+    double *P = get_doubles(args[0], &bp, NS * NS, "P");
+    if (!P)
+        return NULL;
+    /* row d_psi += c row e_b, then column d_psi += c column e_b (F P, then (F P) F') */
+    for (int b = 0; b < NS; b++)
+        P[S_DPSI * NS + b] += c * P[S_EB * NS + b];
+    for (int a = 0; a < NS; a++)
+        P[a * NS + S_DPSI] += c * P[a * NS + S_EB];
+    P[S_DPSI * NS + S_DPSI] += q_psi;
+    P[S_EB * NS + S_EB] += q_bias;
+    PyBuffer_Release(&bp);
+    Py_RETURN_NONE;
+}
+
+/* axle_update(x, P, z, h, rv) -> normalised innovation: scalar Joseph-form update with the latency
+ * state considered (its gain zero), P made exactly symmetric. */
+static PyObject *k_axle_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "axle_update(x, P, z, h, rv)");
+        return NULL;
+    }
+    double z = PyFloat_AsDouble(args[2]), rv = PyFloat_AsDouble(args[4]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bx, bp, bh;
+    PyObject *ret = NULL;
+    double *x = get_doubles(args[0], &bx, NS, "x");
+    if (!x)
+        return NULL;
+    double *P = get_doubles(args[1], &bp, NS * NS, "P");
+    if (!P)
+        goto u_x;
+    double *h = get_doubles(args[3], &bh, NS, "h");
+    if (!h)
+        goto u_p;
+    double Ph[NS], g[NS], IKH[NS * NS], T[NS * NS];
+    double s = 0.0, hx = 0.0;
+    for (int a = 0; a < NS; a++) {
+        double v = 0.0;
+        for (int b = 0; b < NS; b++)
+            v += P[a * NS + b] * h[b];
+        Ph[a] = v;
+    }
+    for (int a = 0; a < NS; a++)
+        s += h[a] * Ph[a];
+    s += rv;
+    for (int a = 0; a < NS; a++)
+        hx += h[a] * x[a];
+    double e = z - hx;
+    for (int a = 0; a < NS; a++)
+        g[a] = Ph[a] / s;
+    g[S_TAU] = 0.0;
+    for (int a = 0; a < NS; a++)
+        x[a] += g[a] * e;
+    for (int a = 0; a < NS; a++)
+        for (int b = 0; b < NS; b++)
+            IKH[a * NS + b] = (a == b ? 1.0 : 0.0) - g[a] * h[b];
+    for (int a = 0; a < NS; a++) /* T = IKH P */
+        for (int b = 0; b < NS; b++) {
+            double v = 0.0;
+            for (int k = 0; k < NS; k++)
+                v += IKH[a * NS + k] * P[k * NS + b];
+            T[a * NS + b] = v;
+        }
+    for (int a = 0; a < NS; a++) /* P = T IKH' + rv g g' */
+        for (int b = 0; b < NS; b++) {
+            double v = 0.0;
+            for (int k = 0; k < NS; k++)
+                v += T[a * NS + k] * IKH[b * NS + k];
+            P[a * NS + b] = v + rv * (g[a] * g[b]);
+        }
+    for (int a = 0; a < NS; a++)
+        for (int b = 0; b < a; b++) {
+            double v = 0.5 * (P[a * NS + b] + P[b * NS + a]);
+            P[a * NS + b] = v;
+            P[b * NS + a] = v;
+        }
+    ret = PyFloat_FromDouble(e / sqrt(s));
+    PyBuffer_Release(&bh);
+u_p:
+    PyBuffer_Release(&bp);
+u_x:
+    PyBuffer_Release(&bx);
+    return ret;
+}
+
+/* axle_latency(x, P, tau, var): the considered latency moved to tau with variance var; the states
+ * follow through their cross-covariance (Schmidt), P made exactly symmetric. */
+static PyObject *k_axle_latency(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "axle_latency(x, P, tau, var)");
+        return NULL;
+    }
+    double tau = PyFloat_AsDouble(args[2]), var = PyFloat_AsDouble(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bx, bp;
+    double *x = get_doubles(args[0], &bx, NS, "x");
+    if (!x)
+        return NULL;
+    double *P = get_doubles(args[1], &bp, NS * NS, "P");
+    if (!P) {
+        PyBuffer_Release(&bx);
+        return NULL;
+    }
+    double p[NS];
+    for (int a = 0; a < NS; a++)
+        p[a] = P[a * NS + S_TAU];
+    double pt = p[S_TAU], d = tau - x[S_TAU], c = 1.0 - var / pt;
+    for (int a = 0; a < NS; a++)
+        x[a] += p[a] / pt * d;
+    for (int a = 0; a < NS; a++)
+        for (int b = 0; b < NS; b++)
+            P[a * NS + b] -= c * (p[a] * p[b]) / pt;
+    for (int a = 0; a < NS; a++)
+        for (int b = 0; b < a; b++) {
+            double v = 0.5 * (P[a * NS + b] + P[b * NS + a]);
+            P[a * NS + b] = v;
+            P[b * NS + a] = v;
+        }
+    PyBuffer_Release(&bp);
+    PyBuffer_Release(&bx);
+    Py_RETURN_NONE;
+}
+
+/* Row k of a ring buffer of n rows (Python's k % n). */
+static Py_ssize_t ring_row(long long k, Py_ssize_t n)
+{
+    long long r = k % n;
+    return (Py_ssize_t)(r < 0 ? r + n : r);
+}
+
+/* gyro_sum(aux, r_col, X, br_col, k0, k1) -> sum over steps k0..k1 of aux[k, r_col] + X[k, br_col]
+ * (ring buffers of the same number of rows): the gyro's own reading, bias added back. */
+static PyObject *k_gyro_sum(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "gyro_sum(aux, r_col, X, br_col, k0, k1)");
+        return NULL;
+    }
+    long r_col = PyLong_AsLong(args[1]), br_col = PyLong_AsLong(args[3]);
+    long long k0 = PyLong_AsLongLong(args[4]), k1 = PyLong_AsLongLong(args[5]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer ba, bX;
+    double *aux = get_doubles(args[0], &ba, -1, "aux");
+    if (!aux)
+        return NULL;
+    double *X = get_doubles(args[2], &bX, -1, "X");
+    if (!X) {
+        PyBuffer_Release(&ba);
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    Py_ssize_t na = ba.len / (Py_ssize_t)sizeof(double), nx = bX.len / (Py_ssize_t)sizeof(double);
+    Py_ssize_t rows = ba.ndim == 2 ? ba.shape[0] : -1;
+    if (rows <= 0 || bX.ndim != 2 || bX.shape[0] != rows || r_col < 0 || r_col >= na / rows || br_col < 0
+        || br_col >= nx / rows) {
+        PyErr_SetString(PyExc_ValueError, "gyro_sum: aux and X must have the same rows, columns in range");
+        goto g_done;
+    }
+    Py_ssize_t ca = na / rows, cx = nx / rows;
+    double sum = 0.0;
+    for (long long k = k0; k <= k1; k++) {
+        Py_ssize_t i = ring_row(k, rows);
+        sum += aux[i * ca + r_col] + X[i * cx + br_col];
+    }
+    ret = PyFloat_FromDouble(sum);
+g_done:
+    PyBuffer_Release(&bX);
+    PyBuffer_Release(&ba);
+    return ret;
+}
+
+/* window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay, std of the ay mean): over steps
+ * lo..hi of the ring buffer, the least-squares line r = r + r_dot t (t = (k - s) dt) and the mean
+ * of ay with the standard error of that mean. */
+static PyObject *k_window_fit(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "window_fit(aux, r_col, ay_col, lo, hi, s, dt)");
+        return NULL;
+    }
+    long r_col = PyLong_AsLong(args[1]), ay_col = PyLong_AsLong(args[2]);
+    long long lo = PyLong_AsLongLong(args[3]), hi = PyLong_AsLongLong(args[4]), s = PyLong_AsLongLong(args[5]);
+    double dt = PyFloat_AsDouble(args[6]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer ba;
+    double *aux = get_doubles(args[0], &ba, -1, "aux");
+    if (!aux)
+        return NULL;
+    PyObject *ret = NULL;
+    Py_ssize_t na = ba.len / (Py_ssize_t)sizeof(double), rows = ba.ndim == 2 ? ba.shape[0] : -1;
+    long long m = hi - lo + 1;
+    if (rows <= 0 || r_col < 0 || r_col >= na / rows || ay_col < 0 || ay_col >= na / rows || m < 2 || m > rows) {
+        PyErr_SetString(PyExc_ValueError, "window_fit: columns or window out of range");
+        goto w_done;
+    }
+    Py_ssize_t ca = na / rows;
+    double st = 0.0, sr = 0.0, say = 0.0;
+    for (long long k = lo; k <= hi; k++) {
+        Py_ssize_t i = ring_row(k, rows);
+        st += (double)(k - s) * dt;
+        sr += aux[i * ca + r_col];
+        say += aux[i * ca + ay_col];
+    }
+    double tm = st / (double)m, rm = sr / (double)m, aym = say / (double)m;
+    double stt = 0.0, str = 0.0, sdd = 0.0;
+    for (long long k = lo; k <= hi; k++) {
+        Py_ssize_t i = ring_row(k, rows);
+        double dtk = (double)(k - s) * dt - tm, da = aux[i * ca + ay_col] - aym;
+        stt += dtk * dtk;
+        str += dtk * (aux[i * ca + r_col] - rm);
+        sdd += da * da;
+    }
+    double slope = str / stt;
+    ret = Py_BuildValue("(dddd)", slope, rm - slope * tm, aym, sqrt(sdd / (double)m) / sqrt((double)m));
+w_done:
+    PyBuffer_Release(&ba);
+    return ret;
+}
+
 static PyMethodDef methods[] = {
     {"predict", (PyCFunction)(void (*)(void))k_predict, METH_FASTCALL,
      "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): one model step in place"},
@@ -579,6 +825,16 @@ static PyMethodDef methods[] = {
      "late_update(P, H, R, y, dx, M) -> NIS; dx = K y, M = P - Joseph(P) (NaN: S not positive definite)"},
     {"positive_definite", k_positive_definite, METH_O,
      "positive_definite(P) -> every 8x8 matrix of the stack is finite and positive definite"},
+    {"axle_propagate", (PyCFunction)(void (*)(void))k_axle_propagate, METH_FASTCALL,
+     "axle_propagate(P, c, q_psi, q_bias): a stiffness-regression axle's heading propagation in place"},
+    {"axle_update", (PyCFunction)(void (*)(void))k_axle_update, METH_FASTCALL,
+     "axle_update(x, P, z, h, rv) -> normalised innovation (latency considered, Joseph form)"},
+    {"axle_latency", (PyCFunction)(void (*)(void))k_axle_latency, METH_FASTCALL,
+     "axle_latency(x, P, tau, var): move the considered latency, the states through their covariance"},
+    {"gyro_sum", (PyCFunction)(void (*)(void))k_gyro_sum, METH_FASTCALL,
+     "gyro_sum(aux, r_col, X, br_col, k0, k1) -> sum of aux[k, r_col] + X[k, br_col], k0 <= k <= k1"},
+    {"window_fit", (PyCFunction)(void (*)(void))k_window_fit, METH_FASTCALL,
+     "window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay mean, its standard error)"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -2,7 +2,8 @@
 
 The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under the same names,
 ``kinematic.KinematicModel.predict``, ``kalman.scalar_update`` / ``index_update`` /
-``late_update`` / ``symmetrize`` and ``history.StepHistory.correct``; the pure-Python
+``late_update`` / ``symmetrize``, ``history.StepHistory.correct`` and the stiffness regression's
+``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -12,10 +13,12 @@ import contextlib
 import logging
 
 from . import history, kalman, kinematic
+from .fusion import stiffness_regression
 
 log = logging.getLogger(__name__)
 
 KERNELS = ("predict", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
+STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum", "window_fit")
 
 try:
     from . import _kernels as compiled
@@ -23,7 +26,7 @@ try:
 except ImportError as e:  # no compiler at install time, or a source checkout never built
     compiled = None
     _import_error = str(e)
-if compiled is not None and not all(hasattr(compiled, name) for name in KERNELS):
+if compiled is not None and not all(hasattr(compiled, name) for name in KERNELS + STIFFNESS_KERNELS):
     _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
     compiled = None
 
@@ -48,6 +51,9 @@ def select(use_compiled: bool = True) -> str:
     kalman.index_update = compiled.index_update if on else kalman.index_update_reference
     kalman.symmetrize = compiled.symmetrize if on else kalman.symmetrize_reference
     kalman.late_update = compiled.late_update if on else kalman.late_update_reference
+    for name in STIFFNESS_KERNELS:
+        setattr(stiffness_regression, name,
+                getattr(compiled, name) if on else getattr(stiffness_regression, name + "_reference"))
     return active()
 
 

@@ -132,7 +132,26 @@ class LatencyEstimator:
         self.references.append(other)
         other.owner = self
 
+    _profile_memo: tuple | None = None  # (statistics, profile, cost) of the last _profile_of_statistics
+
     def _profile(self) -> tuple[np.ndarray, bool] | None:
+        """:meth:`_profile_of_statistics`, kept while the statistics stay bit for bit the same.
+
+        Why: a fix refines its receiver once per reference it feeds (the wheels, then the
+        accelerometer), and each refinement reads every reference's profile, so half the
+        profiles (167 stacked solves each, most of a GNSS step) were of statistics that had not
+        changed. The key is the statistics themselves, so whatever changes them, the profile is
+        computed again; a kept one is the same bits."""
+        key = (self.updates, self.syy, self.zz.tobytes(), self.zy.tobytes())
+        memo = self._profile_memo
+        if memo is not None and memo[0] == key:
+            self.cost = memo[2]
+            return memo[1]
+        profile = self._profile_of_statistics()
+        self._profile_memo = (key, profile, self.cost)
+        return profile
+
+    def _profile_of_statistics(self) -> tuple[np.ndarray, bool] | None:
         """The likelihood-ratio statistic of every candidate against the best, and whether the
         minimum is very clear; None while the statistics carry no timing information."""
         if self.updates < MIN_UPDATES:

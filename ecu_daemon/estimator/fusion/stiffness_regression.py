@@ -58,6 +58,70 @@ K1, K3, DPSI, EB, TAU, D0 = range(6)
 NS = 6
 
 
+# ------------------------------------------------------------------------------------------------
+# The numerical kernels, numpy reference. ``backend.py`` swaps in the compiled ones of
+# ``_kernels.c`` (same math, within 1e-9: tests/test_kernels.py) under the names without
+# ``_reference``; the methods below look them up on this module at call time.
+
+def axle_propagate_reference(P: np.ndarray, c: float, q_psi: float, q_bias: float) -> None:
+    """P <- F P F' with F = I + c e_dpsi e_eb' (the heading error grows by the bias error times
+    the time c), plus the heading and bias random walks; in place."""
+    F = np.eye(NS)
+    F[DPSI, EB] = c
+    P[:] = F @ P @ F.T
+    P[DPSI, DPSI] += q_psi
+    P[EB, EB] += q_bias
+
+
+def axle_update_reference(x: np.ndarray, P: np.ndarray, z: float, h: np.ndarray, rv: float) -> float:
+    """Scalar update of x, P in place, tau considered (its gain zero; Joseph form, the covariance
+    then stays that of the suboptimal gain); returns the normalised innovation."""
+    Ph = P @ h
+    s = float(h @ Ph) + rv
+    e = z - float(h @ x)
+    g = Ph / s
+    g[TAU] = 0.0
+    x += g * e
+    IKH = np.eye(NS) - np.outer(g, h)
+    P[:] = IKH @ P @ IKH.T + rv * np.outer(g, g)
+    P[:] = 0.5 * (P + P.T)
+    return e / math.sqrt(s)
+
+
+def axle_latency_reference(x: np.ndarray, P: np.ndarray, tau: float, var: float) -> None:
+    """The considered latency moved to tau with variance var, in place: every state moves with
+    it by its regression on tau (P[:, tau] / P[tau, tau]), and its share of every variance is
+    rescaled."""
+    p = P[:, TAU].copy()
+    x += p / p[TAU] * (tau - x[TAU])
+    P -= (1.0 - var / p[TAU]) * np.outer(p, p) / p[TAU]
+    P[:] = 0.5 * (P + P.T)
+
+
+def gyro_sum_reference(aux: np.ndarray, r_col: int, X: np.ndarray, br_col: int, k0: int, k1: int) -> float:
+    """Sum over the steps k0..k1 of the ring buffers of aux[:, r_col] + X[:, br_col]."""
+    idx = np.arange(k0, k1 + 1) % len(aux)
+    return float(np.sum(aux[idx, r_col] + X[idx, br_col]))
+
+
+def window_fit_reference(aux: np.ndarray, r_col: int, ay_col: int, lo: int, hi: int, s: int,
+                         dt: float) -> tuple[float, float, float, float]:
+    """Over the steps lo..hi of the ring buffer: the least-squares line of aux[:, r_col] against
+    t = (k - s) dt (slope r_dot, value r at s), the mean of aux[:, ay_col] and the standard error
+    of that mean."""
+    idx = np.arange(lo, hi + 1) % len(aux)
+    ayw = aux[idx, ay_col]
+    rdot, r = np.polyfit((np.arange(lo, hi + 1) - s) * dt, aux[idx, r_col], 1)
+    return float(rdot), float(r), float(np.mean(ayw)), float(np.std(ayw)) / math.sqrt(len(ayw))
+
+
+axle_propagate = axle_propagate_reference
+axle_update = axle_update_reference
+axle_latency = axle_latency_reference
+gyro_sum = gyro_sum_reference
+window_fit = window_fit_reference
+
+
 class AxleFilter:
     """Kalman filter of one axle's two-term slip compliance [k1, k3] (``AxleRls``'s tyre law) with
     the nuisances of its relation: d_psi the gyro heading's error, e_b the error of the yaw-rate
@@ -103,33 +167,17 @@ class AxleFilter:
             self.P[TAU, TAU] = var
             self.latency_started = True
             return
-        p = self.P[:, TAU].copy()
-        self.x += p / p[TAU] * (tau - self.x[TAU])
-        self.P -= (1.0 - var / p[TAU]) * np.outer(p, p) / p[TAU]
-        self.P = 0.5 * (self.P + self.P.T)
+        axle_latency(self.x, self.P, tau, var)
 
     def propagate(self, r_sum: float, steps: int, dt: float, q_psi: float, q_bias: float) -> None:
         """Integrate ``steps`` raw yaw-rate samples (their sum ``r_sum``) into the heading."""
         self.psi -= (r_sum - steps * self.bias) * dt  # yaw rate positive left, heading clockwise
-        F = np.eye(NS)
-        F[DPSI, EB] = steps * dt
-        self.P = F @ self.P @ F.T
-        self.P[DPSI, DPSI] += q_psi
-        self.P[EB, EB] += q_bias
+        axle_propagate(self.P, steps * dt, q_psi, q_bias)
 
     def update(self, z: float, h: np.ndarray, rv: float) -> None:
         """Scalar update, tau considered (its gain zero; Joseph form, the covariance then stays
         that of the suboptimal gain)."""
-        Ph = self.P @ h
-        s = float(h @ Ph) + rv
-        e = z - float(h @ self.x)
-        g = Ph / s
-        g[TAU] = 0.0
-        self.x += g * e
-        IKH = np.eye(NS) - np.outer(g, h)
-        self.P = IKH @ self.P @ IKH.T + rv * np.outer(g, g)
-        self.P = 0.5 * (self.P + self.P.T)
-        nu = e / math.sqrt(s)
+        nu = axle_update(self.x, self.P, z, h, rv)
         self.nis_sum += nu * nu
         self.lag_sum += nu * self.last_nu
         self.last_nu = nu
@@ -184,8 +232,7 @@ class StiffnessRegression:
                 ax.start_heading(float(h.X[i, PSI]), float(h.P[i][PSI, PSI]) + HEADING_INIT_RAD ** 2,
                                  float(h.X[i, BR]), float(h.P[i][BR, BR]))
         else:
-            idx = np.arange(self.last_s + 1, s + 1) % h.n
-            r_sum = float(np.sum(h.aux[idx, AUX_R] + h.X[idx, BR]))  # the gyro's own reading
+            r_sum = gyro_sum(h.aux, AUX_R, h.X, BR, self.last_s + 1, s)  # the gyro's own reading
             steps = s - self.last_s
             q_psi = self.arw ** 2 * steps * self.dt + (GYRO_SCALE_ERR * r_sum * self.dt) ** 2
             q_bias = self.bias_walk ** 2 * steps * self.dt
@@ -198,15 +245,11 @@ class StiffnessRegression:
         lo, hi = max(h.oldest(), s - WINDOW), min(h.last, s + WINDOW)
         if hi - lo < 2:
             return
-        idx = np.arange(lo, hi + 1) % h.n
-        ayw = h.aux[idx, AUX_AY]
-        rdot, r = np.polyfit((np.arange(lo, hi + 1) - s) * self.dt, h.aux[idx, AUX_R], 1)
-        ay = float(np.mean(ayw))
+        rdot, r, ay, sig_ay = window_fit(h.aux, AUX_R, AUX_AY, lo, hi, s, self.dt)
         n = abs(ay) / G
         if vx < MIN_SPEED or n > MAX_N:
             return
         n2 = n * n
-        sig_ay = float(np.std(ayw)) / math.sqrt(len(ayw))
         delta = float(h.aux[i, AUX_DELTA]) + steer_offset
         for ax, arm, sign in ((self.rear, self.lf, 1.0), (self.front, self.lr, -1.0)):
             rel = ax.psi - course
