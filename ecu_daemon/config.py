@@ -189,7 +189,10 @@ class EstimatorSettings:
     adapt_cornering_stiffness: bool = True
     gnss_gate_sigma: float = 5.0
     # process noise (continuous-time spectral densities)
-    accel_noise_mps2: float = 0.5  # m/s^2/sqrt(Hz): sensor noise + roll/vibration (Revs residual: 1.5 m/s^2 white at 100 Hz, 0.23 colored)
+    accel_noise_mps2: float = 0.5  # m/s^2/sqrt(Hz), drives vx: sensor noise + pitch / grade changes the ax bias state lags
+    # m/s^2/sqrt(Hz), drives vy: sensor noise + vibration (Revs residual: 1.5 m/s^2 white at 100 Hz = 0.15)
+    # + what the roll-gain and bias states leave of roll / bank (0.23 m/s^2 colored, ~0.1 over a 5 Hz fix interval)
+    lateral_accel_noise_mps2: float = 0.2
     yaw_rate_noise_radps: float = 0.0005
     yaw_rate_bias_walk: float = 2e-5
     accel_bias_walk: float = 1.5e-3
@@ -316,6 +319,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("estimator", "dt_s"): (0.001, 0.1, "s"),
     ("estimator", "gnss_gate_sigma"): (1.0, 1000.0, ""),
     ("estimator", "accel_noise_mps2"): (1e-6, 100.0, "m/s^2/sqrt(Hz)"),
+    ("estimator", "lateral_accel_noise_mps2"): (1e-6, 100.0, "m/s^2/sqrt(Hz)"),
     ("estimator", "yaw_rate_noise_radps"): (1e-9, 10.0, "rad/s/sqrt(Hz)"),
     ("estimator", "yaw_rate_bias_walk"): (0.0, 1.0, "rad/s/sqrt(s)"),
     ("estimator", "accel_bias_walk"): (0.0, 10.0, "m/s^2/sqrt(s)"),

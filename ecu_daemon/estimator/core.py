@@ -36,7 +36,7 @@ from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from . import estimate as est_mod
 from .estimate import Estimate
-from .fault_detection import ACCEL_X, ACCEL_Y, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector
+from .fault_detection import ACCEL_X, ACCEL_Y, LAT_WINDOW_S, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector
 from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
@@ -62,7 +62,7 @@ assert sorted(WHEEL_INPUTS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one 
 I_RR_MAX = 3
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
-SIDESLIP_STD_VALID = math.radians(1.0)
+SIDESLIP_STD_VALID = math.radians(2.0) / 3.0  # 3 sigma inside the 2 deg a valid sideslip promises
 HEADING_STD_VALID = math.radians(1.5)  # 3 sigma inside the 5 deg a valid heading promises
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
@@ -106,7 +106,8 @@ class Estimator:
         self.cfg = cfg
         self.dt = dt = es.dt_s
         self.model = KinematicModel(dt, es.accel_noise_mps2, es.yaw_rate_noise_radps,
-                                    es.yaw_rate_bias_walk, es.accel_bias_walk, es.wheel_scale_walk)
+                                    es.yaw_rate_bias_walk, es.accel_bias_walk, es.wheel_scale_walk,
+                                    lateral_accel_noise=es.lateral_accel_noise_mps2)
         self.hist = StepHistory(int(math.ceil((gn.max_delay_s + 0.3) / dt)) + 2)
         self.delay_compensation = es.delay_compensation
         learned = self._check_learned(learned)
@@ -195,6 +196,12 @@ class Estimator:
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
+        # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
+        # lateral-acceleration noise covers (1 sigma over the check's window). Beyond it vy may be
+        # drifting faster than its std grows: an ay error below the fault tolerance (which real
+        # bank and roll set wide) must still not pass as a valid sideslip. Its std then grows by
+        # the rest (the ay bias stays: that is for the faults beyond the tolerance).
+        self.lat_drift_tol = es.lateral_accel_noise_mps2 / math.sqrt(LAT_WINDOW_S)
 
     # ----------------------------------------------------------------------------------------
     # public contract
@@ -439,6 +446,8 @@ class Estimator:
             self._widen_unverified(P, x[VX], fdi.yaw_disagreement)
         if fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
             self._widen_lateral(P, fdi.lat_excess)
+        elif fdi.lat_unexplained > self.lat_drift_tol and not iso & ACCEL_Y:
+            self._widen_lateral(P, fdi.lat_unexplained - self.lat_drift_tol, bias=False)
         xl = x.tolist()
         vx = xl[VX]
         if imu_ok:
@@ -566,13 +575,14 @@ class Estimator:
         for j, rate in ((PSI, e), (VY, e * abs(vx))):
             P[j, j] = (math.sqrt(max(P[j, j], 0.0)) + rate * dt) ** 2
 
-    def _widen_lateral(self, P: np.ndarray, e: float) -> None:
+    def _widen_lateral(self, P: np.ndarray, e: float, bias: bool = True) -> None:
         """ay disagrees with r * vx and the model's vy by ``e`` (m/s^2) more than bank, roll and
         model errors explain: vy may be drifting that fast unseen (an ay offset, a steep bank), a
         bias, so its std grows linearly until GNSS brings it back; the ay bias may move too."""
         dt = self.dt
         P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * dt) ** 2
-        P[BAY, BAY] += (e * dt) ** 2 / LAT_BIAS_STEPS
+        if bias:
+            P[BAY, BAY] += (e * dt) ** 2 / LAT_BIAS_STEPS
 
     def _model_vy(self, vx: float, r: float, ay: float, rdot: float) -> float:
         """The single-track model's vy (the lateral cross-check's third voter)."""

@@ -172,6 +172,7 @@ class FaultDetector:
         self._lat_abs = 0.0
         self.lat_residual = 0.0  # m/s, the last window's residual (0 when no verdict)
         self.lat_excess = 0.0  # m/s^2, its rate beyond the explained (0 when none or no verdict)
+        self.lat_unexplained = 0.0  # m/s^2, its rate beyond the model's tolerance alone (before bank / roll)
         self.lon_onset = -1  # step at which the present longitudinal disagreement started
         self.lon_culprit = 0  # WHEELS | ACCEL_X while the longitudinal check fails
         self._wheel_jump_k = -10 ** 9
@@ -447,7 +448,7 @@ class FaultDetector:
             if self._lat_filled:  # (emptied once, not re-allocated every slow step)
                 self._lat_ring = [None] * self._lat_n
                 self._lat_filled = False
-            self.lat_residual = self.lat_excess = 0.0
+            self.lat_residual = self.lat_excess = self.lat_unexplained = 0.0
             return
         dt = self.dt
         lat_cum = self._lat_cum = self._lat_cum + (ay - r * vx) * dt
@@ -465,7 +466,7 @@ class FaultDetector:
         w = n * dt
         res = (lat_cum - old[0]) - (vy_m - old[2])
         self.lat_residual = res
-        unexplained = max(abs(res) - LAT_TOL_MPS - LAT_TOL_RDOT_M * abs(r - old[3]), 0.0) / w
+        unexplained = self.lat_unexplained = max(abs(res) - LAT_TOL_MPS - LAT_TOL_RDOT_M * abs(r - old[3]), 0.0) / w
         self.lat_excess = max(unexplained - LAT_RATE_TOL - LAT_RATE_TOL_REL * (lat_abs - old[1]) / w, 0.0)
 
     # ------------------------------------------------------------------------------------------

@@ -41,14 +41,18 @@ class KinematicModel:
     """
 
     def __init__(self, dt: float, accel_noise: float, yaw_rate_noise: float, yaw_rate_bias_walk: float,
-                 accel_bias_walk: float, wheel_scale_walk: float, accel_gain_walk: float = 1e-4):
+                 accel_bias_walk: float, wheel_scale_walk: float, accel_gain_walk: float = 1e-4,
+                 lateral_accel_noise: float | None = None):
         self.dt = dt
         self.F = np.eye(NX)
         for (i, j), v in zip(gen.F_CONST, gen.kinematic_F_const(dt)):
             self.F[i, j] = v
         q = np.zeros(NX)
         q[VX] = accel_noise ** 2 * dt
-        q[VY] = accel_noise ** 2 * dt
+        # vy has its own (smaller) noise: the lateral channel's colored errors (roll, bank) have
+        # states of their own (g_ay, b_ay), so only their remainder is white here, and an inflated
+        # vy noise makes the sideslip std several times its real error (invalid while right)
+        q[VY] = (accel_noise if lateral_accel_noise is None else lateral_accel_noise) ** 2 * dt
         q[PSI] = yaw_rate_noise ** 2 * dt
         q[BR] = yaw_rate_bias_walk ** 2 * dt
         q[BAX] = accel_bias_walk ** 2 * dt
