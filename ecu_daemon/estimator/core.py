@@ -70,6 +70,7 @@ GNSS_FRESH_S = 1.0
 ISO_ACCEL_NOISE = 2.0  # m/s^2/sqrt(Hz)
 ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
 ISO_HEADING_STEP = math.radians(3.0)
+SUBSTITUTE_MODEL_VAR_SCALE = 4.0  # the single-track model's vy from the wheels' yaw rate: 2x its std
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
 # divergence: the wheels and GNSS speed cross-check each other before either re-initialises
@@ -434,7 +435,7 @@ class Estimator:
                 self.model.predict(x, Pp, P, x[BR], x[BAX], x[BAY])
             A[:] = self.model.F
         if iso:
-            self._widen(iso, P)
+            self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
             self._widen_unverified(P, x[VX], fdi.yaw_disagreement)
         if fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
@@ -473,8 +474,11 @@ class Estimator:
                 elif self._wheels_diverged(t):
                     self._reset(k)
                     return self._invalid(t)
-            if imu_ok and k % MODEL_EVERY == 0 and not iso & (YAW_RATE | ACCEL_Y):
-                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY)
+            if imu_ok and k % MODEL_EVERY == 0:
+                # with an IMU signal isolated the model still holds vy, from its substitute (the
+                # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
+                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
+                                       SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0)
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
@@ -542,7 +546,7 @@ class Estimator:
             ay_m = (r_m - x[BR]) * x[VX] + x[BAY]
         return r_m, ax_m, ay_m
 
-    def _widen(self, iso: int, P: np.ndarray) -> None:
+    def _widen(self, iso: int, P: np.ndarray, vx: float) -> None:
         """Covariance for the states a substitute (or nothing) now drives; a step on isolation
         (the fault acted before it was caught), a random walk while it lasts."""
         new = self.fdi.new_isolation
@@ -554,7 +558,10 @@ class Estimator:
             P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + (ISO_ACCEL_NOISE ** 2 * dt
                                                                       if iso & ACCEL_X else 0.0)
         if iso & (YAW_RATE | ACCEL_Y):
-            P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+            # vy integrates ay - r vx: a substituted ay errs by up to ISO_ACCEL_NOISE, a substituted
+            # yaw rate by ISO_YAW_RATE_NOISE times the speed
+            q = ISO_ACCEL_NOISE ** 2 if iso & ACCEL_Y else (ISO_YAW_RATE_NOISE * vx) ** 2
+            P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + q * dt
         if iso & YAW_RATE:
             P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
 
