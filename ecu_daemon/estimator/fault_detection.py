@@ -71,7 +71,6 @@ YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesse
 YAW_SLOW_TOL_REL = 0.12
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
-AY_JUMP_MPS2 = 6.0  # ay change between two steps (> 0.6 g in 6 ms) that r * vx does not show: a fault
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
@@ -191,8 +190,6 @@ class FaultDetector:
         self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
         self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
         self._rw_prev = math.nan
-        self._ay_prev = math.nan  # ay reading and r * vx at the previous step (the ay jump test)
-        self._rvx_prev = math.nan
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -421,23 +418,13 @@ class FaultDetector:
                              or abs(e_as) > slow + wide)
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
                 and not abs(r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
-        # a step of ay that r * vx does not take (an ay stuck at 0 mid-corner): fused for not even
-        # one step, or the single-track model swings vy by the whole ay at once
-        rvx = r_g * vx
-        ay_jump = (have_w and not jump and abs(ay_m - self._ay_prev) > AY_JUMP_MPS2
-                   and not abs(rvx - self._rvx_prev) > 0.5 * AY_JUMP_MPS2)
         self._r_prev = r_m
         self._rw_prev = r_wheels
-        self._ay_prev = ay_m
-        self._rvx_prev = rvx
         gyro = self.gyro
         ay_latch = self.ay
         if jump:  # no car turns that fast: not integrated even for the steps the vote needs
             w_fail = a_fail = True
             gyro.bad = max(gyro.bad, gyro.on - 1)
-        elif ay_jump:
-            a_fail = True
-            ay_latch.bad = max(ay_latch.bad, ay_latch.on - 1)
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not ay_latch.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
