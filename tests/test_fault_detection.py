@@ -347,6 +347,9 @@ IMU_FAULTS = {
     "yaw_rate_offset": (("yaw_rate",), lambda t, v: v + 5.0 * DEG, fd.YAW_RATE),
     # a gyro stuck at its reading mid-corner (-19 deg/s): the ay bias is not taught the substitute's error
     "yaw_rate_stuck": (("yaw_rate",), lambda t, v: -19.0 * DEG, fd.YAW_RATE),
+    # a gyro x1.3: ay / vx sides with the wheels (inside its own wide transient tolerance), so the
+    # gyro is the odd one out; never isolated before (heading 2.4 deg off while valid)
+    "yaw_rate_scaled": (("yaw_rate",), lambda t, v: 1.3 * v, fd.YAW_RATE),
 }
 
 
@@ -362,6 +365,9 @@ def test_imu_fault_in_a_lane_change_is_held_by_the_other_sources(tmp_path, drive
     assert np.sqrt(np.mean(e_beta[iso] ** 2)) < 0.6 * DEG, "sideslip while the source is isolated"
     valid = (est["sideslip_valid"] > 0.5) & (t > T0 + 10.0)
     assert not np.any(valid & (np.abs(e_beta) > 3.0 * est["sideslip_std_rad"])), "beyond 3 sigma while valid"
+    # the heading the gyro drifted before it was isolated is taken back out (2.5-3.2 deg before)
+    e_psi = _wrap(est["heading_rad"] - tr["heading_rad"])
+    assert np.max(np.abs(e_psi[iso])) < 1.5 * DEG
     learned = t > T0 + 15.0  # learned quantities untouched by the fault
     assert np.max(np.abs(est["yaw_rate_bias_radps"] - tr["yaw_rate_bias_radps"])[learned]) < 0.05 * DEG
     assert np.max(np.abs(est["accel_y_bias_mps2"] - tr["accel_y_bias_eff_mps2"])[learned]) < 0.03

@@ -422,6 +422,9 @@ class Estimator:
                        float(Pp[VX, VX]), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
         wheel_z = fdi.wheel_z
+        if fdi.heading_repair is not None:
+            self._repair_heading(*fdi.heading_repair)
+            fdi.heading_repair = None
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]
@@ -545,6 +548,16 @@ class Estimator:
         if iso & ACCEL_Y:
             ay_m = (r_m - x[BR]) * x[VX] + x[BAY]
         return r_m, ax_m, ay_m
+
+    def _repair_heading(self, onset: int, corrections: list) -> None:
+        """Take the drift a faulty gyro put into the heading before it was isolated out of the
+        stored steps from ``onset`` on (the next step predicts from the last of them)."""
+        h = self.hist
+        X = h.X
+        for j, c in enumerate(corrections, onset):
+            if h.oldest() <= j <= h.last:
+                i = h.slot(j)
+                X[i, PSI] = (X[i, PSI] + c) % (2.0 * math.pi)
 
     def _widen(self, iso: int, P: np.ndarray, vx: float) -> None:
         """Covariance for the states a substitute (or nothing) now drives; a step on isolation
@@ -679,7 +692,10 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
-        imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
+        # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
+        # only while ay vouches for that substitute and the wheels are trusted (its std says how well)
+        imu_trusted = not iso & ACCEL_Y and (
+            (wheels_trusted and self.fdi.witnesses_agree) if iso & YAW_RATE else not self.fdi.yaw_suspect)
         st = self.single_track
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],

@@ -71,6 +71,9 @@ YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesse
 YAW_SLOW_TOL_REL = 0.12
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
+SIDE_FRACTION = 0.5  # ay / vx this much closer to the wheels' yaw rate than to the gyro: it sides with them
+REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
+REPAIR_LAG_S = 2.0 * 0.1  # the fast test's filter lag (2 YAW_TAU_S): the fault began before it failed
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
@@ -191,7 +194,15 @@ class FaultDetector:
         self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
         self._rw_prev = math.nan
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
+        nr = max(2, int(round(REPAIR_WINDOW_S / dt)))
+        self._yaw_ring = [0.0] * nr  # per step: integral of (gyro - wheels' yaw rate) dt
+        self._yaw_cum = 0.0
+        self._w_fail_since = -1  # first step of the present run of gyro-vs-wheels failures (-1: none)
+        self._repair_lag = int(round(REPAIR_LAG_S / dt))
+        #: at the step the gyro is isolated: (first step, heading corrections from it on), else None
+        self.heading_repair: tuple[int, list] | None = None
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
+        self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
@@ -228,7 +239,7 @@ class FaultDetector:
         ax = ax_m - x[BAX] if imu_ok else math.nan
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        self._yaw(rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
+        self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
         iso = WHEEL_SPEED if self.wheel_mask else 0
         if self.lon.active:
             iso |= self.lon_culprit
@@ -375,7 +386,7 @@ class FaultDetector:
         self.wheels_back.active = True
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
-    def _yaw(self, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
+    def _yaw(self, k: int, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
              x: list, rdot: float) -> None:
         if not imu_ok:
             return
@@ -395,8 +406,11 @@ class FaultDetector:
             d = r_g - r_wheels
             e_w = self.e_w = e_w + a_yaw * (d - e_w)
             e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
+            self._yaw_cum += d * self.dt
         else:
             r_wheels = self.r_wheels = math.nan
+        ring = self._yaw_ring
+        ring[k % len(ring)] = self._yaw_cum
         ay = ay_m - x[BAY] - x[GAY] * ay_m
         self._lateral(vx, r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
@@ -413,7 +427,9 @@ class FaultDetector:
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
         slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
-        w_fail = have_w and (abs(e_w) > tol_w or abs(e_ws) > slow)
+        w_fast = have_w and abs(e_w) > tol_w
+        w_slow = have_w and abs(e_ws) > slow
+        w_fail = w_fast or w_slow
         a_fail = have_a and (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
                              or abs(e_as) > slow + wide)
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
@@ -434,7 +450,23 @@ class FaultDetector:
         gyro_suspect = w_fail or (a_fail and not have_w)
         self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
-        gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
+        # ay / vx siding with the wheels: the two witnesses agree with each other and not with the
+        # gyro, though ay's own test did not fail (its tolerance is wide for transients: a gyro x1.3
+        # in a lane change); e_a - e_w is ay / vx against the wheels, low-passed alike
+        # the two witnesses against each other: with the gyro isolated, the wheels' yaw rate (its
+        # substitute) is vouched for by ay only while this holds
+        self.witnesses_agree = (a_witness and have_w
+                                and abs(e_a - e_w) <= YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
+                                and abs(e_as - e_ws) <= slow + wide)
+        a_sides = a_witness and ((w_fast and abs(e_a - e_w) < SIDE_FRACTION * abs(e_w))
+                                 or (w_slow and abs(e_as - e_ws) < SIDE_FRACTION * abs(e_ws)))
+        if not w_fail:
+            self._w_fail_since = -1
+        elif self._w_fail_since < 0:
+            self._w_fail_since = k
+        was = gyro.active
+        if gyro.update((w_fail and (a_fail or not a_witness or a_sides)) if have_w else None) and not was:
+            self._plan_heading_repair(k)
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
@@ -442,6 +474,17 @@ class FaultDetector:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    def _plan_heading_repair(self, k: int) -> None:
+        """The gyro is isolated at step k: the heading it integrated since the disagreement began
+        (the fast test's lag before the first failure, at most REPAIR_WINDOW_S back) drifted by the
+        integral of gyro minus wheels; the core adds that back to the stored steps (psi' = -r)."""
+        ring = self._yaw_ring
+        n = len(ring)
+        since = self._w_fail_since if self._w_fail_since >= 0 else k
+        onset = max(since - self._repair_lag, k - n + 1)
+        base = ring[onset % n]
+        self.heading_repair = (onset, [ring[j % n] - base for j in range(onset, k + 1)])
 
     def _lateral(self, vx: float, r: float, ay: float, rdot: float) -> None:
         """Residual of ay against r * vx plus the model's change of vy over the last window, and
