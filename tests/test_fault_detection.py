@@ -373,6 +373,29 @@ def test_imu_fault_in_a_lane_change_is_held_by_the_other_sources(tmp_path, drive
     assert np.max(np.abs(est["accel_y_bias_mps2"] - tr["accel_y_bias_eff_mps2"])[learned]) < 0.03
 
 
+def test_gyro_offset_that_stays_becomes_its_bias_and_the_gyro_returns(tmp_path, drive):
+    """A step of the gyro's offset that does not go away (2 deg/s from 12 s to the end): FDI's job
+    is the step (isolated within a second, the heading repaired), the bias state's the new
+    constant: after RELEARN_S of a steady offset against the wheels the gyro is fused again with
+    its new bias, and the estimate is valid and right on it."""
+    offset = 2.0 * DEG
+    est, tr = _replay(tmp_path, fault_can(drive, ("yaw_rate",), T0 + 12.0, T0 + 60.0, lambda t, v: v + offset))
+    t = est["t"]
+    status = est["status"].astype(int)
+    iso = (status & fd.YAW_RATE) > 0
+    assert iso[(t > T0 + 14.0) & (t < T0 + 12.0 + fd.RELEARN_S)].all(), "isolated until the bias is learned"
+    end = t > t[-1] - 8.0
+    assert not iso[end].any(), "the gyro is fused again"
+    assert np.max(np.abs(est["yaw_rate_bias_radps"][end] - (tr["yaw_rate_bias_radps"][end] + offset))) < 0.1 * DEG
+    e_beta = np.abs(_wrap(est["sideslip_rad"] - tr["sideslip_rad"]))
+    e_psi = np.abs(_wrap(est["heading_rad"] - tr["heading_rad"]))
+    valid_b = (est["sideslip_valid"] > 0.5) & (t > T0 + 10.0)
+    valid_h = (est["heading_valid"] > 0.5) & (t > T0 + 10.0)
+    assert not np.any(valid_b & (e_beta > 3.0 * est["sideslip_std_rad"])), "sideslip beyond 3 sigma while valid"
+    assert not np.any(valid_h & (e_psi > 5.0 * DEG)), "heading wrong while valid"
+    assert valid_h[end].all() and valid_b[end].mean() > 0.9 and e_psi[end].max() < 1.0 * DEG
+
+
 def test_clean_drive_isolates_nothing(tmp_path, drive):
     est, _ = _replay(tmp_path, drive)
     assert not np.any(est["status"].astype(int) & sum(fd.SOURCE_BITS.values()))

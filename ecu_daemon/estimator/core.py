@@ -425,6 +425,11 @@ class Estimator:
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None
+        if fdi.bias_relearn is not None:  # the gyro returns with the bias it was isolated for
+            db, var = fdi.bias_relearn
+            fdi.bias_relearn = None
+            xp[BR] += db
+            Pp[BR, BR] += var
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]

@@ -74,6 +74,12 @@ GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do 
 SIDE_FRACTION = 0.5  # ay / vx this much closer to the wheels' yaw rate than to the gyro: it sides with them
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
 REPAIR_LAG_S = 2.0 * 0.1  # the fast test's filter lag (2 YAW_TAU_S): the fault began before it failed
+# a gyro isolated this long whose disagreement with the wheels is a steady offset (not a scale, not
+# noise, not stuck) has a new bias: handed to the bias state, and the gyro is fused again
+RELEARN_S = 20.0
+RELEARN_SLOPE = 0.03  # |d(gyro - wheels) / d r_gyro| below this: an offset, not a scale error
+RELEARN_RESID = 0.01  # rad/s: rms of the low-passed disagreement about the fit (a noisy gyro has more)
+RELEARN_MIN_SPREAD = 0.02  # rad/s: the gyro's spread needed to tell an offset from a scale (or stuck)
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
@@ -201,6 +207,9 @@ class FaultDetector:
         self._repair_lag = int(round(REPAIR_LAG_S / dt))
         #: at the step the gyro is isolated: (first step, heading corrections from it on), else None
         self.heading_repair: tuple[int, list] | None = None
+        self._relearn = [0.0] * 6  # while isolated: n, sums of r, r^2, e, e r, e^2 (r gyro, e = e_w)
+        #: (new bias - old, its variance) at the step an isolated gyro's steady offset becomes its bias
+        self.bias_relearn: tuple[float, float] | None = None
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -407,6 +416,14 @@ class FaultDetector:
             e_w = self.e_w = e_w + a_yaw * (d - e_w)
             e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
             self._yaw_cum += d * self.dt
+            if self.gyro.active:  # e_w against the gyro's own rate: both nearly free of wheel noise
+                a = self._relearn
+                a[0] += 1.0
+                a[1] += r_g
+                a[2] += r_g * r_g
+                a[3] += e_w
+                a[4] += e_w * r_g
+                a[5] += e_w * e_w
         else:
             r_wheels = self.r_wheels = math.nan
         ring = self._yaw_ring
@@ -465,8 +482,12 @@ class FaultDetector:
         elif self._w_fail_since < 0:
             self._w_fail_since = k
         was = gyro.active
-        if gyro.update((w_fail and (a_fail or not a_witness or a_sides)) if have_w else None) and not was:
-            self._plan_heading_repair(k)
+        if gyro.update((w_fail and (a_fail or not a_witness or a_sides)) if have_w else None):
+            if not was:
+                self._plan_heading_repair(k)
+                self._relearn = [0.0] * 6
+            elif self._relearn[0] * self.dt >= RELEARN_S:
+                self._relearn_bias()
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
@@ -485,6 +506,32 @@ class FaultDetector:
         onset = max(since - self._repair_lag, k - n + 1)
         base = ring[onset % n]
         self.heading_repair = (onset, [ring[j % n] - base for j in range(onset, k + 1)])
+
+    def _relearn_bias(self) -> None:
+        """The isolated gyro against the wheels over the last RELEARN_S: (gyro - wheels) = b + s
+        r_gyro fitted; a steady offset (s ~ 0, little scatter) is a bias the bias state learns
+        from now on (its random walk could not follow the step), so the gyro is released with it.
+        A scaled gyro (s = 0.3 / 1.3 for x1.3), a noisy one, or one that does not move (stuck, or
+        a straight road that cannot tell offset from scale) stays out; the window starts again."""
+        n, sr, srr, sd, sdr, sdd = self._relearn
+        self._relearn = [0.0] * 6
+        mr, md = sr / n, sd / n
+        var_r = srr / n - mr * mr
+        if not var_r > RELEARN_MIN_SPREAD ** 2:
+            return
+        cov = sdr / n - mr * md
+        slope = cov / var_r
+        resid2 = sdd / n - md * md - slope * cov
+        if abs(slope) >= RELEARN_SLOPE or resid2 >= RELEARN_RESID ** 2:
+            return
+        b = md - slope * mr
+        # its variance: the scatter over one sample per OFF_STEPS (the residual is correlated)
+        self.bias_relearn = (b, max(resid2, 0.0) / max(n / OFF_STEPS, 1.0))
+        g = self.gyro
+        g.active = False
+        g.bad = g.good = 0
+        for name in ("e_w", "e_ws", "e_a", "e_as"):  # the residuals are against the new bias
+            setattr(self, name, getattr(self, name) - b)
 
     def _lateral(self, vx: float, r: float, ay: float, rdot: float) -> None:
         """Residual of ay against r * vx plus the model's change of vy over the last window, and
