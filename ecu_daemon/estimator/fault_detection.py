@@ -31,6 +31,20 @@ depend on it are not learned, and the outputs that depend on it are not valid. I
 has agreed with the others for a while (hysteresis, ``_Latch``). Learned states are also bounded
 (:func:`clamp_learned`): a fault that slips through cannot drive them somewhere unphysical.
 
+The gyro's vote: the wheels' yaw rate disagrees with it and ay / vx either disagrees with it too or
+sides with the wheels (closer to them than to the gyro by half the disagreement: ay's own test
+is wide for transients, and a gyro x1.3 hid inside it). At the step the gyro is isolated, the
+heading it integrated since the disagreement began (the integral of gyro minus wheels) is taken
+back out of the stored steps; while it is out, yaw rate comes from the wheels, the single-track
+model (on ay) holds vy, and sideslip is promised only while ay / vx vouches for the wheels.
+
+Bias state or FDI: the bias states (``b_r``, ``b_ax``, ``b_ay``) follow slow drift, at their
+configured random walk; a step in a sensor's offset is FDI's (the random walk would take tens of
+seconds to follow it, all the while integrating it into heading and vy), so the source is isolated
+and its biases frozen. An offset that stays is a bias again: a gyro isolated for ``RELEARN_S``
+whose disagreement with the wheels is a steady offset (no slope against its rate, little scatter)
+returns with that offset added to its bias (:meth:`FaultDetector._relearn_bias`).
+
 Isolation is reported as bits of ``Estimate.status`` (``STATUS_*_ISOLATED``, the same values as
 :data:`SOURCE_BITS`) and counted per source in :attr:`FaultDetector.events`.
 """
