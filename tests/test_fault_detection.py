@@ -347,9 +347,6 @@ IMU_FAULTS = {
     "yaw_rate_offset": (("yaw_rate",), lambda t, v: v + 5.0 * DEG, fd.YAW_RATE),
     # a gyro stuck at its reading mid-corner (-19 deg/s): the ay bias is not taught the substitute's error
     "yaw_rate_stuck": (("yaw_rate",), lambda t, v: -19.0 * DEG, fd.YAW_RATE),
-    # a gyro x1.3: ay / vx sides with the wheels (inside its own wide transient tolerance), so the
-    # gyro is the odd one out; never isolated before (heading 2.4 deg off while valid)
-    "yaw_rate_scaled": (("yaw_rate",), lambda t, v: 1.3 * v, fd.YAW_RATE),
 }
 
 

@@ -111,8 +111,7 @@ SUBSET = {
     # the three issue-7 faults below meet every target since fault detection (fault_detection.py)
     "gnss_constant": {},
     "fault_wheels_zero": {},
-    # a gyro x1.3: isolated when ay / vx sides with the wheels against it; sideslip stays valid from
-    # the wheels' yaw rate and the model while ay vouches for them (fault_detection.py)
+    # a gyro x1.3 never isolated: heading/vy stds grow by the witnessed disagreement (else 2.3 deg off)
     "fault_yaw_rate_scaled": {},
     "fault_yaw_rate_offset": {},
     "fault_accel_x_stuck_at_29.9mps2": {},

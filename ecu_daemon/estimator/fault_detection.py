@@ -31,9 +31,10 @@ depend on it are not learned, and the outputs that depend on it are not valid. I
 has agreed with the others for a while (hysteresis, ``_Latch``). Learned states are also bounded
 (:func:`clamp_learned`): a fault that slips through cannot drive them somewhere unphysical.
 
-The gyro's vote: the wheels' yaw rate disagrees with it and ay / vx either disagrees with it too or
-sides with the wheels (closer to them than to the gyro by half the disagreement: ay's own test
-is wide for transients, and a gyro x1.3 hid inside it). At the step the gyro is isolated, the
+The gyro is isolated when the wheels' yaw rate and ay / vx both disagree with it (a vote in which
+ay / vx merely "sides with the wheels" was tried: in transients, with one rear wheel stuck or
+noisy, it isolated a good gyro and the repair below then put the wheels' error into the
+heading, 15 deg off while valid). At the step the gyro is isolated, the
 heading it integrated since the disagreement began (the integral of gyro minus wheels) is taken
 back out of the stored steps; while it is out, yaw rate comes from the wheels, the single-track
 model (on ay) holds vy, and sideslip is promised only while ay / vx vouches for the wheels.
@@ -85,7 +86,6 @@ YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesse
 YAW_SLOW_TOL_REL = 0.12
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
-SIDE_FRACTION = 0.5  # ay / vx this much closer to the wheels' yaw rate than to the gyro: it sides with them
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
 REPAIR_LAG_S = 2.0 * 0.1  # the fast test's filter lag (2 YAW_TAU_S): the fault began before it failed
 # a gyro isolated this long whose disagreement with the wheels is a steady offset (not a scale, not
@@ -458,9 +458,7 @@ class FaultDetector:
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
         slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
-        w_fast = have_w and abs(e_w) > tol_w
-        w_slow = have_w and abs(e_ws) > slow
-        w_fail = w_fast or w_slow
+        w_fail = have_w and (abs(e_w) > tol_w or abs(e_ws) > slow)
         a_fail = have_a and (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
                              or abs(e_as) > slow + wide)
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
@@ -481,22 +479,17 @@ class FaultDetector:
         gyro_suspect = w_fail or (a_fail and not have_w)
         self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
-        # ay / vx siding with the wheels: the two witnesses agree with each other and not with the
-        # gyro, though ay's own test did not fail (its tolerance is wide for transients: a gyro x1.3
-        # in a lane change); e_a - e_w is ay / vx against the wheels, low-passed alike
         # the two witnesses against each other: with the gyro isolated, the wheels' yaw rate (its
         # substitute) is vouched for by ay only while this holds
         self.witnesses_agree = (a_witness and have_w
                                 and abs(e_a - e_w) <= YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
                                 and abs(e_as - e_ws) <= slow + wide)
-        a_sides = a_witness and ((w_fast and abs(e_a - e_w) < SIDE_FRACTION * abs(e_w))
-                                 or (w_slow and abs(e_as - e_ws) < SIDE_FRACTION * abs(e_ws)))
         if not w_fail:
             self._w_fail_since = -1
         elif self._w_fail_since < 0:
             self._w_fail_since = k
         was = gyro.active
-        if gyro.update((w_fail and (a_fail or not a_witness or a_sides)) if have_w else None):
+        if gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None):
             if not was:
                 self._plan_heading_repair(k)
                 self._relearn = [0.0] * 6
