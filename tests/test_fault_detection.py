@@ -302,7 +302,8 @@ def _replay(tmp_path, result):
     est = read_csv(tmp_path / "out.csv", ("t",), "estimate")
     truth = read_csv(tmp_path / "truth.csv", ("t",), "truth")
     t = est["t"]
-    tr = {c: np.interp(t, truth["t"], truth[c]) for c in ("sideslip_rad", "vx_mps", "wheel_scale")}
+    tr = {c: np.interp(t, truth["t"], truth[c]) for c in ("sideslip_rad", "vx_mps", "wheel_scale",
+                                                           "yaw_rate_bias_radps", "accel_y_bias_eff_mps2")}
     tr["heading_rad"] = np.interp(t, truth["t"], np.unwrap(truth["heading_rad"]))
     return est, tr
 
@@ -336,6 +337,60 @@ def test_fault_never_wrong_while_valid_and_recovers(tmp_path, drive, name):
     # the wheel scale, learned in the first seconds of driving, is not dragged by the fault
     learned = t > T0 + 15.0
     assert np.max(np.abs(est["wheel_scale"][learned] - tr["wheel_scale"][learned])) < 0.01
+
+
+#: gyro faults in the first lane change (22 m/s, up to 20 deg/s): the other sources hold the
+#: estimate while the gyro is out
+IMU_FAULTS = {
+    # a gyro 5 deg/s off: with the gyro isolated, sideslip from the single-track model (on ay and
+    # the wheels' yaw rate) instead of free integration of ay - r vx (1.7 deg RMS while isolated)
+    "yaw_rate_offset": (("yaw_rate",), lambda t, v: v + 5.0 * DEG, fd.YAW_RATE),
+    # a gyro stuck at its reading mid-corner (-19 deg/s): the ay bias is not taught the substitute's error
+    "yaw_rate_stuck": (("yaw_rate",), lambda t, v: -19.0 * DEG, fd.YAW_RATE),
+}
+
+
+@pytest.mark.parametrize("name", list(IMU_FAULTS))
+def test_imu_fault_in_a_lane_change_is_held_by_the_other_sources(tmp_path, drive, name):
+    inputs, value, source = IMU_FAULTS[name]
+    est, tr = _replay(tmp_path, fault_can(drive, inputs, T0 + 22.0, T0 + 27.0, value))
+    t = est["t"]
+    status = est["status"].astype(int)
+    iso = (status & source) > 0
+    assert iso.any() and not np.any(iso & (t < T0 + 22.0))
+    e_beta = _wrap(est["sideslip_rad"] - tr["sideslip_rad"])
+    assert np.sqrt(np.mean(e_beta[iso] ** 2)) < 0.6 * DEG, "sideslip while the source is isolated"
+    valid = (est["sideslip_valid"] > 0.5) & (t > T0 + 10.0)
+    assert not np.any(valid & (np.abs(e_beta) > 3.0 * est["sideslip_std_rad"])), "beyond 3 sigma while valid"
+    # the heading the gyro drifted before it was isolated is taken back out (2.5-3.2 deg before)
+    e_psi = _wrap(est["heading_rad"] - tr["heading_rad"])
+    assert np.max(np.abs(e_psi[iso])) < 1.5 * DEG
+    learned = t > T0 + 15.0  # learned quantities untouched by the fault
+    assert np.max(np.abs(est["yaw_rate_bias_radps"] - tr["yaw_rate_bias_radps"])[learned]) < 0.05 * DEG
+    assert np.max(np.abs(est["accel_y_bias_mps2"] - tr["accel_y_bias_eff_mps2"])[learned]) < 0.03
+
+
+def test_gyro_offset_that_stays_becomes_its_bias_and_the_gyro_returns(tmp_path, drive):
+    """A step of the gyro's offset that does not go away (2 deg/s from 12 s to the end): FDI's job
+    is the step (isolated within a second, the heading repaired), the bias state's the new
+    constant: after RELEARN_S of a steady offset against the wheels the gyro is fused again with
+    its new bias, and the estimate is valid and right on it."""
+    offset = 2.0 * DEG
+    est, tr = _replay(tmp_path, fault_can(drive, ("yaw_rate",), T0 + 12.0, T0 + 60.0, lambda t, v: v + offset))
+    t = est["t"]
+    status = est["status"].astype(int)
+    iso = (status & fd.YAW_RATE) > 0
+    assert iso[(t > T0 + 14.0) & (t < T0 + 12.0 + fd.RELEARN_S)].all(), "isolated until the bias is learned"
+    end = t > t[-1] - 8.0
+    assert not iso[end].any(), "the gyro is fused again"
+    assert np.max(np.abs(est["yaw_rate_bias_radps"][end] - (tr["yaw_rate_bias_radps"][end] + offset))) < 0.1 * DEG
+    e_beta = np.abs(_wrap(est["sideslip_rad"] - tr["sideslip_rad"]))
+    e_psi = np.abs(_wrap(est["heading_rad"] - tr["heading_rad"]))
+    valid_b = (est["sideslip_valid"] > 0.5) & (t > T0 + 10.0)
+    valid_h = (est["heading_valid"] > 0.5) & (t > T0 + 10.0)
+    assert not np.any(valid_b & (e_beta > 3.0 * est["sideslip_std_rad"])), "sideslip beyond 3 sigma while valid"
+    assert not np.any(valid_h & (e_psi > 5.0 * DEG)), "heading wrong while valid"
+    assert valid_h[end].all() and valid_b[end].mean() > 0.9 and e_psi[end].max() < 1.0 * DEG
 
 
 def test_clean_drive_isolates_nothing(tmp_path, drive):

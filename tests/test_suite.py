@@ -122,6 +122,7 @@ SUBSET = {
     "fault_wheels_zero": {},
     # a gyro x1.3 never isolated: heading/vy stds grow by the witnessed disagreement (else 2.3 deg off)
     "fault_yaw_rate_scaled": {},
+    "fault_yaw_rate_offset": {},
     "fault_accel_x_stuck_at_29.9mps2": {},
 }
 

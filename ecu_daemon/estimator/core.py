@@ -70,6 +70,7 @@ GNSS_FRESH_S = 1.0
 ISO_ACCEL_NOISE = 2.0  # m/s^2/sqrt(Hz)
 ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
 ISO_HEADING_STEP = math.radians(3.0)
+SUBSTITUTE_MODEL_VAR_SCALE = 4.0  # the single-track model's vy from the wheels' yaw rate: 2x its std
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
 # divergence: the wheels and GNSS speed cross-check each other before either re-initialises
@@ -428,6 +429,14 @@ class Estimator:
                        float(Pp[VX, VX]), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
         wheel_z = fdi.wheel_z
+        if fdi.heading_repair is not None:
+            self._repair_heading(*fdi.heading_repair)
+            fdi.heading_repair = None
+        if fdi.bias_relearn is not None:  # the gyro returns with the bias it was isolated for
+            db, var = fdi.bias_relearn
+            fdi.bias_relearn = None
+            xp[BR] += db
+            Pp[BR, BR] += var
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]
@@ -441,7 +450,7 @@ class Estimator:
                 self.model.predict(x, Pp, P, x[BR], x[BAX], x[BAY])
             A[:] = self.model.F
         if iso:
-            self._widen(iso, P)
+            self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
             self._widen_unverified(P, x[VX], fdi.yaw_disagreement)
         if fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
@@ -482,8 +491,11 @@ class Estimator:
                 elif self._wheels_diverged(t):
                     self._reset(k)
                     return self._invalid(t)
-            if imu_ok and k % MODEL_EVERY == 0 and not iso & (YAW_RATE | ACCEL_Y):
-                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY)
+            if imu_ok and k % MODEL_EVERY == 0:
+                # with an IMU signal isolated the model still holds vy, from its substitute (the
+                # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
+                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
+                                       SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0)
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
@@ -551,7 +563,17 @@ class Estimator:
             ay_m = (r_m - x[BR]) * x[VX] + x[BAY]
         return r_m, ax_m, ay_m
 
-    def _widen(self, iso: int, P: np.ndarray) -> None:
+    def _repair_heading(self, onset: int, corrections: list) -> None:
+        """Take the drift a faulty gyro put into the heading before it was isolated out of the
+        stored steps from ``onset`` on (the next step predicts from the last of them)."""
+        h = self.hist
+        X = h.X
+        for j, c in enumerate(corrections, onset):
+            if h.oldest() <= j <= h.last:
+                i = h.slot(j)
+                X[i, PSI] = (X[i, PSI] + c) % (2.0 * math.pi)
+
+    def _widen(self, iso: int, P: np.ndarray, vx: float) -> None:
         """Covariance for the states a substitute (or nothing) now drives; a step on isolation
         (the fault acted before it was caught), a random walk while it lasts."""
         new = self.fdi.new_isolation
@@ -563,7 +585,10 @@ class Estimator:
             P[VX, VX] += (1.0 if new & (ACCEL_X | WHEELS) else 0.0) + (ISO_ACCEL_NOISE ** 2 * dt
                                                                       if iso & ACCEL_X else 0.0)
         if iso & (YAW_RATE | ACCEL_Y):
-            P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + ISO_ACCEL_NOISE ** 2 * dt
+            # vy integrates ay - r vx: a substituted ay errs by up to ISO_ACCEL_NOISE, a substituted
+            # yaw rate by ISO_YAW_RATE_NOISE times the speed
+            q = ISO_ACCEL_NOISE ** 2 if iso & ACCEL_Y else (ISO_YAW_RATE_NOISE * vx) ** 2
+            P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + q * dt
         if iso & YAW_RATE:
             P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
 
@@ -682,7 +707,10 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
-        imu_trusted = not iso & (YAW_RATE | ACCEL_Y) and not self.fdi.yaw_suspect
+        # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
+        # only while ay vouches for that substitute and the wheels are trusted (its std says how well)
+        imu_trusted = not iso & ACCEL_Y and (
+            (wheels_trusted and self.fdi.witnesses_agree) if iso & YAW_RATE else not self.fdi.yaw_suspect)
         st = self.single_track
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],

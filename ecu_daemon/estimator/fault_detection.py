@@ -31,6 +31,21 @@ depend on it are not learned, and the outputs that depend on it are not valid. I
 has agreed with the others for a while (hysteresis, ``_Latch``). Learned states are also bounded
 (:func:`clamp_learned`): a fault that slips through cannot drive them somewhere unphysical.
 
+The gyro is isolated when the wheels' yaw rate and ay / vx both disagree with it (a vote in which
+ay / vx merely "sides with the wheels" was tried: in transients, with one rear wheel stuck or
+noisy, it isolated a good gyro and the repair below then put the wheels' error into the
+heading, 15 deg off while valid). At the step the gyro is isolated, the
+heading it integrated since the disagreement began (the integral of gyro minus wheels) is taken
+back out of the stored steps; while it is out, yaw rate comes from the wheels, the single-track
+model (on ay) holds vy, and sideslip is promised only while ay / vx vouches for the wheels.
+
+Bias state or FDI: the bias states (``b_r``, ``b_ax``, ``b_ay``) follow slow drift, at their
+configured random walk; a step in a sensor's offset is FDI's (the random walk would take tens of
+seconds to follow it, all the while integrating it into heading and vy), so the source is isolated
+and its biases frozen. An offset that stays is a bias again: a gyro isolated for ``RELEARN_S``
+whose disagreement with the wheels is a steady offset (no slope against its rate, little scatter)
+returns with that offset added to its bias (:meth:`FaultDetector._relearn_bias`).
+
 Isolation is reported as bits of ``Estimate.status`` (``STATUS_*_ISOLATED``, the same values as
 :data:`SOURCE_BITS`) and counted per source in :attr:`FaultDetector.events`.
 """
@@ -71,6 +86,14 @@ YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesse
 YAW_SLOW_TOL_REL = 0.12
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
+REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
+REPAIR_LAG_S = 2.0 * 0.1  # the fast test's filter lag (2 YAW_TAU_S): the fault began before it failed
+# a gyro isolated this long whose disagreement with the wheels is a steady offset (not a scale, not
+# noise, not stuck) has a new bias: handed to the bias state, and the gyro is fused again
+RELEARN_S = 20.0
+RELEARN_SLOPE = 0.03  # |d(gyro - wheels) / d r_gyro| below this: an offset, not a scale error
+RELEARN_RESID = 0.01  # rad/s: rms of the low-passed disagreement about the fit (a noisy gyro has more)
+RELEARN_MIN_SPREAD = 0.02  # rad/s: the gyro's spread needed to tell an offset from a scale (or stuck)
 YAW_MIN_SPEED = 3.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
@@ -94,7 +117,9 @@ OFF_STEPS = 170  # ~1 s of agreement before a source returns
 GNSS_ON = 2  # an inconsistent fix is never fused; GNSS is reported isolated from the second
 GNSS_OFF = 5  # 1 s at 5 Hz
 #: the learned states each source drives: frozen while it is isolated (nothing to learn them from)
-FROZEN_STATES = {WHEELS: (KW,), YAW_RATE: (BR,), ACCEL_X: (BAX,), ACCEL_Y: (BAY, GAY)}
+#: (the ay bias and gain too while the gyro is out: vy's ay - r vx with the wheels' r would teach
+#: them the substitute's error times the speed, 0.08 m/s^2 after a stuck gyro)
+FROZEN_STATES = {WHEELS: (KW,), YAW_RATE: (BR, BAY, GAY), ACCEL_X: (BAX,), ACCEL_Y: (BAY, GAY)}
 #: learned states and their bounds (lower, upper)
 LEARNED_BOUNDS = {BR: (-0.1, 0.1), BAX: (-2.0, 2.0), BAY: (-2.0, 2.0), KW: (0.95, 1.05), GAY: (-0.2, 0.2)}
 
@@ -190,7 +215,18 @@ class FaultDetector:
         self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
         self._rw_prev = math.nan
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
+        nr = max(2, int(round(REPAIR_WINDOW_S / dt)))
+        self._yaw_ring = [0.0] * nr  # per step: integral of (gyro - wheels' yaw rate) dt
+        self._yaw_cum = 0.0
+        self._w_fail_since = -1  # first step of the present run of gyro-vs-wheels failures (-1: none)
+        self._repair_lag = int(round(REPAIR_LAG_S / dt))
+        #: at the step the gyro is isolated: (first step, heading corrections from it on), else None
+        self.heading_repair: tuple[int, list] | None = None
+        self._relearn = [0.0] * 6  # while isolated: n, sums of r, r^2, e, e r, e^2 (r gyro, e = e_w)
+        #: (new bias - old, its variance) at the step an isolated gyro's steady offset becomes its bias
+        self.bias_relearn: tuple[float, float] | None = None
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
+        self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
@@ -227,7 +263,7 @@ class FaultDetector:
         ax = ax_m - x[BAX] if imu_ok else math.nan
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        self._yaw(rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
+        self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
         iso = WHEEL_SPEED if self.wheel_mask else 0
         if self.lon.active:
             iso |= self.lon_culprit
@@ -245,10 +281,13 @@ class FaultDetector:
         self.new_isolation = iso & ~before
         for bit, states in FROZEN_STATES.items():
             if iso & bit and not before & bit:
-                self.frozen.update((j, x[j]) for j in states)
-            elif before & bit and not iso & bit:
+                self.frozen.update((j, x[j]) for j in states if j not in self.frozen)
+        for bit, states in FROZEN_STATES.items():
+            if before & bit and not iso & bit:  # released: thawed unless another isolated source holds it
+                held = {j for b, st in FROZEN_STATES.items() if iso & b for j in st}
                 for j in states:
-                    self.frozen.pop(j, None)
+                    if j not in held:
+                        self.frozen.pop(j, None)
         for name, bit in SOURCE_BITS.items():
             if self.new_isolation & bit:
                 self.events[name] += 1
@@ -371,7 +410,7 @@ class FaultDetector:
         self.wheels_back.active = True
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
-    def _yaw(self, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
+    def _yaw(self, k: int, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
              x: list, rdot: float) -> None:
         if not imu_ok:
             return
@@ -391,8 +430,19 @@ class FaultDetector:
             d = r_g - r_wheels
             e_w = self.e_w = e_w + a_yaw * (d - e_w)
             e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
+            self._yaw_cum += d * self.dt
+            if self.gyro.active:  # e_w against the gyro's own rate: both nearly free of wheel noise
+                a = self._relearn
+                a[0] += 1.0
+                a[1] += r_g
+                a[2] += r_g * r_g
+                a[3] += e_w
+                a[4] += e_w * r_g
+                a[5] += e_w * e_w
         else:
             r_wheels = self.r_wheels = math.nan
+        ring = self._yaw_ring
+        ring[k % len(ring)] = self._yaw_cum
         ay = ay_m - x[BAY] - x[GAY] * ay_m
         self._lateral(vx, r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
@@ -430,7 +480,22 @@ class FaultDetector:
         gyro_suspect = w_fail or (a_fail and not have_w)
         self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
-        gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None)
+        # the two witnesses against each other: with the gyro isolated, the wheels' yaw rate (its
+        # substitute) is vouched for by ay only while this holds
+        self.witnesses_agree = (a_witness and have_w
+                                and abs(e_a - e_w) <= YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
+                                and abs(e_as - e_ws) <= slow + wide)
+        if not w_fail:
+            self._w_fail_since = -1
+        elif self._w_fail_since < 0:
+            self._w_fail_since = k
+        was = gyro.active
+        if gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None):
+            if not was:
+                self._plan_heading_repair(k)
+                self._relearn = [0.0] * 6
+            elif self._relearn[0] * self.dt >= RELEARN_S:
+                self._relearn_bias()
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
@@ -438,6 +503,43 @@ class FaultDetector:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    def _plan_heading_repair(self, k: int) -> None:
+        """The gyro is isolated at step k: the heading it integrated since the disagreement began
+        (the fast test's lag before the first failure, at most REPAIR_WINDOW_S back) drifted by the
+        integral of gyro minus wheels; the core adds that back to the stored steps (psi' = -r)."""
+        ring = self._yaw_ring
+        n = len(ring)
+        since = self._w_fail_since if self._w_fail_since >= 0 else k
+        onset = max(since - self._repair_lag, k - n + 1)
+        base = ring[onset % n]
+        self.heading_repair = (onset, [ring[j % n] - base for j in range(onset, k + 1)])
+
+    def _relearn_bias(self) -> None:
+        """The isolated gyro against the wheels over the last RELEARN_S: (gyro - wheels) = b + s
+        r_gyro fitted; a steady offset (s ~ 0, little scatter) is a bias the bias state learns
+        from now on (its random walk could not follow the step), so the gyro is released with it.
+        A scaled gyro (s = 0.3 / 1.3 for x1.3), a noisy one, or one that does not move (stuck, or
+        a straight road that cannot tell offset from scale) stays out; the window starts again."""
+        n, sr, srr, sd, sdr, sdd = self._relearn
+        self._relearn = [0.0] * 6
+        mr, md = sr / n, sd / n
+        var_r = srr / n - mr * mr
+        if not var_r > RELEARN_MIN_SPREAD ** 2:
+            return
+        cov = sdr / n - mr * md
+        slope = cov / var_r
+        resid2 = sdd / n - md * md - slope * cov
+        if abs(slope) >= RELEARN_SLOPE or resid2 >= RELEARN_RESID ** 2:
+            return
+        b = md - slope * mr
+        # its variance: the scatter over one sample per OFF_STEPS (the residual is correlated)
+        self.bias_relearn = (b, max(resid2, 0.0) / max(n / OFF_STEPS, 1.0))
+        g = self.gyro
+        g.active = False
+        g.bad = g.good = 0
+        for name in ("e_w", "e_ws", "e_a", "e_as"):  # the residuals are against the new bias
+            setattr(self, name, getattr(self, name) - b)
 
     def _lateral(self, vx: float, r: float, ay: float, rdot: float) -> None:
         """Residual of ay against r * vx plus the model's change of vy over the last window, and
