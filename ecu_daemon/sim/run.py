@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Config, GnssReceiver, magnetometer_inputs
+from ..config import Config, GnssReceiver, magnetometer_inputs, roll_rate_input
 from ..samples import MAG_INPUTS
 from . import sensors as sens
 from .can_encoder import FrameEncoder
@@ -133,12 +133,15 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     v.driven_axle = vp.driven_axle
     if scenario.sensors.magnetometer is not None and not any(n in cfg.inputs for n in MAG_INPUTS):
         cfg.inputs.update(magnetometer_inputs())  # on our chassis DBC's MAGNETOMETER message
+    if scenario.sensors.roll_rate and "roll_rate" not in cfg.inputs:
+        cfg.inputs.update(roll_rate_input())  # IMU_ROLL
     g = cfg.gnss
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
     if scenario.gnss.dual_antenna:
         g.heading_offset_deg = scenario.gnss.baseline_offset_deg
         g.baseline_m = scenario.gnss.baseline_m
+        g.fuse_baseline_elevation = scenario.gnss.fuse_elevation
     lat = scenario.gnss.latency_s
     prior = lat if scenario.latency_prior_s is None else scenario.latency_prior_s
     if wrong:
