@@ -149,6 +149,24 @@ def test_a_roll_gyro_learns_the_roll_gradient_the_gain_state_does_not_know_yet()
     assert np.mean(np.abs(err_g) <= 3 * np.array(std_g)) >= 0.99  # and its std says so
 
 
+def test_a_roll_gyro_mapped_with_the_wrong_sign_gives_no_promised_roll():
+    """A flipped axis (scale -1 in the mapping): the filter would fit a negative roll gradient, a
+    body leaning into the turn; no car does, so the roll is not promised (and never 3 sigma off)."""
+    k_true, lag = math.radians(3.0) / G, DT / (0.05 + DT)
+    road = RoadAttitude(DT, 0.1, {}, roll_gyro=(0.0014, 2e-5))
+    f_lp, roll, bad = 0.0, 0.0, 0
+    for k in range(int(30.0 / DT)):
+        fy = 4.0 * math.sin(2 * math.pi * k * DT / 4.0)
+        f_lp += lag * (fy - f_lp)
+        new = k_true * f_lp
+        p = -(new - roll) / DT
+        roll = new
+        road.step(k, 0.0, 1e-4, 0.0, 1e-4, 0.0)
+        road.set_roll_gyro(fy, 0.0, 0.05 ** 2, 0.0, p, 0.0)
+        bad += abs(road.roll - roll) > 3 * road.roll_std
+    assert bad == 0 and road.roll_std > 0.5 * DEG
+
+
 def test_a_stale_roll_gyro_widens_the_roll_instead_of_integrating_nothing():
     road = RoadAttitude(DT, 0.1, {}, roll_gyro=(0.0014, 2e-5))
     for k in range(1000):

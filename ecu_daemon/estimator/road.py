@@ -73,6 +73,9 @@ ROLL_MODEL_STD = math.radians(0.15)  # the suspension model's error (dynamics, r
 ROLL_MODEL_CORR_S = 0.5  # ... which lasts about this long (so it is not averaged away faster)
 ROLL_RATE_BIAS_PRIOR = math.radians(1.0)  # rad/s: a MEMS roll gyro's bias before it is learned
 ROLL_GRADIENT_WALK = 1e-5  # rad per m/s^2 per sqrt(s): load and tyre change the roll gradient slowly
+#: roll gradients a car can have (rad per m/s^2: 0 to 10 deg/g; bodies lean out of the turn): one
+#: outside says the gyro is not what its mapping claims (sign, scale), and the roll is not promised
+ROLL_GRADIENT_RANGE = (0.0, math.radians(10.0) / G)
 
 
 class _Channel:
@@ -163,6 +166,13 @@ class RollGyro:
         y = x[2] * f_lp - x[0]
         if not kalman.scalar_update_reference(x, P, y, H, self.R + x[2] * x[2] * var_f, GATE_SIGMA):
             self.rejected += 1
+            P[0, 0] += y * y  # the gyro and the suspension disagree: the roll is that uncertain
+
+    def plausible(self) -> bool:
+        """The learned roll gradient is one a car can have (else the gyro's mapping is wrong)."""
+        lo, hi = ROLL_GRADIENT_RANGE
+        k, sd = self.x[2], math.sqrt(max(self.P[2, 2], 0.0))
+        return k + 3.0 * sd >= lo and k - 3.0 * sd <= hi
 
 
 class RoadAttitude:
@@ -247,7 +257,7 @@ class RoadAttitude:
             gy = self.gyro = RollGyro(self.dt, *self.roll_gyro_params, g_ay / G * lp, g_ay / G, k_std, lp)
         gy.step(p_m, r, float(self.grade.x[0]), lp, var_f)
         self.roll = float(gy.x[0])
-        self.roll_std = math.sqrt(max(gy.P[0, 0], 0.0) + gy.x[2] * gy.x[2] * var_f)
+        self.roll_std = math.sqrt(max(gy.P[0, 0], 0.0) + gy.x[2] * gy.x[2] * var_f) if gy.plausible() else math.pi
         if self._ring is not None:
             self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
 
