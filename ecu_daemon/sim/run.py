@@ -153,10 +153,10 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
         lat2 = g2.latency_s if scenario.latency_prior_s is None else scenario.latency_prior_s
         g.receiver = [
             GnssReceiver("/dev/ttyACM0", g.baudrate, g.protocol, "velocity", g.delay_s, list(g.lever_arm_m),
-                         g.heading_offset_deg, g.baseline_m),
+                         g.heading_offset_deg, g.baseline_m, g.fuse_baseline_elevation),
             GnssReceiver("/dev/ttyACM1", g.baudrate, g2.protocol, "velocity", round(lat2, 3),
                          [float(a) for a in g2.lever_arm_m], g2.baseline_offset_deg if g2.dual_antenna else 0.0,
-                         g2.baseline_m if g2.dual_antenna else 0.0)]
+                         g2.baseline_m if g2.dual_antenna else 0.0, g2.dual_antenna and g2.fuse_elevation)]
         g.max_delay_s = max(g.max_delay_s, round(g2.latency_s + 0.3, 3))
     return cfg
 
