@@ -68,7 +68,8 @@ class CanSettings:
 #: what a receiver is used for: its velocity (and its heading, if it sends one), or only its heading
 RECEIVER_ROLES = ("velocity", "heading")
 #: the keys of one receiver; in a single-receiver config they sit in [gnss] itself
-RECEIVER_KEYS = ("port", "baudrate", "protocol", "delay_s", "lever_arm_m", "heading_offset_deg", "baseline_m")
+RECEIVER_KEYS = ("port", "baudrate", "protocol", "delay_s", "lever_arm_m", "heading_offset_deg", "baseline_m",
+                 "fuse_baseline_elevation", "baseline_elevation_deg", "baseline_elevation_std_deg")
 
 
 @dataclass
@@ -76,7 +77,9 @@ class GnssReceiver:
     """One ``[[gnss.receiver]]``: its port, protocol, antenna position, latency prior and role.
 
     ``heading_offset_deg`` / ``baseline_m`` describe its dual-antenna baseline (when it sends a
-    heading: NAV-RELPOSNED, HDT, THS), as the same keys of ``[gnss]`` do for a single receiver.
+    heading: NAV-RELPOSNED, HDT, THS), as the same keys of ``[gnss]`` do for a single receiver;
+    ``fuse_baseline_elevation`` / ``baseline_elevation_deg`` / ``baseline_elevation_std_deg`` its
+    tilt (RELPOSNED relPosD: bank along a lateral baseline, grade along a longitudinal one).
     """
 
     port: str = "/dev/ttyACM0"
@@ -87,6 +90,9 @@ class GnssReceiver:
     lever_arm_m: list = field(default_factory=lambda: [0.0, 0.0])
     heading_offset_deg: float = 0.0
     baseline_m: float = 0.0
+    fuse_baseline_elevation: bool = False
+    baseline_elevation_deg: float = 0.0
+    baseline_elevation_std_deg: float = 0.1
 
 
 @dataclass
@@ -108,6 +114,11 @@ class GnssSettings:
     baseline_tol_m: float = 0.05  # a measured baseline further off is a wrong carrier fix: not used
     max_heading_acc_deg: float = 2.0  # headings the receiver rates worse than this are not used
     nmea_heading_acc_deg: float = 0.3  # assumed 1-sigma when the protocol gives none (NMEA)
+    # the baseline's tilt (UBX NAV-RELPOSNED relPosD; estimator/road.py): its elevation is body roll
+    # + bank along a lateral baseline, pitch + grade along a longitudinal one
+    fuse_baseline_elevation: bool = False  # off: relPosD is not used
+    baseline_elevation_deg: float = 0.0  # the baseline's elevation on a level car (rover above base +)
+    baseline_elevation_std_deg: float = 0.1  # how well that mounting elevation is known (a bias: a floor)
     #: ``[[gnss.receiver]]`` tables (GnssReceiver); empty: one receiver described by the keys above
     receiver: list = field(default_factory=list)
 
@@ -117,7 +128,9 @@ class GnssSettings:
         if self.receiver:
             return list(self.receiver)
         return [GnssReceiver(self.port, self.baudrate, self.protocol, "velocity", self.delay_s,
-                             list(self.lever_arm_m), self.heading_offset_deg, self.baseline_m)]
+                             list(self.lever_arm_m), self.heading_offset_deg, self.baseline_m,
+                             self.fuse_baseline_elevation, self.baseline_elevation_deg,
+                             self.baseline_elevation_std_deg)]
 
 
 @dataclass
@@ -162,6 +175,13 @@ def magnetometer_inputs() -> dict[str, InputMapping]:
     not in the defaults: a car without one maps nothing and gets no magnetometer aid."""
     return {n: InputMapping(message="MAGNETOMETER", signal=n.upper(), scale=1e-6, min=-1e-3, max=1e-3,
                             counter="COUNTER", checksum="e2e_p2") for n in MAG_INPUTS}
+
+
+def roll_rate_input() -> dict[str, InputMapping]:
+    """The roll-rate gyro's mapping on our chassis DBC (message IMU_ROLL, rad/s); optional like
+    the magnetometer's (estimator/road.py integrates it into the body roll)."""
+    return {"roll_rate": InputMapping(message="IMU_ROLL", signal="ROLL_RATE", min=-3.0, max=3.0,
+                                      counter="COUNTER", checksum="e2e_p2")}
 
 
 def _default_inputs() -> dict[str, InputMapping]:
@@ -304,6 +324,8 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("gnss", "heading_offset_deg"): (-360.0, 360.0, "deg"),
     ("gnss", "baseline_m"): (0.0, 100.0, "m"),
     ("gnss", "baseline_tol_m"): (0.001, 10.0, "m"),
+    ("gnss", "baseline_elevation_deg"): (-45.0, 45.0, "deg"),
+    ("gnss", "baseline_elevation_std_deg"): (0.0, 45.0, "deg"),
     ("gnss", "max_heading_acc_deg"): (0.001, 180.0, "deg"),
     ("gnss", "nmea_heading_acc_deg"): (0.001, 180.0, "deg"),
     ("vehicle", "mass_kg"): (10.0, 100_000.0, "kg"),

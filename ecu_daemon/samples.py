@@ -24,12 +24,17 @@ INPUT_NAMES = (
     "mag_x",
     "mag_y",
     "mag_z",
+    # optional: a roll-rate gyro (rad/s about x, positive left side up), see estimator/road.py
+    "roll_rate",
 )
 
 #: The inputs every config must map (the magnetometer is optional).
 REQUIRED_INPUTS = INPUT_NAMES[:8]
 #: The magnetometer's three axes: mapped all together or not at all.
 MAG_INPUTS = INPUT_NAMES[8:11]
+
+#: The roll-rate gyro: optional.
+ROLL_RATE_INPUT = INPUT_NAMES[11]
 
 #: Integer index of each input, used by the estimator's fast path.
 INPUT_INDEX = {name: i for i, name in enumerate(INPUT_NAMES)}
@@ -41,7 +46,8 @@ class InputSample(NamedTuple):
     ``t`` is seconds on the input time base (the log's clock in replay, the monotonic clock live).
     ``index`` is ``INPUT_INDEX[name]``. Units: wheel speeds m/s (ground speed of that wheel
     computed with the configured wheel radius), steering-wheel angle rad (positive left),
-    yaw rate rad/s (positive left), accelerations m/s^2, magnetic flux density T (body axes).
+    yaw rate rad/s (positive left), accelerations m/s^2, magnetic flux density T (body axes),
+    roll rate rad/s (positive left side up).
     """
 
     t: float
@@ -105,6 +111,10 @@ class GnssHeadingSample:
     unknown: NMEA, or a normalised RELPOSNED). ``valid`` is the receiver's own verdict (RELPOSNED
     gnssFixOK, relPosValid and relPosHeadingValid; NMEA THS mode A/D; HDT a non-empty field).
     ``carr_soln`` is the carrier-phase solution (0 none, 1 float, 2 fixed; -1 unknown: NMEA).
+    ``down_m`` / ``horizontal_m`` (RELPOSNED relPosD, hypot(relPosN, relPosE)): the rover antenna
+    below the base (NED down) and the baseline's horizontal length, so its elevation is
+    ``atan2(-down_m, horizontal_m)``; ``down_acc_m`` the receiver's 1-sigma of relPosD (accD);
+    NaN when the protocol has none (NMEA) or the vector is normalised.
     """
 
     t: float
@@ -116,3 +126,6 @@ class GnssHeadingSample:
     protocol: str = ""  # "ubx" | "nmea"
     fix_time_utc_s: float = float("nan")
     source: int = 0  # index of the receiver in the config's receiver list
+    down_m: float = float("nan")
+    horizontal_m: float = float("nan")
+    down_acc_m: float = float("nan")

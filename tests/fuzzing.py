@@ -86,6 +86,7 @@ def _merge_inputs(doc: dict) -> dict:
     if "inputs" in doc:
         cfg = config_mod.Config()
         cfg.inputs.update(config_mod.magnetometer_inputs())  # the optional inputs' defaults too
+        cfg.inputs.update(config_mod.roll_rate_input())
         defaults = config_mod.to_dict(cfg)["inputs"]
         doc["inputs"] = {n: {**defaults[n], **t} for n, t in doc["inputs"].items()}
     return doc

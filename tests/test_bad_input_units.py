@@ -139,7 +139,7 @@ def test_can_reception_errors_are_counted_and_throttled(capsys):
 # ----------------------------------------------------------------------------------- decoder
 def _dbc_with_counter(tmp_path, counter_def: str, tail: str = "") -> Path:
     text = (ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc").read_text()
-    assert text.count(' SG_ COUNTER : 8|4@1+ (1,0) [0|15] "" ECU_DAEMON') == 4  # WHEEL_SPEEDS, STEERING, IMU, MAGNETOMETER
+    assert text.count(' SG_ COUNTER : 8|4@1+ (1,0) [0|15] "" ECU_DAEMON') == 5  # WHEEL_SPEEDS, STEERING, IMU, MAGNETOMETER, IMU_ROLL
     p = tmp_path / "in.dbc"
     p.write_text(text.replace(' SG_ COUNTER : 8|4@1+ (1,0) [0|15] "" ECU_DAEMON', counter_def) + tail)
     return p

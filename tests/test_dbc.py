@@ -73,7 +73,13 @@ def test_input_dbc_layout_matches_the_default_mapping(inputs_db):
     imu = inputs_db.get_message_by_name("IMU")
     assert (ws.frame_id, st.frame_id, imu.frame_id) == (0x0B0, 0x0B2, 0x0B4)
     assert {m.name: m.cycle_time for m in inputs_db.messages} == {"WHEEL_SPEEDS": 10, "STEERING": 10, "IMU": 10,
-                                                                  "MAGNETOMETER": 20}  # optional, 50 Hz
+                                                                  "MAGNETOMETER": 20,  # optional, 50 Hz
+                                                                  "IMU_ROLL": 10}  # optional
+    roll = inputs_db.get_message_by_name("IMU_ROLL").get_signal_by_name("ROLL_RATE")
+    assert roll.is_signed and roll.unit == "rad/s" and roll.scale <= 1e-4 and raw_range(roll)[1] >= 3.0
+    for name, m in config.roll_rate_input().items():  # the optional mapping fits its signal too
+        lo, hi = raw_range(inputs_db.get_message_by_name(m.message).get_signal_by_name(m.signal))
+        assert lo <= m.min and m.max <= hi, name
     assert (ws.senders, st.senders, imu.senders) == (["ABS"], ["SAS"], ["IMU"])
     for corner in ("FL", "FR", "RL", "RR"):
         s = ws.get_signal_by_name(f"WHEEL_SPEED_{corner}")

@@ -48,7 +48,7 @@ from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
-from .road import RoadAttitude
+from .road import BaselineMount, RoadAttitude
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
                                                    "wheel_speed_rl", "wheel_speed_rr"))
@@ -57,6 +57,8 @@ I_YAW = INPUT_INDEX["yaw_rate"]
 I_AX = INPUT_INDEX["accel_x"]
 I_AY = INPUT_INDEX["accel_y"]
 I_MX, I_MY, I_MZ = (INPUT_INDEX[n] for n in ("mag_x", "mag_y", "mag_z"))
+I_ROLL = INPUT_INDEX["roll_rate"]
+assert I_ROLL > I_MZ  # the magnetometer's axes: I_MX <= j < I_ROLL
 WHEEL_INPUTS = (I_FL, I_FR, I_RL, I_RR)
 assert sorted(WHEEL_INPUTS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
 I_RR_MAX = 3
@@ -158,7 +160,13 @@ class Estimator:
             es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt)
         self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
                                  self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
-        self.road = RoadAttitude(dt, es.accel_offset_std_mps2, learned)
+        # the optional baseline elevations (per receiver) and roll-rate gyro of road.py
+        self.road = RoadAttitude(
+            dt, es.accel_offset_std_mps2, learned,
+            [BaselineMount(math.radians(rx.heading_offset_deg), math.radians(rx.baseline_elevation_deg),
+                           math.radians(rx.baseline_elevation_std_deg)) if rx.fuse_baseline_elevation else None
+             for rx in receivers], self.hist.n,
+            (es.yaw_rate_noise_radps, es.yaw_rate_bias_walk) if "roll_rate" in cfg.inputs else None)
         self.steer_ratio = veh.steering_ratio
         self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
         self._learned0 = learned
@@ -246,7 +254,7 @@ class Estimator:
                     held_t[j] = ts
                     if j <= I_RR_MAX:
                         self.wheel_new = True
-                    elif j >= I_MX:
+                    elif I_MX <= j < I_ROLL:
                         self.mag_new = True
                 else:
                     self._apply(s, k)
@@ -325,7 +333,7 @@ class Estimator:
             self.held_t[i] = t
             if i <= I_RR_MAX:
                 self.wheel_new = True
-            elif i >= I_MX:
+            elif I_MX <= i < I_ROLL:
                 self.mag_new = True
         elif isinstance(s, GnssSample):
             self._on_gnss(s, k)
@@ -516,7 +524,11 @@ class Estimator:
                 x[j] = xl[j] = hi
         if imu_ok and not iso & (ACCEL_X | ACCEL_Y):
             self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY])
-            self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
+            if self.road.roll_gyro_params is None:
+                self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
+            else:
+                self.road.set_roll_gyro(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX],
+                                        held[I_ROLL] if t - held_t[I_ROLL] <= tmo[I_ROLL] else math.nan, r)
         h.auxr[i][:] = (r, ay, rdot, wheel_z, delta, ax)
         h.last = k
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
@@ -837,6 +849,8 @@ class Estimator:
             self.yaw_integral.pair(g.source, k, fus.vehicle_heading(g), lat)
         delay = lat.delay_s if self.delay_compensation else 0.0
         s, _ = h.clamp_step(round((g.t - delay) / self.dt))
+        if self.road.baselines and not self.fdi.isolated & ACCEL_Y:  # the baseline's tilt: road.py
+            self.road.fuse_elevation(s, g)
         std = lat.std_s
         if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS and self._course_confirms(s, g):
             self.realignments += 1

@@ -25,6 +25,21 @@ gradient (rad per m/s^2); its std adds a floor for the accelerometer's own scale
 follows the force through its damped suspension, so ``f_y`` is lagged (``ROLL_LAG_S``) and the size
 of that lag's correction is counted in the std as wholly uncertain (real suspensions differ).
 
+Two optional sources make bank (and grade) observable and the roll better:
+
+* a dual-antenna baseline's **elevation** (u-blox NAV-RELPOSNED relPosD against relPosN/E, see
+  :class:`BaselineMount`): across the car it is bank + body roll, along it grade + body pitch, at
+  any speed. It is fused at its time of validity (the body roll of that step, kept in a short
+  ring) into the channel the baseline leans on, with noise from the receiver's accD (only a
+  fixed carrier solution), its own gate, and the body roll's (or pitch's) uncertainty counted as
+  correlated over ``ELEVATION_CORR`` samples. The mounting elevation's std is a bias no number
+  of samples removes: a floor under the published std of that channel.
+* a **roll-rate gyro** (``[inputs.roll_rate]``, :class:`RollGyro`): ``[roll, gyro bias, roll
+  gradient]``, the gyro integrated every step and the suspension model ``roll = k f_y`` (lagged)
+  as a pseudo-measurement; the gyro sees each change of the lateral force turn into roll, which
+  identifies the roll gradient directly (the gain state mixes it with the accelerometer's own
+  scale error and learns it only slowly), and fills the suspension's transients.
+
 Angles: grade positive uphill ahead, bank positive left side up (road falls to the right), as
 the simulator's ``vehicle.py``; all in rad.
 """
@@ -49,6 +64,18 @@ GATE_SIGMA = 5.0
 ANGLE_STD_VALID = math.radians(0.5)  # a valid grade / bank / roll promises this 1-sigma or better
 GAIN_FLOOR = 0.02  # accelerometer scale error (datasheet sensitivity) the gain state holds besides roll
 ROLL_LAG_S = 0.05  # the body follows the lateral force through its suspension, about this late
+ELEVATION_GATE_SIGMA = 4.0
+ELEVATION_ACC_FLOOR_M = 0.002  # accD below this: no moving-base receiver is that good in height
+ELEVATION_CORR = 10  # samples (2 s at 5 Hz) over which the body roll's / pitch's error stays the same
+PITCH_STD = math.radians(0.3)  # body pitch on its suspension (dive, squat): not modelled, allowed for
+ROLL_UPDATE_EVERY = 3  # steps between suspension pseudo-measurements of the roll-rate filter
+ROLL_MODEL_STD = math.radians(0.15)  # the suspension model's error (dynamics, road input) ...
+ROLL_MODEL_CORR_S = 0.5  # ... which lasts about this long (so it is not averaged away faster)
+ROLL_RATE_BIAS_PRIOR = math.radians(1.0)  # rad/s: a MEMS roll gyro's bias before it is learned
+ROLL_GRADIENT_WALK = 1e-5  # rad per m/s^2 per sqrt(s): load and tyre change the roll gradient slowly
+#: roll gradients a car can have (rad per m/s^2: 0 to 10 deg/g; bodies lean out of the turn): one
+#: outside says the gyro is not what its mapping claims (sign, scale), and the roll is not promised
+ROLL_GRADIENT_RANGE = (0.0, math.radians(10.0) / G)
 
 
 class _Channel:
@@ -63,11 +90,11 @@ class _Channel:
         self.P[0, 0] += ANGLE_WALK ** 2 * dt
         self.P[1, 1] += OFFSET_WALK ** 2 * dt
 
-    def update(self, innovation: float, H: np.ndarray, R: float) -> bool:
+    def update(self, innovation: float, H: np.ndarray, R: float, gate: float = GATE_SIGMA) -> bool:
         # the numpy scalar update every source shares (Joseph form, gated); the compiled one is
         # sized for the 8-state filter
         if not (math.isfinite(innovation)
-                and kalman.scalar_update_reference(self.x, self.P, innovation, H, R, GATE_SIGMA)):
+                and kalman.scalar_update_reference(self.x, self.P, innovation, H, R, gate)):
             return False
         self.updates += 1
         return True
@@ -79,15 +106,84 @@ class _Channel:
         H = np.array([gain * G * math.cos(a), 1.0])
         return self.update(b - h, H, var_b)
 
+    floor2 = 0.0  # variance of a bias under the angle no update removes (a mounting elevation)
+
     @property
     def std(self) -> float:
+        if self.floor2:
+            return math.sqrt(max(self.P[0, 0], 0.0) + self.floor2)
         return math.sqrt(max(self.P[0, 0], 0.0))
+
+
+class BaselineMount:
+    """A dual-antenna baseline whose elevation is fused: its heading offset from the vehicle's
+    (rad, clockwise: 90 deg = pointing right) and its elevation on a level car (rad, rover above
+    the base positive) with that elevation's std (rad)."""
+
+    def __init__(self, offset_rad: float, elevation_rad: float, elevation_std_rad: float):
+        self.sin, self.cos = math.sin(offset_rad), math.cos(offset_rad)
+        self.elevation = elevation_rad
+        self.elevation_std = elevation_std_rad
+
+    def lateral(self) -> bool:
+        """Across the car more than along it: its elevation is about bank (else about grade)."""
+        return abs(self.sin) >= abs(self.cos)
+
+
+class RollGyro:
+    """Body roll ``[roll, gyro bias, roll gradient k]`` from a roll-rate gyro and the suspension.
+
+    Predict: ``roll += (p_m - b_p - r sin(grade)) dt`` (the gyro measures the body's rate about
+    its own x axis: on a grade a turn adds ``r sin(grade)`` to it; a change of bank passes through
+    as roll until the suspension model pulls it back, so the bank's walk is process noise).
+    Update every ``ROLL_UPDATE_EVERY`` steps: ``0 = roll - k f_lp`` (``f_lp`` the lagged lateral
+    force), noise ``ROLL_MODEL_STD`` counted over its correlation time.
+    """
+
+    def __init__(self, dt: float, gyro_noise: float, bias_walk: float, roll: float, k: float, k_std: float,
+                 f_lp: float):
+        self.dt = dt
+        self.x = np.array([roll, 0.0, k])
+        self.P = np.diag([(f_lp * k_std) ** 2 + ROLL_MODEL_STD ** 2, ROLL_RATE_BIAS_PRIOR ** 2, k_std ** 2])
+        self.F = np.array([[1.0, -dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        self.Q = np.diag([(gyro_noise ** 2 + ANGLE_WALK ** 2) * dt, bias_walk ** 2 * dt, ROLL_GRADIENT_WALK ** 2 * dt])
+        self.R = ROLL_MODEL_STD ** 2 * ROLL_MODEL_CORR_S / (ROLL_UPDATE_EVERY * dt)
+        self.n = 0
+        self.rejected = 0
+
+    def step(self, p_m: float, r: float, grade: float, f_lp: float, var_f: float) -> None:
+        """One step: ``p_m`` the measured roll rate (NaN: stale, the roll is held and widened)."""
+        x, P = self.x, self.P
+        if p_m == p_m:
+            x[0] += (p_m - x[1] - r * math.sin(grade)) * self.dt
+            self.P = P = self.F @ P @ self.F.T + self.Q
+        else:
+            P[0, 0] += (ROLL_RATE_BIAS_PRIOR ** 2) * self.dt
+        self.n += 1
+        if self.n % ROLL_UPDATE_EVERY:
+            return
+        H = np.array([1.0, 0.0, -f_lp])
+        y = x[2] * f_lp - x[0]
+        if not kalman.scalar_update_reference(x, P, y, H, self.R + x[2] * x[2] * var_f, GATE_SIGMA):
+            self.rejected += 1
+            P[0, 0] += y * y  # the gyro and the suspension disagree: the roll is that uncertain
+
+    def plausible(self) -> bool:
+        """The learned roll gradient is one a car can have (else the gyro's mapping is wrong)."""
+        lo, hi = ROLL_GRADIENT_RANGE
+        k, sd = self.x[2], math.sqrt(max(self.P[2, 2], 0.0))
+        return k + 3.0 * sd >= lo and k - 3.0 * sd <= hi
 
 
 class RoadAttitude:
     """Grade, bank and roll from the main filter's state and GNSS vertical velocity (see module doc)."""
 
-    def __init__(self, dt: float, offset_std: float, learned: dict):
+    def __init__(self, dt: float, offset_std: float, learned: dict,
+                 baselines: list[BaselineMount | None] | None = None, history: int = 0,
+                 roll_gyro: tuple[float, float] | None = None):
+        """``baselines``: per receiver index, the baseline whose elevation is fused (None: not);
+        ``history``: steps of body roll kept for their time of validity; ``roll_gyro``: the roll
+        gyro's (noise, bias walk), None when no roll rate is mapped."""
         def prior(key: str) -> tuple[float, float]:
             if key in learned:
                 return learned[key], max(learned.get(key.replace("_mps2", "_std_mps2"), offset_std),
@@ -102,9 +198,17 @@ class RoadAttitude:
         self.roll_std = math.pi
         self.fy_lp = math.nan
         self._lp = dt / (ROLL_LAG_S + dt)
+        self.baselines = list(baselines) if baselines and any(baselines) else []
+        self.elevation_fused = 0
+        self.elevation_rejected = 0
+        self._k = 0
+        self._ring = np.full((max(history, 1), 3), np.nan) if any(self.baselines) else None
+        self.roll_gyro_params = roll_gyro
+        self.gyro: RollGyro | None = None
 
     def step(self, k: int, b_ax: float, var_bax: float, b_ay: float, var_bay: float, g_ay: float) -> None:
         """Every ``UPDATE_EVERY`` steps: the main filter's bias sums at step k."""
+        self._k = k
         if k % UPDATE_EVERY:
             return
         period = UPDATE_EVERY * self.dt
@@ -138,6 +242,66 @@ class RoadAttitude:
         k2 = (g_ay * g_ay + var_gay) / (G * G)  # the roll gradient's square, its uncertainty included
         self.roll_std = math.sqrt((lp / G) ** 2 * (var_gay + GAIN_FLOOR ** 2) + k2 * (fy - lp) ** 2
                                   + k2 * (self.bank.P[1, 1] + ay_doubt * ay_doubt))
+        if self._ring is not None:
+            self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
+
+    def set_roll_gyro(self, ay_m: float, g_ay: float, var_gay: float, ay_doubt: float, p_m: float, r: float) -> None:
+        """Body roll with a roll-rate gyro (``p_m``, rad/s; NaN when stale) and the body yaw rate
+        ``r``: :class:`RollGyro`, started from the suspension model of :meth:`set_roll`."""
+        fy = (ay_m - self.bank.x[1]) / (1.0 + g_ay)
+        lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
+        var_f = self.bank.P[1, 1] + ay_doubt * ay_doubt
+        gy = self.gyro
+        if gy is None:
+            k_std = math.sqrt(var_gay + GAIN_FLOOR ** 2) / G
+            gy = self.gyro = RollGyro(self.dt, *self.roll_gyro_params, g_ay / G * lp, g_ay / G, k_std, lp)
+        gy.step(p_m, r, float(self.grade.x[0]), lp, var_f)
+        self.roll = float(gy.x[0])
+        self.roll_std = math.sqrt(max(gy.P[0, 0], 0.0) + gy.x[2] * gy.x[2] * var_f) if gy.plausible() else math.pi
+        if self._ring is not None:
+            self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
+
+    def fuse_elevation(self, s: int, g) -> bool:
+        """A dual-antenna sample's baseline elevation (``GnssHeadingSample`` with ``down_m``), valid
+        at step s, into bank (a lateral baseline) or grade (a longitudinal one); counted."""
+        mount = self.baselines[g.source] if 0 <= g.source < len(self.baselines) else None
+        if mount is None:
+            return False
+        d, hz, acc = g.down_m, g.horizontal_m, g.down_acc_m
+        if not (g.valid and g.carr_soln == 2 and math.isfinite(d) and math.isfinite(acc) and hz > 0.0):
+            self.elevation_rejected += 1  # no fixed carrier solution: decimetres in height
+            return False
+        length = math.hypot(hz, d)
+        z = math.atan2(-d, hz) - mount.elevation
+        var_z = (max(acc, ELEVATION_ACC_FLOOR_M) / length) ** 2
+        row = self._ring[s % len(self._ring)] if self._ring is not None else None
+        if row is not None and row[0] == s:
+            roll, roll_std = float(row[1]), float(row[2])
+        else:  # that step's roll is not kept (the IMU was out): today's, no better than its std
+            roll, roll_std = self.roll, self.roll_std
+        gam = float(self.grade.x[0])
+        phi = float(self.bank.x[0]) + roll
+        so, co = mount.sin, mount.cos
+        u = max(-1.0, min(1.0, co * math.sin(gam) - so * math.cos(gam) * math.sin(phi)))
+        c = max(math.sqrt(1.0 - u * u), 1e-6)
+        d_phi = -so * math.cos(gam) * math.cos(phi) / c
+        d_gam = (co * math.cos(gam) + so * math.sin(gam) * math.sin(phi)) / c
+        roll_var = roll_std * roll_std * ELEVATION_CORR
+        if mount.lateral():
+            ch, H = self.bank, np.array([d_phi, 0.0])
+            R = var_z + d_gam * d_gam * self.grade.P[0, 0] + d_phi * d_phi * roll_var
+            floor = mount.elevation_std / abs(d_phi)
+        else:
+            ch, H = self.grade, np.array([d_gam, 0.0])
+            R = (var_z + d_phi * d_phi * (self.bank.P[0, 0] + roll_var)
+                 + d_gam * d_gam * PITCH_STD * PITCH_STD * ELEVATION_CORR)
+            floor = mount.elevation_std / abs(d_gam)
+        if ch.update(z - math.asin(u), H, R, ELEVATION_GATE_SIGMA):
+            ch.floor2 = floor * floor
+            self.elevation_fused += 1
+            return True
+        self.elevation_rejected += 1
+        return False
 
     def valid(self, ch: _Channel) -> bool:
         return ch.updates > 0 and ch.std < ANGLE_STD_VALID

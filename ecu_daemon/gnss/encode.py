@@ -156,11 +156,13 @@ def _num(value: float | None, decimals: int) -> str:
 
 def nav_relposned(*, itow_ms: int, heading_deg: float, baseline_m: float, head_acc_deg: float = 0.3,
                   length_acc_m: float = 0.01, fix_ok: bool = True, rel_pos_valid: bool = True,
-                  heading_valid: bool = True, carr_soln: int = 2, down_m: float = 0.0) -> bytes:
+                  heading_valid: bool = True, carr_soln: int = 2, down_m: float = 0.0,
+                  down_acc_m: float | None = None) -> bytes:
     """A UBX NAV-RELPOSNED version 1 frame (01 3C, 64 bytes) as an F9P moving-base rover sends it.
 
     ``heading_deg``: baseline heading, clockwise from north; ``baseline_m`` its horizontal length
-    (N/E components follow). On the wire: relPosN/E/D/Length cm + 0.1 mm high-precision parts,
+    (N/E components follow), ``down_m`` the rover antenna below the base (NED down) and
+    ``down_acc_m`` its 1-sigma (accD; default ``length_acc_m`` as for N/E). On the wire: relPosN/E/D/Length cm + 0.1 mm high-precision parts,
     relPosHeading/accHeading 1e-5 deg, accLength 0.1 mm.
     """
     h = math.radians(heading_deg)
@@ -175,7 +177,7 @@ def nav_relposned(*, itow_ms: int, heading_deg: float, baseline_m: float, head_a
         "NAV", "NAV-RELPOSNED", GET, version=1, iTOW=int(itow_ms), **cm,
         relPosHeading=_scaled(heading_deg % 360.0, 1e-5), accHeading=_scaled(head_acc_deg, 1e-5),
         accN=_scaled(length_acc_m * 1000.0, 0.1), accE=_scaled(length_acc_m * 1000.0, 0.1),
-        accD=_scaled(length_acc_m * 1000.0, 0.1), accLength=_scaled(length_acc_m * 1000.0, 0.1),
+        accD=_scaled((length_acc_m if down_acc_m is None else down_acc_m) * 1000.0, 0.1), accLength=_scaled(length_acc_m * 1000.0, 0.1),
         gnssFixOK=int(fix_ok), diffSoln=1, relPosValid=int(rel_pos_valid), carrSoln=int(carr_soln),
         isMoving=1, relPosHeadingValid=int(heading_valid),
     )

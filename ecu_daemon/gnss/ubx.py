@@ -15,8 +15,8 @@ Unit traps handled here, once:
 * NAV-PVT velN/velE/velD/gSpeed/sAcc are **mm/s**, hAcc mm; pyubx2 returns them unscaled.
 * NAV-VELNED velN/velE/sAcc are **cm/s** (legacy message).
 * pyubx2 returns headMot/headAcc/heading/cAcc already scaled to degrees.
-* NAV-RELPOSNED: pyubx2 gives relPosHeading/accHeading in degrees, relPosLength in **cm** (the
-  0.1 mm high-precision part already added), accLength in **mm**. Only version 1 (64 bytes, F9P)
+* NAV-RELPOSNED: pyubx2 gives relPosHeading/accHeading in degrees, relPosN/E/D/Length in **cm** (the
+  0.1 mm high-precision parts already added), accN/E/D/Length in **mm**. Only version 1 (64 bytes, F9P)
   carries a heading; the M8P's 40-byte version 0 has none and gives no sample.
 """
 from __future__ import annotations
@@ -198,11 +198,15 @@ class UbxDecoder:
         and its heading are all valid (a float carrier solution stays valid; its accHeading says
         what it is worth)."""
         valid = bool(m.gnssFixOK and m.relPosValid and m.relPosHeadingValid)
+        vec = not m.relPosNormalized  # a normalised vector has no lengths (nor a usable accD)
         return GnssHeadingSample(
             t=t, heading_rad=math.radians(m.relPosHeading) % (2.0 * math.pi),
             heading_acc_rad=math.radians(m.accHeading),
-            baseline_m=math.nan if m.relPosNormalized else m.relPosLength / 100.0,
+            baseline_m=m.relPosLength / 100.0 if vec else math.nan,
             valid=valid, carr_soln=int(m.carrSoln), protocol="ubx",
+            down_m=m.relPosD / 100.0 if vec else math.nan,
+            horizontal_m=math.hypot(m.relPosN, m.relPosE) / 100.0 if vec else math.nan,
+            down_acc_m=m.accD / 1000.0 if vec else math.nan,
         )
 
     def _gps_to_utc(self, week: int, itow_ms: int, ftow_ns: int) -> float:

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Config, GnssReceiver, magnetometer_inputs
+from ..config import Config, GnssReceiver, magnetometer_inputs, roll_rate_input
 from ..samples import MAG_INPUTS
 from . import sensors as sens
 from .can_encoder import FrameEncoder
@@ -133,12 +133,15 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     v.driven_axle = vp.driven_axle
     if scenario.sensors.magnetometer is not None and not any(n in cfg.inputs for n in MAG_INPUTS):
         cfg.inputs.update(magnetometer_inputs())  # on our chassis DBC's MAGNETOMETER message
+    if scenario.sensors.roll_rate and "roll_rate" not in cfg.inputs:
+        cfg.inputs.update(roll_rate_input())  # IMU_ROLL
     g = cfg.gnss
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]
     if scenario.gnss.dual_antenna:
         g.heading_offset_deg = scenario.gnss.baseline_offset_deg
         g.baseline_m = scenario.gnss.baseline_m
+        g.fuse_baseline_elevation = scenario.gnss.fuse_elevation
     lat = scenario.gnss.latency_s
     prior = lat if scenario.latency_prior_s is None else scenario.latency_prior_s
     if wrong:
@@ -150,10 +153,10 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
         lat2 = g2.latency_s if scenario.latency_prior_s is None else scenario.latency_prior_s
         g.receiver = [
             GnssReceiver("/dev/ttyACM0", g.baudrate, g.protocol, "velocity", g.delay_s, list(g.lever_arm_m),
-                         g.heading_offset_deg, g.baseline_m),
+                         g.heading_offset_deg, g.baseline_m, g.fuse_baseline_elevation),
             GnssReceiver("/dev/ttyACM1", g.baudrate, g2.protocol, "velocity", round(lat2, 3),
                          [float(a) for a in g2.lever_arm_m], g2.baseline_offset_deg if g2.dual_antenna else 0.0,
-                         g2.baseline_m if g2.dual_antenna else 0.0)]
+                         g2.baseline_m if g2.dual_antenna else 0.0, g2.dual_antenna and g2.fuse_elevation)]
         g.max_delay_s = max(g.max_delay_s, round(g2.latency_s + 0.3, 3))
     return cfg
 

@@ -70,8 +70,10 @@ class Scenario:
 #: GNSS set-ups a scenario can be given (``simulate --gnss``, ``demo --gnss``): Scenario.with_ changes
 GNSS_SETUPS = {
     "velocity": {},  # one receiver: velocity only
-    # a moving-base pair, antennas across the car (left to right): the heading, at standstill too
-    "dual-antenna": {"gnss_dual_antenna": True, "gnss_baseline_m": 1.2, "gnss_baseline_offset_deg": 90.0},
+    # a moving-base pair, antennas across the car (left to right): the heading, at standstill too,
+    # and from the baseline's tilt the bank
+    "dual-antenna": {"gnss_dual_antenna": True, "gnss_baseline_m": 1.2, "gnss_baseline_offset_deg": 90.0,
+                     "gnss_fuse_elevation": True},
     # two velocity receivers front and rear, 2.5 m apart, unsynchronised (own latency each)
     "front-rear": {"gnss_lever_arm_m": (1.5, 0.0), "gnss2_lever_arm_m": (-1.0, 0.0), "gnss2_latency_s": 0.33},
 }

@@ -18,6 +18,8 @@ Sensor errors (all configurable in :class:`SensorParams`):
   sensor yawed by its mounting offset, white noise per axis, and disturbance events
   (:class:`MagEvent`: a passing truck's hard-iron field, a steel bridge's soft iron) that fade
   in and out.
+* roll rate (optional, ``roll_rate``): the body roll's rate about x (plus a turn's share on a
+  grade) ``+ bias + noise``.
 * quantisation is done by the DBC encoding, not here.
 
 CAN timing: each message is sent periodically with a random phase; it arrives after a small
@@ -30,7 +32,8 @@ UBX: one NAV-PVT per epoch. NMEA: RMC, VTG, GGA per epoch, each sentence a few m
 previous one (serial transmission). A dual-antenna receiver (moving base + rover, ``dual_antenna``)
 adds the baseline's heading to every epoch (UBX NAV-RELPOSNED after the NAV-PVT, NMEA THS): the
 vehicle's heading plus the mounting offset plus white noise that shrinks with the baseline length
-(carrier-phase heading: ~0.2 deg at 1 m).
+(carrier-phase heading: ~0.2 deg at 1 m); RELPOSNED also carries the rover's height against the
+base (relPosD: the baseline tilted by grade, bank and body roll, plus ``down_noise_m``).
 """
 from __future__ import annotations
 
@@ -176,6 +179,9 @@ class SensorParams:
     wheel_speed_min_mps: float = 0.15
     faults: tuple = ()  # Fault s on the CAN inputs
     magnetometer: MagParams | None = None  # a magnetometer on CAN ([inputs.mag_x/y/z])
+    roll_rate: bool = False  # a roll-rate gyro on CAN ([inputs.roll_rate])
+    roll_rate_bias_radps: float = math.radians(0.3)
+    roll_rate_noise_radps: float = math.radians(0.08)
 
 
 @dataclass(frozen=True)
@@ -199,6 +205,10 @@ class GnssParams:
     baseline_m: float = 1.2  # antenna distance
     baseline_offset_deg: float = 0.0  # baseline heading minus vehicle heading (mounting yaw), clockwise
     heading_noise_deg_1m: float = 0.2  # 1-sigma heading noise for a 1 m baseline (scales with 1/baseline)
+    #: 1-sigma of the rover's height against the base (relPosD): carrier-phase vertical noise is
+    #: about twice the horizontal (0.2 deg at 1 m is 3.5 mm across the baseline)
+    down_noise_m: float = 0.007
+    fuse_elevation: bool = False  # the config fuses the baseline's elevation (bank / grade)
 
 
 def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
@@ -241,6 +251,12 @@ class CanSensors:
             return sample(tr, "acc_x", t) + p.accel_x_bias_mps2 + p.accel_noise_mps2 * noise
         if name == "accel_y":
             return sample(tr, "acc_y", t) + p.accel_y_bias_mps2 + p.accel_noise_mps2 * noise
+        if name == "roll_rate" and p.roll_rate:
+            # about the body's x axis: the body roll's rate (bank is constant here) plus the turn's
+            # share on a grade (Euler kinematics: p = droll/dt + yaw rate * sin(grade))
+            rate = np.gradient(tr.col("roll"), tr.t)
+            return (np.interp(t, tr.t, rate) + sample(tr, "r", t) * math.sin(self.grade_rad)
+                    + p.roll_rate_bias_radps + p.roll_rate_noise_radps * noise)
         if name in ("mag_x", "mag_y", "mag_z") and p.magnetometer is not None:
             # the three axes of one frame: one field vector per send time
             if self._mag is None or len(self._mag[0]) != n or not np.array_equal(self._mag[0], t):
@@ -281,6 +297,7 @@ class GnssEpoch:
     good: bool = True  # False while a fault corrupts it (the truth's gnss_good column)
     heading_deg: float = math.nan  # baseline heading (dual antenna), clockwise from north
     vel_d: float = 0.0  # antenna velocity down (UBX velD)
+    down_m: float = 0.0  # rover antenna below the base (dual antenna, NED down: relPosD)
 
 
 def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator) -> list[GnssEpoch]:
@@ -323,9 +340,19 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     vd_true = -((vx - r * ly) * sg + (vy + r * lx) * sb * cg)
     vd = vd_true + 1.5 * params.vel_noise_mps * np.random.default_rng([int(k0), n, 4]).standard_normal(n)
     head = np.full(n, math.nan)
+    down = np.zeros(n)
     if params.dual_antenna:
         sig = math.radians(params.heading_noise_deg_1m) / params.baseline_m
         head = np.degrees(psi + math.radians(params.baseline_offset_deg) + sig * rng.standard_normal(n)) % 360.0
+        # the baseline tilts with the body: grade (nose up) and bank + body roll (left side up);
+        # unit baseline in the body (x forward, y left) is (cos off, -sin off), off clockwise.
+        # Noise from its own stream (as velD's), so the older draws stay as they were.
+        off = math.radians(params.baseline_offset_deg)
+        phi = truth.road.bank_rad + sample(truth, "roll", tv)
+        gam = truth.road.grade_rad
+        up = math.cos(off) * math.sin(gam) - math.sin(off) * math.cos(gam) * np.sin(phi)
+        down = (-params.baseline_m * up
+                + params.down_noise_m * np.random.default_rng([int(k0), n, 6]).standard_normal(n))
     good = np.ones(n, dtype=bool)
     sent = np.ones(n, dtype=bool)
     for f in params.faults:
@@ -350,7 +377,7 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
             break
         if sent[i]:
             out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn[i]), float(ve[i]), float(lat[i]),
-                                 float(lon[i]), bool(good[i]), float(head[i]), float(vd[i])))
+                                 float(lon[i]), bool(good[i]), float(head[i]), float(vd[i]), float(down[i])))
     return out
 
 
@@ -368,9 +395,10 @@ def encode_epoch(ep: GnssEpoch, params: GnssParams) -> list[tuple[float, bytes]]
         out = [(ep.t_rx, frame)]
         if math.isfinite(ep.heading_deg):
             acc = 1.5 * params.heading_noise_deg_1m / params.baseline_m  # receivers' accHeading: pessimistic
+            horizontal = math.sqrt(max(params.baseline_m ** 2 - ep.down_m ** 2, 0.0))
             out.append((ep.t_rx + params.nmea_stagger_s, encode.nav_relposned(
-                itow_ms=encode.utc_fields(utc)["itow_ms"], heading_deg=ep.heading_deg, baseline_m=params.baseline_m,
-                head_acc_deg=acc)))
+                itow_ms=encode.utc_fields(utc)["itow_ms"], heading_deg=ep.heading_deg, baseline_m=horizontal,
+                head_acc_deg=acc, down_m=ep.down_m, down_acc_m=1.5 * params.down_noise_m)))
         return out
     if params.protocol == "nmea":
         course = math.degrees(math.atan2(ep.vel_e, ep.vel_n)) % 360.0

@@ -81,6 +81,16 @@ def _conditions() -> list[SuiteCase]:
     out.append(SuiteCase("bank_circle", "road", _base("bank_circle", "circle_dry_bank")))
     for kind in ("dlc", "circle"):
         out.append(SuiteCase(f"mu03_{kind}", "road", _base(f"mu03_{kind}", f"{kind}_mu03")))
+    # the baseline's tilt (relPosD) of a moving-base pair: across the car it measures bank + body
+    # roll, along it grade + pitch; a roll-rate gyro for the body roll (alone, and with the pair)
+    dual = {"gnss_dual_antenna": True, "gnss_baseline_m": 1.2, "gnss_fuse_elevation": True}
+    for name, kind, offset, extra in (
+            ("dual_bank_across", "dlc_dry", 90.0, {"bank_rad": math.atan(0.06)}),
+            ("dual_bank_circle", "circle_dry_bank", -90.0, {}),
+            ("dual_grade_along", "dlc_dry", 0.0, {"grade_rad": math.atan(-0.1)}),
+            ("dual_bank_roll_rate", "slalom_dry", 90.0, {"bank_rad": math.atan(-0.06), "sensor_roll_rate": True})):
+        out.append(SuiteCase(name, "road", _base(name, kind, gnss_baseline_offset_deg=offset, **dual, **extra)))
+    out.append(SuiteCase("roll_rate_dlc", "road", _base("roll_rate_dlc", "dlc_dry", sensor_roll_rate=True)))
     for key in ("mass", "inertia", "cf", "cr"):
         for f in (1.3, 0.7):
             name = f"config_{key}_{'+' if f > 1 else '-'}30pct"
