@@ -89,7 +89,7 @@ def at_latency(name: str, rows: list[dict], latency: dict) -> tuple[np.ndarray, 
     with the std it would have at an exact latency; and the slopes (None: left as they are).
 
     Why: the regression reads the slip from GNSS lateral velocity, and a sample placed d_tau off
-    reads ay d_tau more or less, as large as the slip itself at ~0.1 s; one drive knows its
+    reads ay d_tau more or less, as large as the slip itself at ~0.15 s; one drive knows its
     latency to ~0.01-0.03 s, a vehicle's drives together several times better, and the latency's
     error is then one bias common to all of them (added back once by the caller)."""
     v = np.array([_num(r.get(name)) for r in rows])

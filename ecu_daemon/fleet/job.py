@@ -164,7 +164,7 @@ def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict
     stiffness from a compliance kappa = m / C (std by first-order propagation), both axles from the
     drive's own regression on GNSS velocity (``kappa_*_drive``, ``estimator/fusion/
     stiffness_regression.py``). Its estimate leans on the drive's GNSS latency (a sample placed
-    d_tau late reads ay d_tau of lateral velocity, as large as the slip itself at ~0.1 s), so the
+    d_tau late reads ay d_tau of lateral velocity, as large as the slip itself at ~0.15 s), so the
     record also carries, per axle, :data:`STIFFNESS_EXTRA`: the stiffness's slope per second of
     latency, its std were the latency exact, and the latency it is for; the calibration moves every
     drive to the vehicle's combined latency with them. A value still bit-identical to the

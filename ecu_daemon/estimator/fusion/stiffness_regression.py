@@ -26,10 +26,15 @@ state ``kappa_r_drive``/``kappa_f_drive`` -> ``fleet calibrate``; the live model
 learner, so the estimates and Revs are unchanged): one independent estimate per drive with a std
 scaled by the regression's own residuals, which the fleet's inverse-variance combination can trust.
 
-Known limit: the front estimate moves with the latency about 3x more than its linear model of the
-latency error says (a drive whose latency estimate is 1 sigma = 0.03 s off: front 23 % off at a
-7 % std; with the true latency 6 %), so its std is not yet honest and the fleet calibration takes
-only the rear from here.
+Latency: the estimate leans on the GNSS latency the samples were placed by: a sample placed
+d_tau late reads ay d_tau of lateral velocity, as large as the slip itself at ~0.15 s (front and
+rear alike: ~0.006-0.009 rad of slip angle per m/s^2 at 20 m/s). A drive knows its latency to
+0.01-0.03 s, so one drive's front or rear estimate moves 10-30 % with that error. ``learned_std``
+therefore also gives, per axle, the slope d kappa / d tau (the considered state's
+cross-covariance; replays with the latency fixed 0.02 s apart moved the estimate 0.4-1.4x the
+slope), the std were the latency exact, and the latency the estimate is for:
+``fleet/calibrate.py`` moves every drive to the vehicle's combined latency, known several times
+better, and counts that latency's error once.
 """
 from __future__ import annotations
 
