@@ -20,7 +20,7 @@ from ecu_daemon import config as config_mod
 from ecu_daemon.cli import main as cli_main
 from ecu_daemon.fleet import job as job_mod
 from ecu_daemon.evaluate import EvaluationError
-from ecu_daemon.fleet.calibrate import SLOPE_REL_ERR, combine, outliers, override_toml, vehicle_parameters
+from ecu_daemon.fleet.calibrate import LATENCY_SYSTEMATIC_S, SLOPE_REL_ERR, combine, outliers, override_toml, vehicle_parameters
 from ecu_daemon.fleet.cli import run_fleet
 from ecu_daemon.fleet.manifest import discover, load_drives
 from ecu_daemon.fleet.simfleet import write_fleet
@@ -327,7 +327,8 @@ def test_stiffness_is_combined_at_the_vehicles_latency_with_the_latency_error_ad
 def test_latency_std_of_a_vehicle_is_at_least_what_its_drives_spread_shows():
     rows = [_row(i, gnss_delay_s=(0.30 + (0.03 if i % 2 else -0.03), 0.005)) for i in range(8)]
     lat = vehicle_parameters(rows)[0]["gnss_delay_s"]
-    assert lat["std"] == pytest.approx(0.03 / math.sqrt(7))  # not 0.005 / sqrt(8)
+    # not 0.005 / sqrt(8); and the error all of one car's drives share on top
+    assert lat["std"] == pytest.approx(math.hypot(0.03 / math.sqrt(7), LATENCY_SYSTEMATIC_S))
 
 
 def test_numeric_csv_reader_gives_read_csvs_columns_and_errors(tmp_path):

@@ -20,6 +20,10 @@ MIN_DRIVES_FOR_OUTLIERS = 4
 #: relative error of a drive's stiffness slope per second of latency (replays 0.02 s apart moved
 #: the estimate 0.4-1.4x the slope; tests/test_stiffness_regression.py)
 SLOPE_REL_ERR = 0.5
+#: a vehicle's latency error its drives share: the 20 x 20 simulated fleet's combined latencies
+#: were -0.015..+0.020 s off (stiffer or softer tyres than the config, long latencies), at z up
+#: to 4.5 with the spread-based std alone
+LATENCY_SYSTEMATIC_S = 0.01
 
 
 def outliers(values: np.ndarray, stds: np.ndarray) -> np.ndarray:
@@ -117,12 +121,15 @@ def _weights(stds: np.ndarray) -> np.ndarray | None:
 
 
 def _with_spread(p: dict) -> dict:
-    """The latency's combined std, at least the standard error the drives' spread shows: the
-    per-drive stds share the errors of one receiver and one car (not independent), and the
-    stiffness leans on this std."""
+    """The latency's combined std: at least the standard error the drives' spread shows, and
+    with :data:`LATENCY_SYSTEMATIC_S` added: the per-drive estimates share the errors of one car
+    (the estimator's model of it, e.g. its cornering stiffness, biases them alike), which no
+    averaging removes. The stiffness leans on this std."""
     n = p["drives"]
     if n > 1 and math.isfinite(p["spread"]) and math.isfinite(p["std"]):
         p["std"] = max(p["std"], p["spread"] / math.sqrt(n - 1))
+    if math.isfinite(p["std"]):
+        p["std"] = math.hypot(p["std"], LATENCY_SYSTEMATIC_S)
     return p
 
 
