@@ -19,7 +19,8 @@ import pytest
 from ecu_daemon import config as config_mod
 from ecu_daemon.cli import main as cli_main
 from ecu_daemon.fleet import job as job_mod
-from ecu_daemon.fleet.calibrate import combine, outliers, override_toml
+from ecu_daemon.evaluate import EvaluationError
+from ecu_daemon.fleet.calibrate import LATENCY_SYSTEMATIC_S, SLOPE_REL_ERR, combine, outliers, override_toml, vehicle_parameters
 from ecu_daemon.fleet.cli import run_fleet
 from ecu_daemon.fleet.manifest import discover, load_drives
 from ecu_daemon.fleet.simfleet import write_fleet
@@ -288,3 +289,62 @@ def test_a_drive_with_two_receivers_replays_both_captures(tmp_path):
     (rec,) = run_fleet(str(tmp_path / "fleet"), tmp_path / "out", jobs=1, report=False)
     assert rec["status"] == "ok", rec["error"]
     assert rec["gnss_delay_s"] == pytest.approx(0.4, abs=0.03)
+
+
+def test_stiffness_is_combined_at_the_vehicles_latency_with_the_latency_error_added_once():
+    # each drive's stiffness was learned at its own latency estimate (0.30 +- 0.02 s around the
+    # truth 0.30) and moves with it by its slope (the regression's d C / d tau); the drives
+    # least sensitive to the latency (so the most weighted) have it short: the plain average is biased
+    true_c, tau = 100e3, 0.30
+    offsets = [0.02, 0.02, -0.02, -0.02, 0.01, -0.01]
+    slopes = [-3e6, -3e6, -1e6, -1e6, -2e6, -2e6]  # N/rad per s: -60 %/0.2 s .. -20 %/0.2 s
+    rows = []
+    for i, (off, k) in enumerate(zip(offsets, slopes)):
+        row = _row(i, gnss_delay_s=(tau + off, 0.02),
+                   cornering_stiffness_front_n_per_rad=(true_c + k * off, math.hypot(2e3, k * 0.02)))
+        row.update({"stiffness_latency_s": tau + off,
+                    "cornering_stiffness_front_n_per_rad_std_given_latency": 2e3,
+                    "cornering_stiffness_front_n_per_rad_per_latency_s": k})
+        rows.append(row)
+    plain = combine(np.array([r["cornering_stiffness_front_n_per_rad"] for r in rows]),
+                    np.array([r["cornering_stiffness_front_n_per_rad_std"] for r in rows]))
+    assert plain["value"] > 1.08 * true_c  # what the combination gave before
+    params, flagged = vehicle_parameters(rows)
+    lat, front = params["gnss_delay_s"], params["cornering_stiffness_front_n_per_rad"]
+    assert lat["value"] == pytest.approx(tau) and not flagged
+    assert front["value"] == pytest.approx(true_c, rel=1e-9)
+    # per drive: the noise and the move's own uncertainty (the slope is first order); the noise
+    # averages down over the 6 drives, the latency's error (common to all) does not
+    w = 1.0 / (2e3 ** 2 + (SLOPE_REL_ERR * np.array(slopes) * np.array(offsets)) ** 2)
+    mean_slope = float(w @ slopes / w.sum())
+    assert front["std"] == pytest.approx(math.hypot(1.0 / math.sqrt(w.sum()), mean_slope * lat["std"]))
+    assert front["std"] > 1.0 / math.sqrt(w.sum()) * 1.5
+    # without the slopes (records of an older version): the drives' own values and stds
+    old = [{k: v for k, v in r.items() if "latency" not in k} for r in rows]
+    assert vehicle_parameters(old)[0]["cornering_stiffness_front_n_per_rad"]["value"] == pytest.approx(plain["value"])
+
+
+def test_latency_std_of_a_vehicle_is_at_least_what_its_drives_spread_shows():
+    rows = [_row(i, gnss_delay_s=(0.30 + (0.03 if i % 2 else -0.03), 0.005)) for i in range(8)]
+    lat = vehicle_parameters(rows)[0]["gnss_delay_s"]
+    # not 0.005 / sqrt(8); and the error all of one car's drives share on top
+    assert lat["std"] == pytest.approx(math.hypot(0.03 / math.sqrt(7), LATENCY_SYSTEMATIC_S))
+
+
+def test_numeric_csv_reader_gives_read_csvs_columns_and_errors(tmp_path):
+    good = tmp_path / "good.csv"
+    good.write_text("t,a,b\n0.0,1.5,nan\n0.1,2.25e-3,-7\n0.2,0.1,1\n")
+    fast, ref = job_mod.read_numeric_csv(str(good), ("t", "a"), "x"), job_mod.read_csv(good, ("t", "a"), "x")
+    assert fast.keys() == ref.keys()
+    assert all(np.array_equal(fast[k], ref[k], equal_nan=True) for k in ref)
+    words = tmp_path / "words.csv"  # booleans as words: read_csv's own conversion
+    words.write_text("t,a,ok\n0.0,1,true\n0.1,2,false\n")
+    assert job_mod.read_numeric_csv(str(words), ("t",), "x")["ok"].tolist() == [1.0, 0.0]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,a\n0.0,1\n0.1,x\n")
+    with pytest.raises(EvaluationError, match=r"bad.csv:3: column a: 'x' is not a number"):
+        job_mod.read_numeric_csv(str(bad), ("t", "a"), "truth CSV")
+    backwards = tmp_path / "backwards.csv"
+    backwards.write_text("t,a\n0.2,1\n0.1,2\n")
+    with pytest.raises(EvaluationError, match="not in time order"):
+        job_mod.read_numeric_csv(str(backwards), ("t", "a"), "truth CSV")

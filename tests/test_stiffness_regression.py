@@ -52,3 +52,28 @@ def test_a_steady_circle_leaves_the_rear_stiffness_uncertain(tmp_path):
     out, truth = _learned(tmp_path, "circle_dry")
     assert out[f"{REAR}_std"] >= 0.1 * out[REAR]
     assert abs(out[REAR] - truth[REAR]) <= 3.0 * out[f"{REAR}_std"]
+
+
+def test_the_latency_slope_says_how_far_a_latency_error_moves_both_axles(tmp_path):
+    # the same double lane change replayed with the latency fixed 0.02 s short and long: the
+    # estimate moves by about what its own slope (d kappa / d tau) predicts (measured: front 1.15x,
+    # rear 0.7x; a slalom 1.4x / 0.4-0.7x: fleet/calibrate.py counts the slope 50 % uncertain),
+    # and by more than its std at an exact latency: what lets the fleet move every drive to the
+    # vehicle's combined latency
+    sc = drive_scenario(TRUTH, MANOEUVRES.index("dlc_dry"), 0, seed=3, duration_s=None)
+    result = simulate(sc, vehicle_config(sc))
+    writer.write_can_log(tmp_path / writer.CAN_LOG, result)
+    writer.write_gnss_log(tmp_path / writer.GNSS_LOG, result)
+    runs = []
+    for tau in (TRUTH["gnss_latency_s"] - 0.02, TRUTH["gnss_latency_s"] + 0.02):
+        cfg = vehicle_config(get("demo").with_(gnss_latency_s=tau))
+        cfg.gnss.estimate_delay = False
+        s = run_replay(cfg, str(tmp_path / writer.CAN_LOG), str(tmp_path / writer.GNSS_LOG))
+        assert s["learned_std"]["kappa_drive_latency_s"] == pytest.approx(tau)
+        runs.append(s)
+    for k in ("kappa_f_drive", "kappa_r_drive"):
+        moved = runs[1]["learned"][k] - runs[0]["learned"][k]
+        slope = 0.5 * (runs[0]["learned_std"][f"{k}_per_latency_s"] + runs[1]["learned_std"][f"{k}_per_latency_s"])
+        assert abs(moved) > runs[0]["learned_std"][f"{k}_given_latency"]
+        assert moved == pytest.approx(slope * 0.04, rel=0.5)
+        assert runs[0]["learned_std"][f"{k}_given_latency"] < runs[0]["learned_std"][k]

@@ -96,7 +96,8 @@ def main() -> int:
     rows = read_drives(out)
     hits = {k: 0 for k in TARGETS}
     vehicles = sorted({r["vehicle"] for r in rows})
-    print(f"{'vehicle':8s} " + " ".join(f"{k[:28]:>30s}" for k in TARGETS))
+    print(f"{'vehicle':8s} " + " ".join(f"{k[:34]:>36s}" for k in TARGETS))
+    print("(each: combined value (truth) error, z = error / combined 1-sigma)")
     for v in vehicles:
         truth = json.loads((fleet / v / "vehicle.json").read_text())
         params, _ = vehicle_parameters([r for r in rows if r["vehicle"] == v])
@@ -106,7 +107,8 @@ def main() -> int:
             est = params[k]["value"]
             err = est - t if kind == "abs" else (est - t) / t
             hits[k] += abs(err) <= tol
-            cells.append(f"{est:.5g} ({t:.5g}) {err:+.4f}".rjust(30))
+            z = (est - t) / params[k]["std"] if params[k]["std"] > 0 else float("nan")
+            cells.append(f"{est:.5g} ({t:.5g}) {err:+.4f} z{z:+.1f}".rjust(36))
         print(f"{v:8s} " + " ".join(cells))
     for k, (kind, tol) in TARGETS.items():
         print(f"{k}: {hits[k]} of {len(vehicles)} vehicles within {tol:g}{' (relative)' if kind == 'rel' else ' s'}")

@@ -17,6 +17,13 @@ from .job import NO_STD, PARAMS
 
 OUTLIER_Z = 4.0  # robust z (MAD-based) beyond which a drive's value is an outlier
 MIN_DRIVES_FOR_OUTLIERS = 4
+#: relative error of a drive's stiffness slope per second of latency (replays 0.02 s apart moved
+#: the estimate 0.4-1.4x the slope; tests/test_stiffness_regression.py)
+SLOPE_REL_ERR = 0.5
+#: a vehicle's latency error its drives share: the 20 x 20 simulated fleet's combined latencies
+#: were -0.015..+0.020 s off (stiffer or softer tyres than the config, long latencies), at z up
+#: to 4.5 with the spread-based std alone
+LATENCY_SYSTEMATIC_S = 0.01
 
 
 def outliers(values: np.ndarray, stds: np.ndarray) -> np.ndarray:
@@ -53,19 +60,77 @@ def combine(values: np.ndarray, stds: np.ndarray | None) -> dict:
 
 def vehicle_parameters(rows: list[dict]) -> tuple[dict[str, dict], dict[int, list[str]]]:
     """Per parameter the combination over the vehicle's good drives; and per row index the names of
-    the parameters in which that drive is an outlier."""
+    the parameters in which that drive is an outlier. The cornering stiffnesses are combined at
+    the vehicle's latency (:func:`at_latency`)."""
     good = [i for i, r in enumerate(rows) if r.get("status") == "ok"]
     params: dict[str, dict] = {}
     flagged: dict[int, list[str]] = {}
     for name in PARAMS:
         v = np.array([_num(rows[i].get(name)) for i in good])
         s = np.array([_num(rows[i].get(f"{name}_std")) for i in good])
+        slopes = None
+        if name.startswith("cornering_stiffness") and "gnss_delay_s" in params:
+            v, s, slopes = at_latency(name, [rows[i] for i in good], params["gnss_delay_s"])
         out = outliers(v, s)
         for j in np.flatnonzero(out):
             flagged.setdefault(good[j], []).append(name)
         params[name] = combine(v[~out], None if name in NO_STD else s[~out])
+        if name == "gnss_delay_s":
+            params[name] = _with_spread(params[name])
+        elif slopes is not None:
+            p = params[name]
+            w = _weights(s[~out])
+            if w is not None:  # the latency's error moves every drive the same way: added once
+                slope = float(np.sum(w * slopes[~out]) / np.sum(w))
+                p["std"] = math.hypot(p["std"], slope * params["gnss_delay_s"]["std"])
         params[name]["outliers"] = int(out.sum())
     return params, flagged
+
+
+def at_latency(name: str, rows: list[dict], latency: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The drives' stiffness moved from the latency each drive estimated to the vehicle's combined
+    one (its slope per second of latency, ``*_per_latency_s``: first order, the regression's own),
+    with the std it would have at an exact latency; and the slopes (None: left as they are).
+
+    Why: the regression reads the slip from GNSS lateral velocity, and a sample placed d_tau off
+    reads ay d_tau more or less, as large as the slip itself at ~0.15 s; one drive knows its
+    latency to ~0.01-0.03 s, a vehicle's drives together several times better, and the latency's
+    error is then one bias common to all of them (added back once by the caller)."""
+    v = np.array([_num(r.get(name)) for r in rows])
+    s_all = np.array([_num(r.get(f"{name}_std")) for r in rows])
+    tau = latency["value"]
+    if not (math.isfinite(tau) and math.isfinite(latency["std"])):
+        return v, s_all, None
+    slope = np.array([_num(r.get(f"{name}_per_latency_s")) for r in rows])
+    at = np.array([_num(r.get("stiffness_latency_s")) for r in rows])
+    s = np.array([_num(r.get(f"{name}_std_given_latency")) for r in rows])
+    ok = np.isfinite(slope) & np.isfinite(at) & np.isfinite(s)
+    if not ok.any():
+        return v, s_all, None
+    shift = slope * (tau - at)
+    moved = np.where(ok, v + shift, v)
+    s = np.hypot(s, SLOPE_REL_ERR * shift)  # the first-order slope is itself this uncertain
+    return moved, np.where(ok, s, s_all), np.where(ok, slope, 0.0)
+
+
+def _weights(stds: np.ndarray) -> np.ndarray | None:
+    ok = np.isfinite(stds) & (stds > 0)
+    if not ok.any():
+        return None
+    return np.where(ok, 1.0 / np.where(ok, stds, 1.0) ** 2, 0.0)
+
+
+def _with_spread(p: dict) -> dict:
+    """The latency's combined std: at least the standard error the drives' spread shows, and
+    with :data:`LATENCY_SYSTEMATIC_S` added: the per-drive estimates share the errors of one car
+    (the estimator's model of it, e.g. its cornering stiffness, biases them alike), which no
+    averaging removes. The stiffness leans on this std."""
+    n = p["drives"]
+    if n > 1 and math.isfinite(p["spread"]) and math.isfinite(p["std"]):
+        p["std"] = max(p["std"], p["spread"] / math.sqrt(n - 1))
+    if math.isfinite(p["std"]):
+        p["std"] = math.hypot(p["std"], LATENCY_SYSTEMATIC_S)
+    return p
 
 
 def _num(v) -> float:

@@ -34,6 +34,8 @@ PARAMS = {
     "steering_offset_rad": ("rad", None),
     "yaw_rate_bias_radps": ("rad/s", None),
 }
+#: per cornering stiffness, what moves it to another latency (see :func:`learned_parameters`)
+STIFFNESS_EXTRA = ("std_given_latency", "per_latency_s")
 #: parameters the estimator learns without an uncertainty (a running mean): their std column is NaN
 NO_STD = ("steering_offset_rad",)
 VALIDITY = ("sideslip_valid", "heading_valid", "velocity_valid", "biases_valid")
@@ -119,7 +121,7 @@ def replay_and_score(drive: Drive) -> dict:
     with tempfile.TemporaryDirectory(prefix="ecu-fleet-") as tmp:
         est_csv = str(Path(tmp) / "estimate.csv")
         summary = _replay(cfg, drive, est_csv)
-        est = read_csv(est_csv, ESTIMATE_REQUIRED + VALIDITY[2:], "estimate CSV")
+        est = read_numeric_csv(est_csv, ESTIMATE_REQUIRED + VALIDITY[2:], "estimate CSV")
     gnss = summary["inputs"].get("gnss", {})
     out = {"duration_s": float(summary["duration_s"]), "frames": int(summary["frames"]),
            "gnss_samples": int(summary["gnss_samples"]), "gnss_fused": int(gnss.get("fused", 0)),
@@ -129,16 +131,43 @@ def replay_and_score(drive: Drive) -> dict:
         out[f"{v}_fraction"] = float(np.mean(est[v] > 0.5)) if len(est[v]) else math.nan
     out.update(learned_parameters(summary["learned"], summary.get("learned_std", {}), cfg))
     if drive.truth:
-        out.update(truth_scores(read_csv(drive.truth, TRUTH_REQUIRED, "truth CSV"), est))
+        out.update(truth_scores(read_numeric_csv(drive.truth, TRUTH_REQUIRED, "truth CSV"), est))
     return out
+
+
+def read_numeric_csv(path: str, required: tuple[str, ...], what: str) -> dict[str, np.ndarray]:
+    """``evaluate.read_csv``'s columns, parsed by pyarrow's C++ reader when the file is plain
+    numbers with the required columns and time in order (the estimate CSV and a simulator's truth
+    always are): the Python parser took ~15 % of a drive's job. Anything else (booleans as words,
+    a bad cell, a missing column) goes to ``read_csv`` itself, for its values and its one-line
+    errors."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    try:
+        table = pacsv.read_csv(path, read_options=pacsv.ReadOptions(use_threads=False))
+        cols = {}
+        for name in table.column_names:
+            c = table[name]
+            if not (pa.types.is_floating(c.type) or pa.types.is_integer(c.type)) or c.null_count:
+                raise ValueError(name)
+            cols[name.strip()] = c.to_numpy().astype(float)
+        t = cols["t"]
+        ok = all(c in cols for c in required) and len(t) > 0 and np.all(np.isfinite(t)) and not np.any(np.diff(t) < 0)
+    except (pa.ArrowException, OSError, ValueError, KeyError):
+        ok = False
+    return cols if ok else read_csv(path, required, what)
 
 
 def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict:
     """The :data:`PARAMS` and their ``_std`` from the estimator's learned state; the cornering
-    stiffness from a compliance kappa = m / C (std by first-order propagation): the rear from the
-    drive's own regression on GNSS velocity (``kappa_r_drive``, ``estimator/fusion/
-    stiffness_regression.py``), the front still from the live learner (``kappa_f``: its
-    regression's std is not yet honest, see that module). A value still bit-identical to the
+    stiffness from a compliance kappa = m / C (std by first-order propagation), both axles from the
+    drive's own regression on GNSS velocity (``kappa_*_drive``, ``estimator/fusion/
+    stiffness_regression.py``). Its estimate leans on the drive's GNSS latency (a sample placed
+    d_tau late reads ay d_tau of lateral velocity, as large as the slip itself at ~0.15 s), so the
+    record also carries, per axle, :data:`STIFFNESS_EXTRA`: the stiffness's slope per second of
+    latency, its std were the latency exact, and the latency it is for; the calibration moves every
+    drive to the vehicle's combined latency with them. A value still bit-identical to the
     config's prior was never learned on this drive: its std is NaN, so the calibration does not
     count the same prior once per drive."""
     out = {}
@@ -148,12 +177,16 @@ def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict
     if out["gnss_delay_s"] == cfg.gnss.delay_s:
         out["gnss_delay_s_std"] = math.nan
     m = cfg.vehicle.mass_kg
-    for axle, k in (("front", "kappa_f"), ("rear", "kappa_r_drive")):
+    out["stiffness_latency_s"] = float(std.get("kappa_drive_latency_s", math.nan))
+    for axle, k in (("front", "kappa_f_drive"), ("rear", "kappa_r_drive")):
         c = f"cornering_stiffness_{axle}_n_per_rad"
         kappa = float(learned.get(k, math.nan))
+        learnt = kappa != m / getattr(cfg.vehicle, c)
         out[c] = m / kappa
-        out[f"{c}_std"] = m * float(std.get(k, math.nan)) / kappa ** 2 if kappa != m / getattr(cfg.vehicle, c) \
-            else math.nan
+        d = m / kappa ** 2  # |dC / dkappa|
+        out[f"{c}_std"] = d * float(std.get(k, math.nan)) if learnt else math.nan
+        out[f"{c}_std_given_latency"] = d * float(std.get(f"{k}_given_latency", math.nan)) if learnt else math.nan
+        out[f"{c}_per_latency_s"] = -d * float(std.get(f"{k}_per_latency_s", math.nan))
     return out
 
 

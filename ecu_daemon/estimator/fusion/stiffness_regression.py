@@ -26,10 +26,15 @@ state ``kappa_r_drive``/``kappa_f_drive`` -> ``fleet calibrate``; the live model
 learner, so the estimates and Revs are unchanged): one independent estimate per drive with a std
 scaled by the regression's own residuals, which the fleet's inverse-variance combination can trust.
 
-Known limit: the front estimate moves with the latency about 3x more than its linear model of the
-latency error says (a drive whose latency estimate is 1 sigma = 0.03 s off: front 23 % off at a
-7 % std; with the true latency 6 %), so its std is not yet honest and the fleet calibration takes
-only the rear from here.
+Latency: the estimate leans on the GNSS latency the samples were placed by: a sample placed
+d_tau late reads ay d_tau of lateral velocity, as large as the slip itself at ~0.15 s (front and
+rear alike: ~0.006-0.009 rad of slip angle per m/s^2 at 20 m/s). A drive knows its latency to
+0.01-0.03 s, so one drive's front or rear estimate moves 10-30 % with that error. ``learned_std``
+therefore also gives, per axle, the slope d kappa / d tau (the considered state's
+cross-covariance; replays with the latency fixed 0.02 s apart moved the estimate 0.4-1.4x the
+slope), the std were the latency exact, and the latency the estimate is for:
+``fleet/calibrate.py`` moves every drive to the vehicle's combined latency, known several times
+better, and counts that latency's error once.
 """
 from __future__ import annotations
 
@@ -186,6 +191,11 @@ class AxleFilter:
         self.bias -= float(self.x[EB])
         self.x[DPSI] = self.x[EB] = 0.0
 
+    def k1_per_latency(self) -> float:
+        """d k1 / d tau: how the estimate moves per second of latency error (the considered
+        state's cross-covariance; 0 before the latency is known)."""
+        return float(self.P[K1, TAU] / self.P[TAU, TAU]) if self.P[TAU, TAU] > 0 else 0.0
+
     def k1_std(self) -> float:
         """1-sigma of k1: its noise-driven part with the noise level the residuals show (the
         least-squares estimate of the residual variance, the mean normalised innovation squared:
@@ -193,13 +203,25 @@ class AxleFilter:
         autocorrelation rho: a sample then carries (1 - rho) / (1 + rho) of an independent one's
         information); plus, unscaled, the part the latency's uncertainty leaves (a bias common to
         every sample, which no residual shows)."""
+        noise, lat = self._k1_var_parts()
+        return math.sqrt(noise + lat)
+
+    def k1_std_given_latency(self) -> float:
+        """1-sigma of k1 were the latency exactly ``x[TAU]``: the noise-driven part of
+        :meth:`k1_std` only. What a fleet combines per drive once it knows the vehicle's latency
+        better than one drive does (the latency part is common to all its drives: it does not
+        average out, ``fleet/calibrate.py`` adds it back once)."""
+        return math.sqrt(self._k1_var_parts()[0])
+
+    def _k1_var_parts(self) -> tuple[float, float]:
         var = max(float(self.P[K1, K1]), 0.0)
-        if self.updates < MIN_UPDATES:
-            return math.sqrt(var)
         lat = self.P[K1, TAU] ** 2 / self.P[TAU, TAU] if self.P[TAU, TAU] > 0 else 0.0
+        noise = max(var - lat, 0.0)
+        if self.updates < MIN_UPDATES:
+            return noise, var - noise
         nis = self.nis_sum / self.updates
         rho = min(max(self.lag_sum / self.nis_sum, 0.0), MAX_RHO) if self.nis_sum > 0 else 0.0
-        return math.sqrt(max(var - lat, 0.0) * nis * (1.0 + rho) / (1.0 - rho) + lat)
+        return noise * nis * (1.0 + rho) / (1.0 - rho), lat
 
 
 class StiffnessRegression:
@@ -270,4 +292,11 @@ class StiffnessRegression:
         return {"kappa_r_drive": float(self.rear.x[K1]), "kappa_f_drive": float(self.front.x[K1])}
 
     def learned_std(self) -> dict:
-        return {"kappa_r_drive": self.rear.k1_std(), "kappa_f_drive": self.front.k1_std()}
+        """The 1-sigmas, and what a fleet needs to move each drive's estimate to a better latency:
+        ``*_per_latency_s`` (d kappa / d tau), ``*_given_latency`` (the std without the latency's
+        part) and ``kappa_drive_latency_s`` (the latency the estimates are for)."""
+        out = {"kappa_drive_latency_s": float(self.rear.x[TAU])}
+        for key, ax in (("kappa_r_drive", self.rear), ("kappa_f_drive", self.front)):
+            out.update({key: ax.k1_std(), f"{key}_given_latency": ax.k1_std_given_latency(),
+                        f"{key}_per_latency_s": ax.k1_per_latency()})
+        return out
