@@ -31,10 +31,6 @@ import numpy as np
 log = logging.getLogger("ecu_daemon.tick")
 
 _PR_SET_TIMERSLACK = 29
-# The last stretch before a deadline is spun, not slept: the sleep's wake-up jitter with a 1 us
-# timer slack stays below it. Spinning costs CPU all the same (0.2 ms per 6 ms tick was ~1.7 %
-# of a core in tools/bench_tick.py, with p50 lateness 10 us either way).
-SPIN_S = 0.00005
 
 
 class ScaledClock:
@@ -142,7 +138,7 @@ class TickThread(threading.Thread):
 
     def __init__(self, period_s: float, on_tick: Callable[[int, float], None], *,
                  offset_s: float = 0.0, clock: Callable[[], float] = time.monotonic,
-                 speed: float = 1.0, spin_s: float = SPIN_S, realtime_priority: int = 0,
+                 speed: float = 1.0, spin_s: float = 0.0002, realtime_priority: int = 0,
                  stats: TickStats | None = None, name: str = "ecu-tick") -> None:
         super().__init__(name=name, daemon=True)
         self.period_s = period_s
