@@ -291,7 +291,8 @@ class Daemon:
 
     def _start(self, loop) -> None:
         self._raise_loop_priority()
-        # the CAN reader reads once per step, between the step boundary and the tick (grace later)
+        # where every bus frame reaches Python, the CAN reader reads once per step, between the
+        # step boundary and the tick (grace later); see io/can_bus.py
         self.canio.start(period_s=self.dt, offset_s=RX_OFFSET * self.grace_s, speed=self.speed)
         for (i, rx), parser in zip(self._gnss_receivers(), self.parsers):
             ser = GnssSerial(rx.port, rx.baudrate, on_data=lambda t, b, i=i: self._on_gnss_bytes(t, b, i),

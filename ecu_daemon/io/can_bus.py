@@ -5,11 +5,15 @@ virtual bus's queue; the GIL is released while it waits), takes what is waiting 
 (at most ``max_batch`` frames), filters, maps the times and hands the batch on in that thread.
 The tick thread never receives: however many frames arrive (a flood, a backlog after the host
 held the process up), it only shares the CPU and the GIL with the reader, so it cannot be held
-up by a batch of unbounded length. With ``start(period_s=...)`` the reader paces itself on the
-step grid: after a batch it sleeps until the next step boundary (plus ``offset_s``), so at
-2000 frames/s it wakes ~2 times per 6 ms step instead of once per frame. A frame stamped before
-the boundary is then in the socket and handed over before the tick of its step (which runs
-``grace`` after the boundary); its time comes from its own timestamp, not from when it was read.
+up by a batch of unbounded length. Where the interface filters in the kernel (socketcan), only
+the frames we use wake the reader, and it reads each as it comes. Where every frame of the bus
+reaches Python (virtual, interfaces without kernel filters), ``start(period_s=...)`` makes the
+reader pace itself on the step grid: after a batch it sleeps until the next step boundary (plus
+``offset_s``), so at 2000 frames/s it wakes ~2 times per 6 ms step instead of once per frame. A
+frame stamped before the boundary is then in the queue and handed over before the tick of its
+step (which runs ``grace`` after the boundary); its time comes from its own timestamp, not from
+when it was read. (Not paced on socketcan: in the kernel tests' user-mode Linux, where every
+system call and GIL hand-over is a ptrace round trip, a paced reader fell seconds behind.)
 
 Time base. ``Message.timestamp`` is on the interface's clock: kernel CLOCK_REALTIME for socketcan,
 ``time.time()`` of the sender for ``virtual``, a log's clock for a replay with preserved
@@ -315,9 +319,11 @@ class CanIO:
             self.kernel_filters = True
 
     def start(self, *, period_s: float | None = None, offset_s: float = 0.0, speed: float = 1.0) -> None:
-        """Start the reader thread; with ``period_s`` it reads at most about once per period after
-        the first frame of each (wakes at ``k * period_s + offset_s`` of ``clock``, which runs
-        ``speed`` times real time)."""
+        """Start the reader thread. With ``period_s``, and unless the kernel filters (see the
+        module doc), it reads at most about once per period after the first frame of each (wakes
+        at ``k * period_s + offset_s`` of ``clock``, which runs ``speed`` times real time)."""
+        if self.kernel_filters:
+            period_s = None
         self._stop_evt.clear()
         self._reader = threading.Thread(target=self._read, args=(period_s, offset_s, speed),
                                         name="ecu-can-rx", daemon=True)
