@@ -2,12 +2,12 @@
 
 Threads and data flow::
 
-    CAN reader thread (io/can_bus.py)
+    CAN reader thread (buses without a file descriptor; io/can_bus.py)
     CAN frames, a batch per wake-up -> filter,
       ClockMapper ----------------------------------+
     event loop (asyncio, main thread)               |  tick thread (io/tick.py)
     ---------------------------------               |  ------------------------
-                                                    +--> every 6 ms at k*dt + grace:
+    (socketcan: the same, on the loop) -------------+--> every 6 ms at k*dt + grace:
     GNSS bytes -> stamp (a port per receiver) ------+--> Pipeline.tick(k): decode what is due,
     host health (20 Hz) ----------------------------+    estimate, validity, frames -> bus.send
                                                          WATCHDOG=1
@@ -15,7 +15,7 @@ Threads and data flow::
                                                          estimates / sent frames (deque)
 
 Everything between the raw inputs and the frames is :class:`~ecu_daemon.pipeline.Pipeline`,
-owned by the tick thread alone; the CAN reader and the loop hand it raw frames and byte chunks
+owned by the tick thread alone; the CAN reception and the loop hand it raw frames and byte chunks
 through its inbox (a deque: append/popleft are atomic), so there is no lock on the hot path. The
 tick thread never reads the bus itself: a flood or a backlog costs it CPU share, never a batch of
 unbounded length before its step (see ``io/can_bus.py``). Inputs carry receive
@@ -114,7 +114,7 @@ class Daemon:
         self._can_seq = 0  # line of the next received frame in the recording's can.log
         self._gnss_seq: dict[int, int] = {}  # receiver -> line of its next chunk in its capture
         self._gnss_names: list[str] = []
-        self._out: deque = deque()  # tick and CAN reader threads -> loop thread (recording, live view)
+        self._out: deque = deque()  # tick thread, CAN reception -> loop thread (recording, live view)
         self._rx_record: list = []  # the CAN reader's batch for the recording, handed on per batch
         self._last_tick: int | None = None
         self._learned_req = False
@@ -291,9 +291,9 @@ class Daemon:
 
     def _start(self, loop) -> None:
         self._raise_loop_priority()
-        # where every bus frame reaches Python, the CAN reader reads once per step, between the
-        # step boundary and the tick (grace later); see io/can_bus.py
-        self.canio.start(period_s=self.dt, offset_s=RX_OFFSET * self.grace_s, speed=self.speed)
+        # socketcan: read on the loop; else a reader thread once per step, between the step
+        # boundary and the tick (grace later); see io/can_bus.py
+        self.canio.start(loop, period_s=self.dt, offset_s=RX_OFFSET * self.grace_s, speed=self.speed)
         for (i, rx), parser in zip(self._gnss_receivers(), self.parsers):
             ser = GnssSerial(rx.port, rx.baudrate, on_data=lambda t, b, i=i: self._on_gnss_bytes(t, b, i),
                              clock=self.clock)
@@ -335,7 +335,7 @@ class Daemon:
                  self.late_samples, h.tx_sent if h else 0, h.tx_suppressed if h else 0,
                  h.tx_failures if h else 0, self.canio.callback_errors if self.canio else 0)
 
-    # ----------------------------------------------------------------------------- CAN reader thread
+    # ----------------------------------------------------------------------------- CAN reception (reader thread or loop)
     def _on_frame(self, t: float, msg: can.Message) -> None:
         t = _to_us(t)
         if self.recorder is not None:
@@ -352,7 +352,7 @@ class Daemon:
 
     def _on_can_batch(self) -> None:
         """The batch's frames to the loop's recorder, in reception order (one reader at a time:
-        the reader thread, then at shutdown the loop's drain after it stopped)."""
+        the reader thread or the loop, then at shutdown the loop's drain after it stopped)."""
         if self._rx_record:
             self._out.append(("can", self._rx_record))
             self._rx_record = []

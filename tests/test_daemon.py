@@ -298,7 +298,9 @@ def test_a_flood_read_while_the_tick_was_held_up_does_not_hold_the_outputs_up(tm
     resumed = ts[i]
     after = [t for t in ts[i:] if t < resumed + 0.5]
     expected = 0.5 / cfg.estimator.dt_s  # EST_HEADING goes out every step
-    assert len(after) >= 0.5 * expected, (
+    # a quarter: a machine loaded 10 times over its cores gave 36 of 83 here; a tick that takes
+    # up to 10 000 waiting frames itself before its step gave 7
+    assert len(after) >= 0.25 * expected, (
         f"{len(after)} EST_HEADING frames in the 0.5 s after the hold (expected ~{expected:.0f}): the tick was held "
         f"up by the frames that piled up; gaps {sorted(round(b - a, 3) for a, b in zip(after, after[1:]))[-5:]} s")
 

@@ -1,35 +1,20 @@
 """The CAN side of the shell: open the bus, receive in a reader thread of its own, send with back-off.
 
-Reception. A reader thread blocks in the bus (``recv`` with a timeout: the socket's select, the
-virtual bus's queue; the GIL is released while it waits), takes what is waiting in one batch
-(at most ``max_batch`` frames), filters, maps the times and hands the batch on in that thread.
-The tick thread never receives: however many frames arrive (a flood, a backlog after the host
-held the process up), it only shares the CPU and the GIL with the reader, so it cannot be held
-up by a batch of unbounded length. Where the interface filters in the kernel (socketcan), only
-the frames we use wake the reader, and it reads each as it comes. Where every frame of the bus
-reaches Python (virtual, interfaces without kernel filters), ``start(period_s=...)`` makes the
-reader pace itself on the step grid: after a batch it sleeps until the next step boundary (plus
-``offset_s``), so at 2000 frames/s it wakes ~2 times per 6 ms step instead of once per frame. A
-frame stamped before the boundary is then in the queue and handed over before the tick of its
-step (which runs ``grace`` after the boundary); its time comes from its own timestamp, not from
-when it was read. (Not paced on socketcan: in the kernel tests' user-mode Linux, where every
-system call and GIL hand-over is a ptrace round trip, a paced reader fell seconds behind.)
-
-Time base. ``Message.timestamp`` is on the interface's clock: kernel CLOCK_REALTIME for socketcan,
-``time.time()`` of the sender for ``virtual``, a log's clock for a replay with preserved
-timestamps. None of them is monotonic and NTP may slew or step them. :class:`ClockMapper` converts
-every timestamp ONCE, at reception, to the daemon's monotonic clock::
-
-    d      = now_monotonic - msg.timestamp      (= clock offset + reception latency, latency >= 0)
-    offset = min(d) over the last ~5 s          (minimum-latency estimate of the clock offset)
-    t      = msg.timestamp + offset             (then rounded to 1 us, kept non-decreasing)
-
-The minimum over a sliding window follows slow drift (NTP slew, crystal) and a forward clock
-step at once; a backward step shows up as a whole block whose minimum is far above the estimate,
-which resets the window. ``t <= now`` always holds, so no sample is ever stamped in the future,
-and the relative timing of frames keeps the kernel's precision, not Python's scheduling jitter.
-Rounding to 1 us makes the candump recording (6 decimals) reproduce exactly the times the
-estimator saw.
+Reception. Frames are taken in batches (what is waiting, at most ``max_batch``), filtered, their
+times mapped, and handed on in one go, outside the tick thread: the tick never reads the bus, so
+however many frames arrive (a flood, a backlog after the host held the process up) it only
+shares the CPU and the GIL with the reception, and is never held up by a batch of unbounded
+length before its step. Where the bus has a file descriptor (socketcan, which also filters in
+the kernel, so only the frames we use arrive), the event loop reads a batch whenever the socket
+is readable, as python-can's Notifier does but without a loop callback per frame. Otherwise
+(virtual, interfaces without a descriptor) a reader thread blocks in ``recv`` and, with
+``start(period_s=...)``, paces itself on the step grid: after a batch it sleeps until the next
+step boundary (plus ``offset_s``), so at 2000 frames/s it wakes ~2 times per 6 ms step instead
+of once per frame. A frame stamped before the boundary is then in the queue and handed over
+before the tick of its step (which runs ``grace`` after the boundary); its time comes from its
+own timestamp, not from when it was read. (Why not a thread on socketcan too: in the kernel
+tests' user-mode Linux, where every system call and GIL hand-over is a ptrace round trip, a
+reader thread, paced or not, fell 3-4 s behind where the loop kept up.)
 
 Bus health: error frames (class bits in the id, controller state in data[1], error counters in
 data[6..7], as in linux/can/error.h) drive :class:`BusHealth`; while the controller is bus-off,
@@ -38,6 +23,7 @@ received data frame shows the controller is back, or a growing retry interval ex
 """
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
 import threading
@@ -312,22 +298,37 @@ class CanIO:
         self._err_log = RateLimitedLog(log)
         self.kernel_filters = False
         self._reader: threading.Thread | None = None
+        self._loop_fd: tuple | None = None  # (loop, fd) while the loop reads
         self._stop_evt = threading.Event()
         if _has_own_filtering(bus) and self.wanted:
             bus.set_filters([{"can_id": i, "can_mask": 0x1FFFFFFF if e else 0x7FF, "extended": e}
                              for i, e in sorted(self.wanted)])
             self.kernel_filters = True
 
-    def start(self, *, period_s: float | None = None, offset_s: float = 0.0, speed: float = 1.0) -> None:
-        """Start the reader thread. With ``period_s``, and unless the kernel filters (see the
-        module doc), it reads at most about once per period after the first frame of each (wakes
-        at ``k * period_s + offset_s`` of ``clock``, which runs ``speed`` times real time)."""
-        if self.kernel_filters:
-            period_s = None
+    def start(self, loop: asyncio.AbstractEventLoop | None = None, *, period_s: float | None = None,
+              offset_s: float = 0.0, speed: float = 1.0) -> None:
+        """Start reception: on ``loop`` if the bus has a file descriptor, else in a reader thread
+        that, with ``period_s``, reads at most about once per period after the first frame of
+        each (wakes at ``k * period_s + offset_s`` of ``clock``, which runs ``speed`` times real
+        time). See the module doc."""
+        if loop is not None:
+            try:
+                fd = self.bus.fileno()
+            except (NotImplementedError, AttributeError, OSError, ValueError):
+                fd = -1
+            if isinstance(fd, int) and fd >= 0:
+                loop.add_reader(fd, self._on_readable)
+                self._loop_fd = (loop, fd)
+                return
         self._stop_evt.clear()
         self._reader = threading.Thread(target=self._read, args=(period_s, offset_s, speed),
                                         name="ecu-can-rx", daemon=True)
         self._reader.start()
+
+    def _on_readable(self) -> None:
+        """The loop's reader: one batch (a longer backlog keeps the socket readable: the loop
+        comes back after its other callbacks)."""
+        self._take([])
 
     def _read(self, period_s: float | None, offset_s: float, speed: float) -> None:
         recv, stop, clock = self.bus.recv, self._stop_evt, self.clock
@@ -438,7 +439,15 @@ class CanIO:
         return True
 
     def stop(self) -> None:
-        """Stop the reader thread (it notices within ``RX_TIMEOUT_S``)."""
+        """Stop reception (a reader thread notices within ``RX_TIMEOUT_S``; the loop's reader is
+        removed at once: call this in the loop's thread)."""
+        if self._loop_fd is not None:
+            loop, fd = self._loop_fd
+            self._loop_fd = None
+            try:
+                loop.remove_reader(fd)
+            except (RuntimeError, ValueError, OSError):  # the loop is already closed
+                pass
         self._stop_evt.set()
         if self._reader is not None:
             if self._reader is not threading.current_thread():
