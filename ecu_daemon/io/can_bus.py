@@ -1,4 +1,4 @@
-"""The CAN side of the shell: open the bus, receive in a reader thread of its own, send with back-off.
+"""The CAN side of the shell: open the bus, receive in batches outside the tick thread, send with back-off.
 
 Reception. Frames are taken in batches (what is waiting, at most ``max_batch``), filtered, their
 times mapped, and handed on in one go, outside the tick thread: the tick never reads the bus, so
