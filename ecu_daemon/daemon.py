@@ -2,17 +2,23 @@
 
 Threads and data flow::
 
-    event loop (asyncio, main thread)                 tick thread (io/tick.py)
-    ---------------------------------                 ------------------------
-    CAN frame  -> ClockMapper --------------------+    every 6 ms at k*dt + grace:
-    GNSS bytes -> stamp (a port per receiver) ----+--> Pipeline.tick(k): decode what is due,
-    host health (20 Hz) --------------------------+    estimate, validity, frames -> bus.send
-                                                       WATCHDOG=1
-      recording, STATUS=, state persistence <-------- published estimates / sent frames (deque)
+    CAN reader thread (buses without a file descriptor; io/can_bus.py)
+    CAN frames, a batch per wake-up -> filter,
+      ClockMapper ----------------------------------+
+    event loop (asyncio, main thread)               |  tick thread (io/tick.py)
+    ---------------------------------               |  ------------------------
+    (socketcan: the same, on the loop) -------------+--> every 6 ms at k*dt + grace:
+    GNSS bytes -> stamp (a port per receiver) ------+--> Pipeline.tick(k): decode what is due,
+    host health (20 Hz) ----------------------------+    estimate, validity, frames -> bus.send
+                                                         WATCHDOG=1
+      recording, STATUS=, state persistence <---------- received frames (reader), published
+                                                         estimates / sent frames (deque)
 
 Everything between the raw inputs and the frames is :class:`~ecu_daemon.pipeline.Pipeline`,
-owned by the tick thread alone; the loop hands it raw frames and byte chunks through its inbox
-(a deque: append/popleft are atomic), so there is no lock on the hot path. Inputs carry receive
+owned by the tick thread alone; the CAN reception and the loop hand it raw frames and byte chunks
+through its inbox (a deque: append/popleft are atomic), so there is no lock on the hot path. The
+tick thread never reads the bus itself: a flood or a backlog costs it CPU share, never a batch of
+unbounded length before its step (see ``io/can_bus.py``). Inputs carry receive
 times on the monotonic clock (CAN: kernel timestamps mapped once, see ``io/can_bus.py``; GNSS:
 time of the read), rounded to 1 us as the recording writes them.
 
@@ -66,6 +72,7 @@ HOUSEKEEPING_S = 0.05
 FLUSH_S = 1.0
 STATUS_S = 5.0
 PERSIST_S = 60.0  # learned state written this often (and at exit)
+RX_OFFSET = 0.25  # the CAN reader wakes this fraction of the input grace after each step boundary
 SWITCH_INTERVAL_S = 0.0002  # GIL hand-over: <= the tick's 0.2 ms spin, so waking up costs no lateness
 
 
@@ -107,7 +114,8 @@ class Daemon:
         self._can_seq = 0  # line of the next received frame in the recording's can.log
         self._gnss_seq: dict[int, int] = {}  # receiver -> line of its next chunk in its capture
         self._gnss_names: list[str] = []
-        self._out: deque = deque()  # tick thread -> loop thread (recording, live view)
+        self._out: deque = deque()  # tick thread, CAN reception -> loop thread (recording, live view)
+        self._rx_record: list = []  # the CAN reader's batch for the recording, handed on per batch
         self._last_tick: int | None = None
         self._learned_req = False
         self._learned_snap: dict | None = None
@@ -239,7 +247,7 @@ class Daemon:
                 self.recorder.close()
             raise UserError(f"cannot open CAN bus {self._bus_name()}: {e}") from None
         self.canio = CanIO(bus, pl.decoder.frame_ids, clock=self.clock, on_frame=self._on_frame,
-                           on_error_frame=self._on_error_frame)
+                           on_error_frame=self._on_error_frame, on_batch=self._on_can_batch)
 
     def _restore_learned(self) -> dict | None:
         path = self.cfg.daemon.state_file
@@ -260,8 +268,8 @@ class Daemon:
 
         Why: the tick needs the GIL, and a normal-priority loop thread preempted by another
         process while holding it would make the real-time tick wait for a whole time slice
-        (priority inversion through the GIL). Threads started afterwards (python-can's reader
-        thread for interfaces without a file descriptor) inherit the policy.
+        (priority inversion through the GIL). Threads started afterwards (the CAN reader)
+        inherit the policy.
         """
         prio = self.cfg.daemon.realtime_priority
         if prio <= 0 or not hasattr(os, "sched_setscheduler"):
@@ -283,7 +291,9 @@ class Daemon:
 
     def _start(self, loop) -> None:
         self._raise_loop_priority()
-        self.canio.start(loop)
+        # socketcan: read on the loop; else a reader thread once per step, between the step
+        # boundary and the tick (grace later); see io/can_bus.py
+        self.canio.start(loop, period_s=self.dt, offset_s=RX_OFFSET * self.grace_s, speed=self.speed)
         for (i, rx), parser in zip(self._gnss_receivers(), self.parsers):
             ser = GnssSerial(rx.port, rx.baudrate, on_data=lambda t, b, i=i: self._on_gnss_bytes(t, b, i),
                              clock=self.clock)
@@ -325,20 +335,29 @@ class Daemon:
                  self.late_samples, h.tx_sent if h else 0, h.tx_suppressed if h else 0,
                  h.tx_failures if h else 0, self.canio.callback_errors if self.canio else 0)
 
-    # ----------------------------------------------------------------------------- loop thread
+    # ----------------------------------------------------------------------------- CAN reception (reader thread or loop)
     def _on_frame(self, t: float, msg: can.Message) -> None:
         t = _to_us(t)
         if self.recorder is not None:
-            self.recorder.on_can(t, msg)
+            self._rx_record.append((t, msg))
         self.pipeline.push_can(t, msg.arbitration_id, msg.data, msg.is_extended_id, False, self._can_seq)
         self._can_seq += 1
 
     def _on_error_frame(self, t: float, msg: can.Message) -> None:
         t = _to_us(t)
         if self.recorder is not None:  # BusHealth has counted it; the recording keeps it too
-            self.recorder.on_can(t, msg)
+            self._rx_record.append((t, msg))
         self.pipeline.push_can(t, msg.arbitration_id, msg.data, msg.is_extended_id, True, self._can_seq)
         self._can_seq += 1
+
+    def _on_can_batch(self) -> None:
+        """The batch's frames to the loop's recorder, in reception order (one reader at a time:
+        the reader thread or the loop, then at shutdown the loop's drain after it stopped)."""
+        if self._rx_record:
+            self._out.append(("can", self._rx_record))
+            self._rx_record = []
+
+    # ----------------------------------------------------------------------------- loop thread
 
     def _gnss_receivers(self) -> list:
         """(index in the config, receiver) of the receivers to open (a single-receiver config with
@@ -415,6 +434,9 @@ class Daemon:
                     rec.on_estimates(payload)
             elif rec is None:
                 continue
+            elif kind == "can":
+                for t, m in payload:
+                    rec.on_can(t, m)
             elif kind == "tick":
                 rec.on_tick_record(payload)
             else:

@@ -120,12 +120,11 @@ def test_canio_filters_maps_time_and_backs_off_on_bus_off():
     got = []
 
     async def main():
-        loop = asyncio.get_running_loop()
         bus = can.Bus(interface="virtual", channel=ch)
         peer = can.Bus(interface="virtual", channel=ch)
         io = CanIO(bus, [(0x0B0, False), (0x18FF0010, True)], on_frame=lambda t, m: got.append((t, m)))
         assert not io.kernel_filters  # virtual filters in Python: done here, error frames must pass
-        io.start(loop)
+        io.start()
         try:
             t0 = time.monotonic()
             peer.send(can.Message(arbitration_id=0x0B0, data=b"\x01" * 8, is_extended_id=False))
@@ -224,3 +223,27 @@ def test_frames_created_on_this_host_are_inputs_too():
         assert [m.arbitration_id for m in got] == [0x0B0] and io.rx_ignored == 1
     finally:
         io.shutdown()
+
+
+def test_a_batch_keeps_each_frames_own_time():
+    """Frames read together (one wake-up of the reader, a backlog) keep the sender's spacing,
+    even while the clock window is young, and none is stamped after it was read."""
+    ch = channel()
+    got = []
+    bus = can.Bus(interface="virtual", channel=ch)
+    peer = can.Bus(interface="virtual", channel=ch)
+    io = CanIO(bus, [(0x0B0, False)], on_frame=lambda t, m: got.append((t, m)))
+    try:
+        peer.send(can.Message(arbitration_id=0x0B0, data=b"\x01" * 8, is_extended_id=False))
+        time.sleep(0.05)  # the spacing itself is read back from the frames' own timestamps
+        peer.send(can.Message(arbitration_id=0x0B1, data=b"\x02" * 8, is_extended_id=False))  # not ours
+        peer.send(can.Message(arbitration_id=0x0B0, data=b"\x03" * 8, is_extended_id=False))
+        assert io.drain() == 3 and io.rx_batches == 1 and io.rx_ignored == 1
+        (t1, m1), (t2, m2) = got
+        assert t2 <= time.monotonic()
+        assert abs((t2 - t1) - (m2.timestamp - m1.timestamp)) < 2e-6  # the sender's spacing, to the us
+        assert m2.timestamp - m1.timestamp >= 0.05
+        assert io.drain() == 0
+    finally:
+        io.shutdown()
+        peer.shutdown()

@@ -4,6 +4,7 @@ from __future__ import annotations
 import threading
 import time
 
+import numpy as np
 import pytest
 
 from ecu_daemon.io.tick import ScaledClock, TickStats, TickThread
@@ -96,3 +97,14 @@ def test_scaled_clock_runs_faster():
     assert b - a >= 10 * 0.02 - 1e-9
     with pytest.raises(ValueError):
         ScaledClock(0.0)
+
+
+def test_snapshot_percentiles_are_numpys():
+    """The snapshot's own percentile of a sorted window gives np.percentile's numbers (linear)."""
+    from ecu_daemon.io.tick import _percentile
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 3, 10, 777, 2048):
+        x = rng.exponential(1e-3, size=n)
+        for q in (0, 50, 99, 100):
+            assert _percentile(np.sort(x), q) == pytest.approx(float(np.percentile(x, q)), rel=1e-12, abs=0)

@@ -1,20 +1,20 @@
-"""The CAN side of the shell: open the bus, receive without blocking asyncio, send with back-off.
+"""The CAN side of the shell: open the bus, receive in batches outside the tick thread, send with back-off.
 
-Time base. ``Message.timestamp`` is on the interface's clock: kernel CLOCK_REALTIME for socketcan,
-``time.time()`` of the sender for ``virtual``, a log's clock for a replay with preserved
-timestamps. None of them is monotonic and NTP may slew or step them. :class:`ClockMapper` converts
-every timestamp ONCE, at reception, to the daemon's monotonic clock::
-
-    d      = now_monotonic - msg.timestamp      (= clock offset + reception latency, latency >= 0)
-    offset = min(d) over the last ~5 s          (minimum-latency estimate of the clock offset)
-    t      = msg.timestamp + offset             (then rounded to 1 us, kept non-decreasing)
-
-The minimum over a sliding window follows slow drift (NTP slew, crystal) and a forward clock
-step at once; a backward step shows up as a whole block whose minimum is far above the estimate,
-which resets the window. ``t <= now`` always holds, so no sample is ever stamped in the future,
-and the relative timing of frames keeps the kernel's precision, not Python's scheduling jitter.
-Rounding to 1 us makes the candump recording (6 decimals) reproduce exactly the times the
-estimator saw.
+Reception. Frames are taken in batches (what is waiting, at most ``max_batch``), filtered, their
+times mapped, and handed on in one go, outside the tick thread: the tick never reads the bus, so
+however many frames arrive (a flood, a backlog after the host held the process up) it only
+shares the CPU and the GIL with the reception, and is never held up by a batch of unbounded
+length before its step. Where the bus has a file descriptor (socketcan, which also filters in
+the kernel, so only the frames we use arrive), the event loop reads a batch whenever the socket
+is readable, as python-can's Notifier does but without a loop callback per frame. Otherwise
+(virtual, interfaces without a descriptor) a reader thread blocks in ``recv`` and, with
+``start(period_s=...)``, paces itself on the step grid: after a batch it sleeps until the next
+step boundary (plus ``offset_s``), so at 2000 frames/s it wakes ~2 times per 6 ms step instead
+of once per frame. A frame stamped before the boundary is then in the queue and handed over
+before the tick of its step (which runs ``grace`` after the boundary); its time comes from its
+own timestamp, not from when it was read. (Why not a thread on socketcan too: in the kernel
+tests' user-mode Linux, where every system call and GIL hand-over is a ptrace round trip, a
+reader thread, paced or not, fell 3-4 s behind where the loop kept up.)
 
 Bus health: error frames (class bits in the id, controller state in data[1], error counters in
 data[6..7], as in linux/can/error.h) drive :class:`BusHealth`; while the controller is bus-off,
@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import threading
 import time
 from collections import deque
 from typing import Callable, Iterable
@@ -71,6 +72,16 @@ class ClockMapper:
         self.last_t = -math.inf
         self.steps = 0  # clock steps detected (window resets)
         self.untimestamped = 0  # messages without a usable timestamp (stamped at reception)
+
+    def observe(self, ts: float, now: float) -> None:
+        """Take a frame's latency into the window without mapping it. A batch's newest frame (the
+        smallest latency) goes in before the older ones are mapped, so frames read together keep
+        their own spacing even while the window is young (at start, after a clock step)."""
+        if ts > 0.0 and math.isfinite(ts):
+            if now - self._block_start >= self.block_s:
+                self._close_block(now)
+            if now - ts < self._block_min:
+                self._block_min = now - ts
 
     def map(self, ts: float, now: float) -> float:
         q = self.quantum_s
@@ -252,40 +263,130 @@ def _has_own_filtering(bus) -> bool:
 
 
 class CanIO:
-    """One python-can bus: filtered reception into ``on_frame``/``on_error_frame`` on the loop, sends.
+    """One python-can bus: filtered reception into ``on_frame``/``on_error_frame``, sends.
 
     ``frame_ids`` are (id, is_extended) pairs the decoder consumes. Interfaces that filter in the
     kernel or hardware (socketcan) get them as ``can_filters``; for the rest (virtual) the check
     is a set lookup here, because python-can's software filter would also drop error frames.
+
+    Reception runs in the reader thread of :meth:`start` (see the module doc): ``on_frame`` /
+    ``on_error_frame`` are called there for each frame of a batch, in order, then ``on_batch()``
+    once (where a consumer hands the whole batch on).
     """
+
+    RX_TIMEOUT_S = 0.2  # the reader's longest wait in the bus: how soon it notices stop()
+    MAX_BATCH = 256  # frames handed on at once; a longer backlog is read on at once, batch by batch
 
     def __init__(self, bus: can.BusABC, frame_ids: Iterable[tuple[int, bool]], *,
                  clock: Callable[[], float] = time.monotonic,
                  on_frame: Callable[[float, can.Message], None],
-                 on_error_frame: Callable[[float, can.Message], None] | None = None) -> None:
+                 on_error_frame: Callable[[float, can.Message], None] | None = None,
+                 on_batch: Callable[[], None] | None = None, max_batch: int = MAX_BATCH) -> None:
         self.bus = bus
         self.clock = clock
         self.mapper = ClockMapper()
         self.health = BusHealth()
         self.on_frame = on_frame
         self.on_error_frame = on_error_frame
+        self.on_batch = on_batch
+        self.max_batch = max(1, int(max_batch))
         self.wanted = {(int(i), bool(e)) for i, e in frame_ids}
         self.rx_frames = 0
         self.rx_ignored = 0
+        self.rx_batches = 0
         self.callback_errors = 0
         self._err_log = RateLimitedLog(log)
         self.kernel_filters = False
-        self._notifier: can.Notifier | None = None
+        self._reader: threading.Thread | None = None
+        self._loop_fd: tuple | None = None  # (loop, fd) while the loop reads
+        self._stop_evt = threading.Event()
         if _has_own_filtering(bus) and self.wanted:
             bus.set_filters([{"can_id": i, "can_mask": 0x1FFFFFFF if e else 0x7FF, "extended": e}
                              for i, e in sorted(self.wanted)])
             self.kernel_filters = True
 
-    def start(self, loop: asyncio.AbstractEventLoop) -> None:
-        self._notifier = can.Notifier(self.bus, [self._on_message], timeout=0.2, loop=loop)
+    def start(self, loop: asyncio.AbstractEventLoop | None = None, *, period_s: float | None = None,
+              offset_s: float = 0.0, speed: float = 1.0) -> None:
+        """Start reception: on ``loop`` if the bus has a file descriptor, else in a reader thread
+        that, with ``period_s``, reads at most about once per period after the first frame of
+        each (wakes at ``k * period_s + offset_s`` of ``clock``, which runs ``speed`` times real
+        time). See the module doc."""
+        if loop is not None:
+            try:
+                fd = self.bus.fileno()
+            except (NotImplementedError, AttributeError, OSError, ValueError):
+                fd = -1
+            if isinstance(fd, int) and fd >= 0:
+                loop.add_reader(fd, self._on_readable)
+                self._loop_fd = (loop, fd)
+                return
+        self._stop_evt.clear()
+        self._reader = threading.Thread(target=self._read, args=(period_s, offset_s, speed),
+                                        name="ecu-can-rx", daemon=True)
+        self._reader.start()
 
-    def _on_message(self, msg: can.Message) -> None:
+    def _on_readable(self) -> None:
+        """The loop's reader: one batch (a longer backlog keeps the socket readable: the loop
+        comes back after its other callbacks)."""
+        self._take([])
+
+    def _read(self, period_s: float | None, offset_s: float, speed: float) -> None:
+        recv, stop, clock = self.bus.recv, self._stop_evt, self.clock
+        while not stop.is_set():
+            try:
+                msg = recv(self.RX_TIMEOUT_S)
+            except (can.CanError, OSError) as e:  # interface down: say so (rate-limited), keep trying
+                self._err_log.report(e.__class__.__name__, logging.ERROR, f"receiving from the CAN bus: {e}")
+                stop.wait(0.1)
+                continue
+            if msg is None:
+                continue
+            if self._take([msg]) >= self.max_batch or not period_s:
+                continue  # a backlog: read on at once
+            now = clock()
+            wait = ((math.floor((now - offset_s) / period_s) + 1) * period_s + offset_s - now) / speed
+            if wait > 0:
+                time.sleep(wait)
+
+    def _take(self, msgs: list) -> int:
+        """Add what else is waiting (up to ``max_batch`` in all) to ``msgs`` and hand them on."""
+        recv = self.bus.recv
+        limit = self.max_batch
+        try:
+            while len(msgs) < limit:
+                msg = recv(0)
+                if msg is None:
+                    break
+                msgs.append(msg)
+        except (can.CanError, OSError) as e:
+            self._err_log.report(e.__class__.__name__, logging.ERROR, f"receiving from the CAN bus: {e}")
+        self.handle(msgs)
+        return len(msgs)
+
+    def handle(self, msgs: list) -> None:
+        """One batch of received frames, in order: filter, map times, hand on (any one thread).
+
+        The clock is read once, after the frames were taken, so every mapped time is <= it; the
+        newest frame's latency enters the clock window first (``ClockMapper.observe``)."""
+        if not msgs:
+            return
         now = self.clock()
+        if len(msgs) > 1:
+            self.mapper.observe(max(m.timestamp or 0.0 for m in msgs), now)
+        for msg in msgs:
+            self._on_message(msg, now)
+        self.rx_batches += 1
+        if self.on_batch is not None:
+            try:
+                self.on_batch()
+            except Exception as e:
+                self.callback_errors += 1
+                self._err_log.report(e.__class__.__name__, logging.ERROR,
+                                     f"error handing on received CAN frames: {e.__class__.__name__}: {e}")
+
+    def _on_message(self, msg: can.Message, now: float | None = None) -> None:
+        if now is None:
+            now = self.clock()
         try:
             if msg.is_error_frame:
                 self.health.on_error_frame(msg, now)
@@ -310,15 +411,11 @@ class CanIO:
     def drain(self, max_frames: int = 100000) -> int:
         """Handle the frames already waiting in the bus (after :meth:`stop`, at shutdown)."""
         n = 0
-        try:
-            while n < max_frames:
-                msg = self.bus.recv(0)
-                if msg is None:
-                    break
-                self._on_message(msg)
-                n += 1
-        except (can.CanError, OSError):
-            pass
+        while n < max_frames:
+            got = self._take([])
+            n += got
+            if got < self.max_batch:
+                break
         return n
 
     def poll_library_state(self) -> None:
@@ -342,9 +439,20 @@ class CanIO:
         return True
 
     def stop(self) -> None:
-        if self._notifier is not None:
-            self._notifier.stop(timeout=1.0)
-            self._notifier = None
+        """Stop reception (a reader thread notices within ``RX_TIMEOUT_S``; the loop's reader is
+        removed at once: call this in the loop's thread)."""
+        if self._loop_fd is not None:
+            loop, fd = self._loop_fd
+            self._loop_fd = None
+            try:
+                loop.remove_reader(fd)
+            except (RuntimeError, ValueError, OSError):  # the loop is already closed
+                pass
+        self._stop_evt.set()
+        if self._reader is not None:
+            if self._reader is not threading.current_thread():
+                self._reader.join(2.0)
+            self._reader = None
 
     def shutdown(self) -> None:
         self.stop()

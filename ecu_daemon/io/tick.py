@@ -95,12 +95,11 @@ class TickStats:
         n = min(self._n, len(self._late))
         if n == 0:
             return TickSnapshot()
-        late = self._late[:n]
-        p50, p99 = np.percentile(late, [50, 99])
-        return TickSnapshot(ticks=self._n, late_p50_s=float(p50), late_p99_s=float(p99),
-                            late_max_s=float(late.max()), late_max_total_s=self.late_max_total_s,
+        late = np.sort(self._late[:n])
+        return TickSnapshot(ticks=self._n, late_p50_s=_percentile(late, 50), late_p99_s=_percentile(late, 99),
+                            late_max_s=float(late[-1]), late_max_total_s=self.late_max_total_s,
                             overruns=self.overruns, skipped=self.skipped,
-                            work_p99_s=float(np.percentile(self._work[:n], 99)))
+                            work_p99_s=_percentile(np.sort(self._work[:n]), 99))
 
     def total_percentile(self, q: float) -> float:
         """Percentile of lateness over the whole run from the histogram (bin resolution 10 us)."""
@@ -109,6 +108,17 @@ class TickStats:
             return 0.0
         idx = int(np.searchsorted(np.cumsum(self.hist), math.ceil(q / 100.0 * total)))
         return (idx + 1) * self.HIST_BIN_S
+
+
+def _percentile(ordered: np.ndarray, q: float) -> float:
+    """``np.percentile`` (linear interpolation) of an already sorted array. Why not that: the
+    daemon's loop takes a snapshot every 50 ms, and numpy's general path was half its CPU."""
+    pos = q / 100.0 * (len(ordered) - 1)
+    i = int(pos)
+    if i + 1 >= len(ordered):
+        return float(ordered[-1])
+    a, b = float(ordered[i]), float(ordered[i + 1])
+    return a + (b - a) * (pos - i)
 
 
 def _set_timer_slack(ns: int) -> None:
