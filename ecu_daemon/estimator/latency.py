@@ -5,26 +5,31 @@ as a time shift between the GNSS speed and the speed from the wheel sensors. Yoo
 §3; 000 §4.4.1.1) identify it offline by comparing the two during smooth acceleration; this is
 the same idea online, as a regression per candidate delay:
 
-    gnss_speed(t_rx)  ~  a * wheel_speed(t_rx - d) + b        for every d on the 6 ms grid
+    gnss_speed(t_rx)  ~  a * wheel_speed(t_rx - d) * ratio(t_rx - d) + b     for every d on the 6 ms grid
 
-with exponentially forgotten sufficient statistics, so the scale a (wheel radius error, and the
-sideslip's cos factor) and the offset b cannot bias the timing.
+with exponentially forgotten sufficient statistics, so the scale a (wheel radius error) and the
+offset b cannot bias the timing. ``ratio`` is the antenna's speed |v + r x lever| over the speed
+the wheels read, from the filter's history: the wheels read vx where the receiver reads the
+antenna, and in a tight circle the two differ by several per cent, a ratio that steps at the
+corner's exit (measured: -0.13 s on a 9 m circle at 6 m/s without it).
 
 The wheels are not a clean clock: a braked wheel turns slower than the car by v * kappa
 (kappa ~ ax * m / C_x), which reads as a delay error of about v * m / C_x in braking phases
 (simulated: +0.04 s at 25 m/s, +0.12 s at 50 m/s), and real wheel-speed signals are filtered and
-lag (RAV4). So a velocity receiver's speed is also regressed on the integrated accelerometer
+lag. So the wheels time only the fixes whose window does not brake (see :meth:`observe`), and a
+velocity receiver's speed is also regressed on the integrated accelerometer
 (:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
 offset in the fit), and the two likelihood-ratio profiles add, each by its information, except
 that wheels whose best delay the accelerometer rejects are left out (``attach``). The
 accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
-mid-corner, and it carries less information than the wheels (on Revs the latency std would stay
-wide and the heading invalid).
+mid-corner (and after a GNSS outage, until vy is known again), and it carries less information
+than the wheels (on Revs the latency std would stay wide and the heading invalid).
 
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
-the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
-cost profile), with a slew limit; otherwise the prior (config ``delay_s``) stands, and nothing
-drifts on a drive without speed changes.
+the delay. It starts moving only when the data reject the current delay (a likelihood-ratio test
+on the cost profile), and then follows the data, slew-limited, until it is within 1 sigma of
+their best; otherwise the prior (config ``delay_s``) stands, and nothing drifts on a drive
+without speed changes.
 
 Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
@@ -43,17 +48,36 @@ import math
 
 import numpy as np
 
-from .history import AUX_WHEEL, StepHistory
+from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_WHEEL, StepHistory
+from .kinematic import VX, VY
 
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
+LR_SETTLE = 1.0  # once moving, the delay follows the data until within 1 sigma of their best
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
 MIN_STD_S = 0.005  # the 6 ms candidate grid, refined by a parabola
 STD_FALL = 0.98  # per informative fix: the std shrinks by e in ~10 s at 5 Hz
 MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its memory
+SLIP_FREE_ACCEL = 0.1  # m/s^2: decelerating less than this, the wheels' slip is below their noise
+RATIO_ERROR = 0.003  # m/s per m/s: the antenna-to-wheel ratio's error from the filter's vy (GNSS noise)
+AX_SMOOTH_S = 0.1  # s: the braking test averages the accelerometer over this (its noise)
+
+
+def _antenna_to_wheel(X: np.ndarray, aux: np.ndarray, lever: tuple[float, float], wheels) -> np.ndarray:
+    """Per history row: the antenna's speed over the speed the fused wheels read (at the true
+    radius), from the filter's velocity, the yaw rate and the steering angle."""
+    vx, vy, r = X[:, VX], X[:, VY], aux[:, AUX_R]
+    ant = np.hypot(vx - r * lever[1], vy + r * lever[0])
+    if wheels is not None and wheels.frac:
+        d = np.nan_to_num(aux[:, AUX_DELTA])
+        f = wheels.frac
+        read = vx * (1.0 - f) + f * (vx * np.cos(d) + (vy + wheels.lf * r) * np.sin(d))
+    else:
+        read = vx
+    return np.where(read > 1.0, ant / np.maximum(read, 1.0), 1.0)
 
 
 class LatencyEstimator:
@@ -70,6 +94,8 @@ class LatencyEstimator:
         self.prior_std_s = min(max(prior_std_s, MIN_STD_S), PRIOR_STD_S)
         self.std_s = self.prior_std_s if enabled else FIXED_STD_S
         self.max_steps = max(2, int(max_s / dt))
+        w = max(1, min(self.max_steps, round(AX_SMOOTH_S / dt)))
+        self._box = np.full(w, 1.0 / w)
         n = self.max_steps + 1
         self.forgetting = forgetting
         # sufficient statistics of y = [x, e..., 1] . theta per candidate (x: delayed wheel speed,
@@ -79,12 +105,28 @@ class LatencyEstimator:
         self.zy = np.zeros((n, self.p))
         self.syy = 0.0
         self.updates = 0
+        self.moving = False  # the data rejected the delay and it has not reached their best yet
         self.cost = np.zeros(n)
         self.references = [self]  # the timing references whose statistics decide (attach())
         self.owner: LatencyEstimator | None = None  # the estimator this one's statistics feed
 
-    def observe(self, k_rx: int, speed: float, hist: StepHistory) -> None:
-        """Feed one GNSS fix received just before step k_rx (history ends at k_rx - 1)."""
+    def observe(self, k_rx: int, speed: float, hist: StepHistory, lever: tuple[float, float] = (0.0, 0.0),
+                wheels=None) -> None:
+        """Feed one GNSS fix received just before step k_rx (history ends at k_rx - 1).
+
+        ``lever``: the antenna's position from the CG; ``wheels``: the wheel-speed fusion whose
+        measured speed the history holds (its front share ``frac``, ``lf``, ``use_all``).
+        The wheels read vx (the front pair turned with the steering) where the receiver reads
+        the antenna's speed |v + r x lever|: in a tight circle at 6 m/s the two differ by 4 %,
+        and that ratio steps at a corner's exit, which a plain regression reads as timing
+        (-0.13 s on a 9 m circle). So the regressor is the wheel speed times the filter's
+        ratio of the two (the wheels' timing, the antenna's geometry).
+
+        Braked wheels turn slower than the car by v * kappa (kappa ~ |ax| m / C_x), a speed
+        error proportional to the deceleration: that is a timing error of v m / C_x however hard
+        the braking, so the wheels time no fix whose window brakes (undriven wheels do not slip
+        otherwise; on an all-wheel drive traction counts too). The accelerometer reference
+        (:class:`SpeedIntegral`) has no slip and times those phases."""
         if not self.enabled or speed < MIN_SPEED:
             return
         m = np.arange(self.max_steps + 1)
@@ -93,10 +135,28 @@ class LatencyEstimator:
         if not ok.all():
             return  # not enough history yet (start-up / after a reset)
         slot = cand % hist.n
-        x = hist.aux[slot, AUX_WHEEL]
+        aux = hist.aux[slot]
+        x = aux[:, AUX_WHEEL]
         if not np.isfinite(x).all() or x.min() < MIN_SPEED:
             return
-        self.observe_series(x, speed)
+        # the speed's rate (vx ax + vy ay) / |v| over the window (not ax alone: in a sideslipping
+        # circle ax reads a share of the centripetal acceleration), averaged over a tenth of a
+        # second (sensor noise)
+        X = hist.X[slot]
+        vx, vy = X[:, VX], X[:, VY]
+        rate = (vx * aux[:, AUX_AX] + vy * aux[:, AUX_AY]) / np.maximum(np.hypot(vx, vy), 1.0)
+        ax = np.convolve(rate, self._box, mode="valid")
+        use_all = wheels is not None and wheels.use_all
+        if not (np.abs(ax) if use_all else -ax).max() <= SLIP_FREE_ACCEL:
+            return
+        # the ratio carries the filter's vy error into the regressor, |vy_ant| / |v_ant| of it: on
+        # a flying start mid-corner the sideslip is not known yet, and its convergence is a ramp
+        # in the ratio that reads as timing; those fixes wait
+        vy_ant = np.abs(vy + aux[:, AUX_R] * lever[0])
+        vy_std = np.sqrt(np.maximum(hist.P[slot, VY, VY], 0.0))
+        if not (vy_ant * vy_std).max() <= RATIO_ERROR * max(speed, MIN_SPEED):
+            return
+        self.observe_series(x * _antenna_to_wheel(X, aux, lever, wheels), speed)
 
     def observe_series(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
         """One observation ``y ~ a * x[m] + c . extra + b`` for every candidate m (``x[m]``: the
@@ -184,7 +244,11 @@ class LatencyEstimator:
         width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
         cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
-        if lr[cur] > LR_REJECT:
+        # Hysteresis: once the data reject the current delay it moves until it is at the data's
+        # best (within 1 sigma), not only until it is no longer rejected: stopping at the edge of
+        # the 4-sigma set left it 0.03-0.04 s off for good on drives that had timed it well.
+        self.moving = lr[cur] > (LR_SETTLE if self.moving else LR_REJECT)
+        if self.moving:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
             slew = MAX_SLEW_S * (4.0 if any(p[1] for p in profiles) else 1.0)
