@@ -62,7 +62,7 @@ MIN_STD_S = 0.005  # the 6 ms candidate grid, refined by a parabola
 STD_FALL = 0.98  # per informative fix: the std shrinks by e in ~10 s at 5 Hz
 MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its memory
 SLIP_FREE_ACCEL = 0.1  # m/s^2: decelerating less than this, the wheels' slip is below their noise
-RATIO_ERROR = 0.003  # m/s per m/s: the antenna-to-wheel ratio's error from the filter's vy (GNSS noise)
+RATIO_ERROR_MPS = 0.02  # m/s: the antenna speed's error from the filter's vy, below the GNSS speed noise
 AX_SMOOTH_S = 0.1  # s: the braking test averages the accelerometer over this (its noise)
 
 
@@ -149,12 +149,12 @@ class LatencyEstimator:
         use_all = wheels is not None and wheels.use_all
         if not (np.abs(ax) if use_all else -ax).max() <= SLIP_FREE_ACCEL:
             return
-        # the ratio carries the filter's vy error into the regressor, |vy_ant| / |v_ant| of it: on
+        # the ratio carries the filter's vy error into the regressor, |vy_ant| / |v| of it: on
         # a flying start mid-corner the sideslip is not known yet, and its convergence is a ramp
         # in the ratio that reads as timing; those fixes wait
         vy_ant = np.abs(vy + aux[:, AUX_R] * lever[0])
         vy_std = np.sqrt(np.maximum(hist.P[slot, VY, VY], 0.0))
-        if not (vy_ant * vy_std).max() <= RATIO_ERROR * max(speed, MIN_SPEED):
+        if not (vy_ant * vy_std).max() <= RATIO_ERROR_MPS * max(speed, MIN_SPEED):
             return
         self.observe_series(x * _antenna_to_wheel(X, aux, lever, wheels), speed)
 
