@@ -5,13 +5,13 @@ as a time shift between the GNSS speed and the speed from the wheel sensors. Yoo
 §3; 000 §4.4.1.1) identify it offline by comparing the two during smooth acceleration; this is
 the same idea online, as a regression per candidate delay:
 
-    gnss_speed(t_rx)  ~  a * wheel_speed(t_rx - d) * ratio(t_rx - d) + b     for every d on the 6 ms grid
+    gnss_speed(t_rx) / ratio(t_rx - delay)  ~  a * wheel_speed(t_rx - d) + b     for every d on the 6 ms grid
 
 with exponentially forgotten sufficient statistics, so the scale a (wheel radius error) and the
 offset b cannot bias the timing. ``ratio`` is the antenna's speed |v + r x lever| over the speed
-the wheels read, from the filter's history: the wheels read vx where the receiver reads the
-antenna, and in a tight circle the two differ by several per cent, a ratio that steps at the
-corner's exit (measured: -0.13 s on a 9 m circle at 6 m/s without it).
+the wheels read, from the filter's history at the current delay estimate: the wheels read vx
+where the receiver reads the antenna, and in a tight circle the two differ by several per cent,
+a ratio that steps at the corner's exit (measured: -0.13 s on a 9 m circle at 6 m/s without it).
 
 The wheels are not a clean clock: a braked wheel turns slower than the car by v * kappa
 (kappa ~ ax * m / C_x), which reads as a delay error of about v * m / C_x in braking phases
@@ -54,6 +54,7 @@ from .kinematic import VX, VY
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
+LR_REJECT_WHEELS = 25.0  # the same, when the wheels alone speak (5 sigma: their errors last longer)
 LR_SETTLE = 1.0  # once moving, the delay follows the data until within 1 sigma of their best
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
@@ -62,7 +63,7 @@ MIN_STD_S = 0.005  # the 6 ms candidate grid, refined by a parabola
 STD_FALL = 0.98  # per informative fix: the std shrinks by e in ~10 s at 5 Hz
 MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its memory
 SLIP_FREE_ACCEL = 0.1  # m/s^2: decelerating less than this, the wheels' slip is below their noise
-RATIO_ERROR_MPS = 0.02  # m/s: the antenna speed's error from the filter's vy, below the GNSS speed noise
+RATIO_ERROR_MPS = 0.05  # m/s: the antenna speed's error from the filter's vy, below the GNSS speed noise
 AX_SMOOTH_S = 0.1  # s: the braking test averages the accelerometer over this (its noise)
 
 
@@ -119,8 +120,9 @@ class LatencyEstimator:
         The wheels read vx (the front pair turned with the steering) where the receiver reads
         the antenna's speed |v + r x lever|: in a tight circle at 6 m/s the two differ by 4 %,
         and that ratio steps at a corner's exit, which a plain regression reads as timing
-        (-0.13 s on a 9 m circle). So the regressor is the wheel speed times the filter's
-        ratio of the two (the wheels' timing, the antenna's geometry).
+        (-0.13 s on a 9 m circle). So the GNSS speed is divided by the filter's ratio of the
+        two at the current delay estimate, the same for every candidate: a step in it that the
+        current delay places wrong costs every candidate alike and moves none.
 
         Braked wheels turn slower than the car by v * kappa (kappa ~ |ax| m / C_x), a speed
         error proportional to the deceleration: that is a timing error of v m / C_x however hard
@@ -156,7 +158,13 @@ class LatencyEstimator:
         vy_std = np.sqrt(np.maximum(hist.P[slot, VY, VY], 0.0))
         if not (vy_ant * vy_std).max() <= RATIO_ERROR_MPS * max(speed, MIN_SPEED):
             return
-        self.observe_series(x * _antenna_to_wheel(X, aux, lever, wheels), speed)
+        # the GNSS speed as the wheels would read it, through the ratio at the current delay: one
+        # factor for every candidate, so the timing comes from the wheels' own speed changes and
+        # not from the filter's ratio (which a slalom at constant speed modulates, and whose
+        # errors would then read as timing)
+        c = min(max(int(round(self.delay_s / self.dt)) - 1, 0), self.max_steps)
+        ratio = _antenna_to_wheel(X[c:c + 1], aux[c:c + 1], lever, wheels)[0]
+        self.observe_series(x, speed / ratio)
 
     def observe_series(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
         """One observation ``y ~ a * x[m] + c . extra + b`` for every candidate m (``x[m]``: the
@@ -247,7 +255,12 @@ class LatencyEstimator:
         # Hysteresis: once the data reject the current delay it moves until it is at the data's
         # best (within 1 sigma), not only until it is no longer rejected: stopping at the edge of
         # the 4-sigma set left it 0.03-0.04 s off for good on drives that had timed it well.
-        self.moving = lr[cur] > (LR_SETTLE if self.moving else LR_REJECT)
+        # The wheels alone (the accelerometer's integral broken off: mid-corner, after an outage)
+        # must reject it more clearly: their errors (slip, lag, the geometry's) last many fixes,
+        # which a likelihood ratio of independent fixes overstates (lowspeed_r25: one marginal
+        # rejection in a slalom at constant speed dragged it 0.07 s to a second minimum).
+        reject = LR_REJECT_WHEELS if len(self.references) > 1 and judge is None else LR_REJECT
+        self.moving = lr[cur] > (LR_SETTLE if self.moving else reject)
         if self.moving:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
