@@ -247,3 +247,13 @@ def test_a_refuted_prior_moves_to_the_data_best_not_to_the_edge_of_what_they_all
     est = run(accelerating, 0.3, prior_s=0.5, gnss_noise=0.15, seconds=90.0)
     assert est.delay_s == pytest.approx(0.3, abs=0.01)
     assert abs(est.delay_s - 0.3) < 2.0 * est.std_s + 0.006
+
+
+def test_a_slalom_at_constant_speed_leaves_the_prior_alone():
+    """A slalom at a steady 8 m/s: the wheels' speed hardly changes, the antenna's does (lever arm
+    and sideslip swing with the yaw rate). That is geometry, not timing; the delay stays put
+    (lowspeed_r25 moved 0.07 s on it)."""
+    est = run_history(lambda t: 8.0, lambda t: 0.3 * math.sin(2 * math.pi * 0.4 * t), 0.3, prior_s=0.4,
+                      seconds=60.0, vy_error=lambda t: (0.05 * math.sin(2 * math.pi * 0.4 * t - 0.5), 0.05))
+    assert est.updates > 200
+    assert est.delay_s == 0.4
