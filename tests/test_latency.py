@@ -199,8 +199,8 @@ def test_a_corner_exit_is_not_read_as_timing():
     """In a 9 m circle the antenna moves 4 % faster than the rear wheels turn (lever arm and
     sideslip); at the exit the ratio steps, and vx rises at the same |v|: a plain wheel
     regression read that as a 0.13 s shorter latency (flying_6_r9r). The GNSS speed is taken
-    back to the wheels through the filter's ratio, placed by the current (here 0.1 s wrong) delay."""
-    est = run_history(speed_6, corner_then_straight, 0.4, prior_s=0.3)
+    back to the wheels through the filter's ratio at the current delay."""
+    est = run_history(speed_6, corner_then_straight, 0.4)
     assert est.delay_s == pytest.approx(0.4, abs=0.015)
 
 

@@ -20,7 +20,7 @@ lag. So a velocity receiver's speed is also regressed on the integrated accelero
 (:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
 offset in the fit), and the two likelihood-ratio profiles add, each by its information, except
 that wheels whose best delay the accelerometer rejects are left out (``attach``); without it
-the wheels time only the fixes whose window does not brake (:meth:`observe`). The
+the wheels' fixes whose window does not brake judge them the same way (:meth:`observe`). The
 accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
 mid-corner (and after a GNSS outage, until vy is known again), and it carries less information
 than the wheels (on Revs the latency std would stay wide and the heading invalid).
@@ -63,7 +63,7 @@ MIN_STD_S = 0.005  # the 6 ms candidate grid, refined by a parabola
 STD_FALL = 0.98  # per informative fix: the std shrinks by e in ~10 s at 5 Hz
 MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its memory
 SLIP_FREE_ACCEL = 0.1  # m/s^2: decelerating less than this, the wheels' slip is below their noise
-RATIO_ERROR_MPS = 0.05  # m/s: the antenna speed's error from the filter's vy, below the GNSS speed noise
+RATIO_ERROR = 0.005  # the antenna-to-wheel ratio's error from the filter's vy (the corner exit's step is 4 %)
 AX_SMOOTH_S = 0.1  # s: the braking test averages the accelerometer over this (its noise)
 
 
@@ -132,7 +132,7 @@ class LatencyEstimator:
         (``slip_free``): while the accelerometer reference (:class:`SpeedIntegral`, no slip) has a
         profile, it judges all the wheels' fixes (the braking ones carry most of a race car's
         timing: Revs kept its latency std at 0.013 s instead of 0.031 s at the 90th percentile);
-        while it has none (mid-corner, after an outage), the wheels time only those."""
+        while it has none (mid-corner, after an outage), the unbraked fixes judge them."""
         if not self.enabled or speed < MIN_SPEED:
             return
         m = np.arange(self.max_steps + 1)
@@ -154,12 +154,13 @@ class LatencyEstimator:
         ax = np.convolve(rate, self._box, mode="valid")
         use_all = wheels is not None and wheels.use_all
         slip_free = (np.abs(ax) if use_all else -ax).max() <= SLIP_FREE_ACCEL
-        # the ratio carries the filter's vy error into the regressor, |vy_ant| / |v| of it: on
+        # the ratio carries the filter's vy error, |vy_ant| / |v|^2 of it (relative): on
         # a flying start mid-corner the sideslip is not known yet, and its convergence is a ramp
         # in the ratio that reads as timing; those fixes wait
         vy_ant = np.abs(vy + aux[:, AUX_R] * lever[0])
         vy_std = np.sqrt(np.maximum(hist.P[slot, VY, VY], 0.0))
-        if not (vy_ant * vy_std).max() <= RATIO_ERROR_MPS * max(speed, MIN_SPEED):
+        if not (vy_ant * vy_std).max() <= RATIO_ERROR * max(speed, MIN_SPEED) ** 2:
+            self._refine()  # no new data; the std's fall (a time constant) goes on
             return
         # the GNSS speed as the wheels would read it, through the ratio at the current delay: one
         # factor for every candidate, so the timing comes from the wheels' own speed changes and
@@ -237,9 +238,12 @@ class LatencyEstimator:
             return
         profiles = [ref._profile() for ref in self.references]
         judge = profiles[-1] if len(profiles) > 1 else None
-        if judge is None and self.slip_free is not None:
-            # no accelerometer to judge the wheels: only their fixes without braking count
-            profiles[0] = self.slip_free._profile()
+        if judge is None and self.slip_free is not None and profiles[0] is not None:
+            # no accelerometer to judge the wheels: their fixes without braking judge them all
+            # instead (braking slip shows as a timing bias), as the accelerometer would
+            sf = self.slip_free._profile()
+            if sf is not None and sf[0][int(np.argmin(profiles[0][0]))] > LR_REJECT:
+                profiles[0] = sf
         if judge is not None:
             # The last reference attached (the accelerometer's) has no lag and no slip; the
             # others (the wheels) have both, and they show as a timing bias. A reference whose
