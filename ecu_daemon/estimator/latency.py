@@ -26,10 +26,9 @@ mid-corner (and after a GNSS outage, until vy is known again), and it carries le
 than the wheels (on Revs the latency std would stay wide and the heading invalid).
 
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
-the delay. It starts moving only when the data reject the current delay (a likelihood-ratio test
-on the cost profile), and then follows the data, slew-limited, until it is within 1 sigma of
-their best; otherwise the prior (config ``delay_s``) stands, and nothing drifts on a drive
-without speed changes.
+the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
+cost profile), with a slew limit; otherwise the prior (config ``delay_s``) stands, and nothing
+drifts on a drive without speed changes.
 
 Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
@@ -55,7 +54,6 @@ MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
 LR_REJECT_WHEELS = 25.0  # the same, when the wheels alone speak (5 sigma: their errors last longer)
-LR_SETTLE = 1.0  # once moving, the delay follows the data until within 1 sigma of their best
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
@@ -106,7 +104,6 @@ class LatencyEstimator:
         self.zy = np.zeros((n, self.p))
         self.syy = 0.0
         self.updates = 0
-        self.moving = False  # the data rejected the delay and it has not reached their best yet
         self.cost = np.zeros(n)
         self.references = [self]  # the timing references whose statistics decide (attach())
         self.owner: LatencyEstimator | None = None  # the estimator this one's statistics feed
@@ -270,16 +267,11 @@ class LatencyEstimator:
         width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
         cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
-        # Hysteresis: once the data reject the current delay it moves until it is at the data's
-        # best (within 1 sigma), not only until it is no longer rejected: stopping at the edge of
-        # the 4-sigma set left it 0.03-0.04 s off for good on drives that had timed it well.
         # The wheels alone (the accelerometer's integral broken off: mid-corner, after an outage)
         # must reject it more clearly: their errors (slip, lag, the geometry's) last many fixes,
-        # which a likelihood ratio of independent fixes overstates (lowspeed_r25: one marginal
-        # rejection in a slalom at constant speed dragged it 0.07 s to a second minimum).
+        # which a likelihood ratio of independent fixes overstates.
         reject = LR_REJECT_WHEELS if len(self.references) > 1 and judge is None else LR_REJECT
-        self.moving = lr[cur] > (LR_SETTLE if self.moving else reject)
-        if self.moving:
+        if lr[cur] > reject:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
             slew = MAX_SLEW_S * (4.0 if any(p[1] for p in profiles) else 1.0)
