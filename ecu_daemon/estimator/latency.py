@@ -53,7 +53,6 @@ from .kinematic import VX, VY
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
-LR_REJECT_WHEELS = 25.0  # the same, when the wheels alone speak (5 sigma: their errors last longer)
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
@@ -267,11 +266,7 @@ class LatencyEstimator:
         width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
         cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
-        # The wheels alone (the accelerometer's integral broken off: mid-corner, after an outage)
-        # must reject it more clearly: their errors (slip, lag, the geometry's) last many fixes,
-        # which a likelihood ratio of independent fixes overstates.
-        reject = LR_REJECT_WHEELS if len(self.references) > 1 and judge is None else LR_REJECT
-        if lr[cur] > reject:
+        if lr[cur] > LR_REJECT:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
             slew = MAX_SLEW_S * (4.0 if any(p[1] for p in profiles) else 1.0)
