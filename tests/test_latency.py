@@ -7,7 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator.history import AUX_WHEEL, StepHistory
+from ecu_daemon.estimator.fusion.wheel_speed import WheelSpeedFusion
+from ecu_daemon.estimator.history import AUX_AX, AUX_AY, AUX_R, AUX_WHEEL, StepHistory
+from ecu_daemon.estimator.kinematic import VX, VY
 from ecu_daemon.estimator.latency import PRIOR_STD_S, LatencyEstimator, SpeedIntegral
 
 DT = 0.006
@@ -137,3 +139,112 @@ def test_accelerometer_alone_finds_the_latency_despite_its_bias(delay_s):
 def test_steady_speed_with_the_accelerometer_the_prior_stands():
     est = run_with_accelerometer(lambda t: 22.0, 0.4, prior_s=0.2)
     assert est.delay_s == 0.2 and est.std_s == PRIOR_STD_S
+
+
+# --- the wheels as they are fed from the filter's history (observe): geometry and slip ---------
+
+LEVER = (0.7, 0.3)  # antenna ahead of and left of the CG, m
+
+
+def run_history(speed, yaw_rate, delay_s, slip=0.0, prior_s=0.4, seconds=45.0, gnss_noise=0.02, seed=3,
+                vy_error=lambda t: (0.0, 0.01)):
+    """Wheels only (no accelerometer reference: it breaks off mid-corner and after an outage), fed
+    through ``observe`` from a history as the estimator keeps it. ``speed(t)``, ``yaw_rate(t)``:
+    the car's motion (speed at the CG); the sideslip is the kinematic one of a car whose rear axle
+    is 1.5 m behind the CG (vy = -1.5 r: 9.5 deg at 6 m/s on a 9 m circle); GNSS reads the
+    antenna's speed |v + r x lever| ``delay_s`` late; the rear wheels read vx, less
+    ``slip`` * vx * the deceleration. ``vy_error(t)``: the filter's vy error and its std."""
+    rng = np.random.default_rng(seed)
+    est = LatencyEstimator(DT, prior_s, max_s=0.8)
+    hist = StepHistory(est.max_steps + 20)
+    hist.reset(0)
+    wheels = WheelSpeedFusion("front", 1.2, 0.05)
+
+    def motion(t):
+        r = yaw_rate(t)
+        vy = -1.5 * r
+        return math.sqrt(speed(t) ** 2 - vy * vy), vy, r
+
+    d_steps = round(delay_s / DT)
+    for k in range(int(seconds / DT)):
+        t = k * DT
+        vx, vy, r = motion(t)
+        dvx = (motion(t + DT)[0] - motion(t - DT)[0]) / (2 * DT)
+        i = hist.slot(k)
+        e, e_std = vy_error(t)
+        hist.X[i, VX], hist.X[i, VY] = vx, vy + e
+        hist.P[i, VY, VY] = e_std * e_std
+        # what the accelerometer reads: dvx/dt - r vy, and r vx (vy steady)
+        hist.aux[i, AUX_R], hist.aux[i, AUX_AX], hist.aux[i, AUX_AY] = r, dvx - r * vy, r * vx
+        hist.aux[i, AUX_WHEEL] = vx * (1.0 + slip * min(dvx, 0.0))
+        hist.last = k
+        if k % FIX_EVERY == 0 and k > d_steps:
+            vs, vys, rs = motion((k + 1 - d_steps) * DT)
+            y = math.hypot(vs - rs * LEVER[1], vys + rs * LEVER[0]) + gnss_noise * rng.normal()
+            est.observe(k + 1, y, hist, LEVER, wheels)
+    return est
+
+
+def corner_then_straight(t):
+    """A 9 m circle at 6 m/s (40 deg/s) for 12 s, left within a second (flying_6_r9r)."""
+    return -6.0 / 9.0 * min(max(13.0 - t, 0.0), 1.0)
+
+
+def speed_6(t):
+    """6 m/s, -20 % from 15 to 20 s and back from 26 to 31 s (the flying starts' speed changes)."""
+    return 6.0 - 1.2 * min(max(t - 15.0, 0.0), 5.0) / 5.0 + 1.2 * min(max(t - 26.0, 0.0), 5.0) / 5.0
+
+
+def test_a_corner_exit_is_not_read_as_timing():
+    """In a 9 m circle the antenna moves 4 % faster than the rear wheels turn (lever arm and
+    sideslip); at the exit the ratio steps, and vx rises at the same |v|: a plain wheel
+    regression read that as a 0.13 s shorter latency (flying_6_r9r). The GNSS speed is taken
+    back to the wheels through the filter's ratio at the current delay."""
+    est = run_history(speed_6, corner_then_straight, 0.4)
+    assert est.delay_s == pytest.approx(0.4, abs=0.015)
+
+
+def test_mid_corner_fixes_wait_while_the_sideslip_is_unknown():
+    """Started mid-corner, the filter's sideslip is the model's guess until GNSS has corrected it;
+    the antenna-to-wheel ratio carries its error (|vy_ant| / |v_ant| of it) and its convergence
+    would read as timing (flying_6_r9r: the wheels said 0.31 s for 0.4). Those fixes wait; on
+    the straight (no lateral antenna speed) vy's uncertainty does not matter."""
+    known = run_history(speed_6, corner_then_straight, 0.4, seconds=20.0)
+    unknown = run_history(speed_6, corner_then_straight, 0.4, seconds=20.0,
+                          vy_error=lambda t: (0.0, 0.8 if t < 16.0 else 0.01))
+    assert unknown.updates <= known.updates - 55  # the 12 s of the corner at 5 Hz, less its first
+    assert unknown.updates >= known.updates - 70  # ... and only those
+
+
+def test_a_sideslipping_circle_with_speed_changes_still_times_the_gnss():
+    """ax reads a share of the centripetal acceleration in a sideslipping circle (-r vy, here
+    -0.4 m/s^2 while the speed rises): that is not braking, and the fixes still count."""
+    est = run_history(lambda t: 8.0 + 0.2 * t + 0.3 * math.sin(2 * math.pi * t / 7.0), lambda t: 0.5, 0.3)
+    assert est.slip_free.updates > 150  # counted as fixes without braking
+    assert est.delay_s == pytest.approx(0.3, abs=0.03)
+
+
+def smooth_braking_drive(t):
+    """Speeding up smoothly (an S-curve, 25 -> 31.4 m/s in 8 s), then braking at 1.6 m/s^2 for 4 s."""
+    phase = t % 12.0
+    if phase < 8.0:
+        return 25.0 + 3.2 * (1.0 - math.cos(math.pi * phase / 8.0))
+    return 31.4 - 1.6 * (phase - 8.0)
+
+
+def test_braked_wheels_alone_do_not_lengthen_the_latency():
+    """Braked wheels turn slower than the car by v * kappa: as timing that is v m / C_x later
+    however hard the braking (+0.04 s after the 30 s outage of the demo drive, where the
+    accelerometer reference had broken off). The wheels time only the phases without braking."""
+    est = run_history(smooth_braking_drive, lambda t: 0.0, 0.3, slip=0.01, seconds=90.0)
+    assert est.delay_s == pytest.approx(0.3, abs=0.015)
+
+
+def test_a_slalom_at_constant_speed_leaves_the_prior_alone():
+    """A slalom at a steady 8 m/s: the wheels' speed hardly changes, the antenna's does (lever arm
+    and sideslip swing with the yaw rate). That is geometry, not timing; the delay stays put
+    (lowspeed_r25 moved 0.07 s on it)."""
+    est = run_history(lambda t: 8.0, lambda t: 0.3 * math.sin(2 * math.pi * 0.4 * t), 0.3, prior_s=0.4,
+                      seconds=60.0, vy_error=lambda t: (0.05 * math.sin(2 * math.pi * 0.4 * t - 0.5), 0.05))
+    assert est.updates > 200
+    assert est.delay_s == 0.4

@@ -108,12 +108,14 @@ SUBSET = {
     "flying_30_r150l_h100": {"avail-b": "sideslip valid on 79 % above 5 m/s",
                              "ttv-b": "sideslip valid 11.9 s after the first fix",
                              "ttv-h": "heading valid 12.8 s after the first fix"},
+    # latency +0.036 s off before the wheels' regression took the antenna's geometry and braking slip apart
     "flying_10_r14l_h45": {"avail-b": "sideslip valid on 78 % above 5 m/s",
                            "ttv-b": "sideslip valid 12.0 s after the first fix",
-                           "ttv-h": "heading valid 17.1 s after the first fix",
-                           "lat": "latency +0.036 s off"},
+                           "ttv-h": "heading valid 17.1 s after the first fix"},
     # vx within 3 sigma needs the wheel-slip bias under braking in the published std (89 % without)
-    "flying_50_straight_h200": {},  # latency +0.123 s off from braking slip, +0.030 with the accelerometer
+    # latency +0.123 s off from braking slip, +0.030 with the accelerometer, +0.032 since the braked
+    # wheel fixes are judged apart (the delay stops at the edge of what the data no longer reject)
+    "flying_50_straight_h200": {"lat": "latency +0.032 s off"},
     "restart_flying_30_r150": {"ttv-b": "sideslip valid 4.3 s after the first fix"},
     # sideslip valid on 80 % above 5 m/s while its std was 3-10x its error (vy's own process noise now)
     "vw_mqb_sign_magnitude": {},

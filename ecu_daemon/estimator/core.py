@@ -794,7 +794,7 @@ class Estimator:
             return
         agree = agree and not self.fdi.isolated & WHEELS
         if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
-            lat.observe(k, speed, h)
+            lat.observe(k, speed, h, (fus.lever_x, fus.lever_y), self.wheels)
         if h.X[h.slot(h.last), VX] > 0:
             self.speed_integral.observe(g.source, k, speed, self.speed_latencies[g.source], (fus.lever_x, fus.lever_y))
         if late:

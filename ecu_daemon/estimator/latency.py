@@ -5,21 +5,25 @@ as a time shift between the GNSS speed and the speed from the wheel sensors. Yoo
 §3; 000 §4.4.1.1) identify it offline by comparing the two during smooth acceleration; this is
 the same idea online, as a regression per candidate delay:
 
-    gnss_speed(t_rx)  ~  a * wheel_speed(t_rx - d) + b        for every d on the 6 ms grid
+    gnss_speed(t_rx) / ratio(t_rx - delay)  ~  a * wheel_speed(t_rx - d) + b     for every d on the 6 ms grid
 
-with exponentially forgotten sufficient statistics, so the scale a (wheel radius error, and the
-sideslip's cos factor) and the offset b cannot bias the timing.
+with exponentially forgotten sufficient statistics, so the scale a (wheel radius error) and the
+offset b cannot bias the timing. ``ratio`` is the antenna's speed |v + r x lever| over the speed
+the wheels read, from the filter's history at the current delay estimate: the wheels read vx
+where the receiver reads the antenna, and in a tight circle the two differ by several per cent,
+a ratio that steps at the corner's exit (measured: -0.13 s on a 9 m circle at 6 m/s without it).
 
 The wheels are not a clean clock: a braked wheel turns slower than the car by v * kappa
 (kappa ~ ax * m / C_x), which reads as a delay error of about v * m / C_x in braking phases
 (simulated: +0.04 s at 25 m/s, +0.12 s at 50 m/s), and real wheel-speed signals are filtered and
-lag (RAV4). So a velocity receiver's speed is also regressed on the integrated accelerometer
+lag. So a velocity receiver's speed is also regressed on the integrated accelerometer
 (:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
 offset in the fit), and the two likelihood-ratio profiles add, each by its information, except
-that wheels whose best delay the accelerometer rejects are left out (``attach``). The
+that wheels whose best delay the accelerometer rejects are left out (``attach``); without it
+the wheels' fixes whose window does not brake judge them the same way (:meth:`observe`). The
 accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
-mid-corner, and it carries less information than the wheels (on Revs the latency std would stay
-wide and the heading invalid).
+mid-corner (and after a GNSS outage, until vy is known again), and it carries less information
+than the wheels (on Revs the latency std would stay wide and the heading invalid).
 
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
 the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
@@ -43,7 +47,8 @@ import math
 
 import numpy as np
 
-from .history import AUX_WHEEL, StepHistory
+from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_WHEEL, StepHistory
+from .kinematic import VX, VY
 
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
@@ -54,6 +59,23 @@ FIXED_STD_S = 0.01
 MIN_STD_S = 0.005  # the 6 ms candidate grid, refined by a parabola
 STD_FALL = 0.98  # per informative fix: the std shrinks by e in ~10 s at 5 Hz
 MIN_SPEED_SPREAD = 0.3  # m/s: the regression needs some speed variation in its memory
+SLIP_FREE_ACCEL = 0.1  # m/s^2: decelerating less than this, the wheels' slip is below their noise
+RATIO_ERROR = 0.005  # the antenna-to-wheel ratio's error from the filter's vy (the corner exit's step is 4 %)
+AX_SMOOTH_S = 0.1  # s: the braking test averages the accelerometer over this (its noise)
+
+
+def _antenna_to_wheel(X: np.ndarray, aux: np.ndarray, lever: tuple[float, float], wheels) -> np.ndarray:
+    """Per history row: the antenna's speed over the speed the fused wheels read (at the true
+    radius), from the filter's velocity, the yaw rate and the steering angle."""
+    vx, vy, r = X[:, VX], X[:, VY], aux[:, AUX_R]
+    ant = np.hypot(vx - r * lever[1], vy + r * lever[0])
+    if wheels is not None and wheels.frac:
+        d = np.nan_to_num(aux[:, AUX_DELTA])
+        f = wheels.frac
+        read = vx * (1.0 - f) + f * (vx * np.cos(d) + (vy + wheels.lf * r) * np.sin(d))
+    else:
+        read = vx
+    return np.where(read > 1.0, ant / np.maximum(read, 1.0), 1.0)
 
 
 class LatencyEstimator:
@@ -70,6 +92,8 @@ class LatencyEstimator:
         self.prior_std_s = min(max(prior_std_s, MIN_STD_S), PRIOR_STD_S)
         self.std_s = self.prior_std_s if enabled else FIXED_STD_S
         self.max_steps = max(2, int(max_s / dt))
+        w = max(1, min(self.max_steps, round(AX_SMOOTH_S / dt)))
+        self._box = np.full(w, 1.0 / w)
         n = self.max_steps + 1
         self.forgetting = forgetting
         # sufficient statistics of y = [x, e..., 1] . theta per candidate (x: delayed wheel speed,
@@ -82,9 +106,29 @@ class LatencyEstimator:
         self.cost = np.zeros(n)
         self.references = [self]  # the timing references whose statistics decide (attach())
         self.owner: LatencyEstimator | None = None  # the estimator this one's statistics feed
+        self.slip_free: LatencyEstimator | None = None  # the wheels' fixes without braking (observe)
 
-    def observe(self, k_rx: int, speed: float, hist: StepHistory) -> None:
-        """Feed one GNSS fix received just before step k_rx (history ends at k_rx - 1)."""
+    def observe(self, k_rx: int, speed: float, hist: StepHistory, lever: tuple[float, float] = (0.0, 0.0),
+                wheels=None) -> None:
+        """Feed one GNSS fix received just before step k_rx (history ends at k_rx - 1).
+
+        ``lever``: the antenna's position from the CG; ``wheels``: the wheel-speed fusion whose
+        measured speed the history holds (its front share ``frac``, ``lf``, ``use_all``).
+        The wheels read vx (the front pair turned with the steering) where the receiver reads
+        the antenna's speed |v + r x lever|: in a tight circle at 6 m/s the two differ by 4 %,
+        and that ratio steps at a corner's exit, which a plain regression reads as timing
+        (-0.13 s on a 9 m circle). So the GNSS speed is divided by the filter's ratio of the
+        two at the current delay estimate, the same for every candidate: a step in it that the
+        current delay places wrong costs every candidate alike and moves none.
+
+        Braked wheels turn slower than the car by v * kappa (kappa ~ |ax| m / C_x), a speed
+        error proportional to the deceleration: that is a timing error of v m / C_x however hard
+        the braking. The fixes whose window does not brake (undriven wheels do not slip
+        otherwise; on an all-wheel drive traction counts too) are also kept apart
+        (``slip_free``): while the accelerometer reference (:class:`SpeedIntegral`, no slip) has a
+        profile, it judges all the wheels' fixes (the braking ones carry most of a race car's
+        timing: Revs kept its latency std at 0.013 s instead of 0.031 s at the 90th percentile);
+        while it has none (mid-corner, after an outage), the unbraked fixes judge them."""
         if not self.enabled or speed < MIN_SPEED:
             return
         m = np.arange(self.max_steps + 1)
@@ -93,23 +137,55 @@ class LatencyEstimator:
         if not ok.all():
             return  # not enough history yet (start-up / after a reset)
         slot = cand % hist.n
-        x = hist.aux[slot, AUX_WHEEL]
+        aux = hist.aux[slot]
+        x = aux[:, AUX_WHEEL]
         if not np.isfinite(x).all() or x.min() < MIN_SPEED:
             return
-        self.observe_series(x, speed)
+        # the speed's rate (vx ax + vy ay) / |v| over the window (not ax alone: in a sideslipping
+        # circle ax reads a share of the centripetal acceleration), averaged over a tenth of a
+        # second (sensor noise)
+        X = hist.X[slot]
+        vx, vy = X[:, VX], X[:, VY]
+        rate = (vx * aux[:, AUX_AX] + vy * aux[:, AUX_AY]) / np.maximum(np.hypot(vx, vy), 1.0)
+        ax = np.convolve(rate, self._box, mode="valid")
+        use_all = wheels is not None and wheels.use_all
+        slip_free = (np.abs(ax) if use_all else -ax).max() <= SLIP_FREE_ACCEL
+        # the ratio carries the filter's vy error, |vy_ant| / |v|^2 of it (relative): on
+        # a flying start mid-corner the sideslip is not known yet, and its convergence is a ramp
+        # in the ratio that reads as timing; those fixes wait
+        vy_ant = np.abs(vy + aux[:, AUX_R] * lever[0])
+        vy_std = np.sqrt(np.maximum(hist.P[slot, VY, VY], 0.0))
+        if not (vy_ant * vy_std).max() <= RATIO_ERROR * max(speed, MIN_SPEED) ** 2:
+            self._refine()  # no new data; the std's fall (a time constant) goes on
+            return
+        # the GNSS speed as the wheels would read it, through the ratio at the current delay: one
+        # factor for every candidate, so the timing comes from the wheels' own speed changes and
+        # not from the filter's ratio (which a slalom at constant speed modulates, and whose
+        # errors would then read as timing)
+        c = min(max(int(round(self.delay_s / self.dt)) - 1, 0), self.max_steps)
+        ratio = _antenna_to_wheel(X[c:c + 1], aux[c:c + 1], lever, wheels)[0]
+        if slip_free:
+            if self.slip_free is None:
+                self.slip_free = LatencyEstimator(self.dt, self.delay_s, (self.max_steps + 0.5) * self.dt,
+                                                  forgetting=self.forgetting, min_spread=self.min_spread)
+            self.slip_free._accumulate(x, speed / ratio)
+        self.observe_series(x, speed / ratio)
 
     def observe_series(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
         """One observation ``y ~ a * x[m] + c . extra + b`` for every candidate m (``x[m]``: the
         reference signal at the candidate validity step, a delay of m + 1 steps)."""
         if not self.enabled:
             return
+        self._accumulate(x, y, extra)
+        self._refine()
+
+    def _accumulate(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
         z = np.stack((x, *(np.full_like(x, e) for e in extra), np.ones_like(x)), axis=1)
         lam = self.forgetting
         self.zz = lam * self.zz + z[:, :, None] * z[:, None, :]
         self.zy = lam * self.zy + z * y
         self.syy = lam * self.syy + y * y
         self.updates += 1
-        self._refine()
 
     def shift(self, offsets: tuple[float, ...]) -> None:
         """Re-anchor the regressors: x and the extras from now on are read less ``offsets`` (an
@@ -177,6 +253,12 @@ class LatencyEstimator:
             return
         profiles = [ref._profile() for ref in self.references]
         judge = profiles[-1] if len(profiles) > 1 else None
+        if judge is None and self.slip_free is not None and profiles[0] is not None:
+            # no accelerometer to judge the wheels: their fixes without braking judge them all
+            # instead (braking slip shows as a timing bias), as the accelerometer would
+            sf = self.slip_free._profile()
+            if sf is not None and sf[0][int(np.argmin(profiles[0][0]))] > LR_REJECT:
+                profiles[0] = sf
         if judge is not None:
             # The last reference attached (the accelerometer's) has no lag and no slip; the
             # others (the wheels) have both, and they show as a timing bias. A reference whose
