@@ -10,7 +10,9 @@ setup(ext_modules=[Extension(
     "ecu_daemon.estimator._kernels",
     sources=["ecu_daemon/estimator/_kernels.c"],
     depends=["ecu_daemon/estimator/_generated.h"],
-    extra_compile_args=["-O2", "-ffp-contract=off"],
+    # -O3 vectorises across independent outputs only (no reassociation without -ffast-math, no
+    # fused multiply-adds with -ffp-contract=off): the same bits as -O2, the rewind ~1.3x faster
+    extra_compile_args=["-O3", "-ffp-contract=off"],
     optional=True,
 ), Extension(  # output frame packing (ecu_daemon/outputs.py falls back to its Python reference)
     "ecu_daemon._frames",

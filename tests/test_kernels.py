@@ -173,13 +173,39 @@ def _history(n=40, last=100):
     return h
 
 
+def _reduction(kind):
+    """A covariance reduction M small enough to keep every P positive definite: of rank 1 or 2
+    (what a late update takes off), of full rank, or indefinite with a zero diagonal (the compiled
+    rewind carries the last two whole instead of through a low-rank factor)."""
+    if kind == "indefinite":
+        M = np.zeros((NX, NX))
+        M[0, 1] = M[1, 0] = 1e-3
+        return M
+    G = 0.03 * RNG.normal(size=(NX, {"rank1": 1, "rank2": 2, "full": NX}[kind]))
+    return G @ G.T
+
+
+def test_the_rewind_carries_a_late_update_through_its_low_rank_factor():
+    """What a 1- or 2-D late update takes off the covariance (K S K') is carried through the
+    history as K (8 x m), not as the 8 x 8 product: rank 1 and 2 found, the rest carried whole."""
+    rank = backend.compiled.reduction_rank
+    assert [rank(_reduction(k)) for k in ("rank1", "rank2", "full", "indefinite")] == [1, 2, -1, -1]
+    assert rank(np.zeros((NX, NX))) == 0
+    P0 = spd()
+    for m in (1, 2):
+        dx, M = np.zeros(NX), np.zeros((NX, NX))
+        kalman.late_update(P0.copy(), RNG.normal(size=(m, NX)), np.diag(RNG.uniform(0.1, 0.5, m)),
+                           RNG.normal(size=m), dx, M)
+        assert rank(M) == m
+
+
+@pytest.mark.parametrize("kind", ["rank1", "rank2", "full", "indefinite"])
 @pytest.mark.parametrize("depth", [0, 1, 7, 39])
-def test_correct_agrees(depth):
+def test_correct_agrees(depth, kind):
     h0 = _history()
     s = h0.last - depth
     dx = 0.1 * RNG.normal(size=NX)
-    G = 0.03 * RNG.normal(size=(NX, 2))
-    M = G @ G.T  # a rank-2 reduction, small enough to keep every P positive definite
+    M = _reduction(kind)
 
     def run():
         h = StepHistory(h0.n)

@@ -56,26 +56,28 @@ static void symmetrize(double *P)
         }
 }
 
-/* 1 if P is finite and positive definite (its Cholesky factor exists). */
+/* 1 if P is finite and positive definite: every pivot of its L D L' factorisation (the
+ * Cholesky factor's squared diagonal, without the square roots) is > 0. One division per column
+ * and no sqrt: this runs on every stored step a late GNSS fix corrects. */
 static int positive_definite(const double *P)
 {
-    double L[N * N];
+    double L[N * N], W[N * N]; /* W = L D (unit lower L, D the pivots) */
     for (int a = 0; a < N * N; a++)
         if (!isfinite(P[a]))
             return 0;
     for (int j = 0; j < N; j++) {
         double d = P[j * N + j];
         for (int k = 0; k < j; k++)
-            d -= L[j * N + k] * L[j * N + k];
+            d -= W[j * N + k] * L[j * N + k];
         if (!(d > 0.0))
             return 0;
-        double ljj = sqrt(d);
-        L[j * N + j] = ljj;
+        double inv = 1.0 / d;
         for (int i = j + 1; i < N; i++) {
-            double s = P[i * N + j];
+            double w = P[i * N + j];
             for (int k = 0; k < j; k++)
-                s -= L[i * N + k] * L[j * N + k];
-            L[i * N + j] = s / ljj;
+                w -= W[i * N + k] * L[j * N + k];
+            W[i * N + j] = w;
+            L[i * N + j] = w * inv;
         }
     }
     return 1;
@@ -308,9 +310,54 @@ static PyObject *k_symmetrize(PyObject *self, PyObject *arg)
     Py_RETURN_NONE;
 }
 
+/* M = sum_c D[c] u_c u_c' (u_c = U + c * N): a symmetric matrix of rank r <= LOWRANK_MAX, by
+ * elimination with symmetric pivoting (the largest remaining |diagonal| first). What a late
+ * update takes off the covariance is M = P - Joseph(P) = K S K' (rank = the measurement's
+ * dimension, 1 or 2), so carrying U instead of M through the history costs an 8 x r product per
+ * step instead of two 8 x 8 ones. Stops when what remains is rounding (every |entry| <= 1e-13 of
+ * M's largest); -1 (carry M whole) when the pivot is not the largest entry's size (an indefinite
+ * M) or more than LOWRANK_MAX terms would be needed. */
+#define LOWRANK_MAX 4
+static int lowrank_factor(const double *M, double *U, double *D)
+{
+    double R[N * N];
+    memcpy(R, M, sizeof(R));
+    double scale = 0.0;
+    for (int a = 0; a < N * N; a++)
+        if (fabs(M[a]) > scale)
+            scale = fabs(M[a]);
+    if (!isfinite(scale))
+        return -1;
+    for (int r = 0;; r++) {
+        double amax = 0.0;
+        for (int a = 0; a < N * N; a++)
+            if (fabs(R[a]) > amax)
+                amax = fabs(R[a]);
+        if (amax <= 1e-13 * scale)
+            return r;
+        if (r == LOWRANK_MAX)
+            return -1;
+        int p = 0;
+        for (int a = 1; a < N; a++)
+            if (fabs(R[a * N + a]) > fabs(R[p * N + p]))
+                p = a;
+        double d = R[p * N + p];
+        if (!(fabs(d) >= 0.5 * amax))
+            return -1;
+        double *u = U + r * N;
+        for (int a = 0; a < N; a++)
+            u[a] = R[a * N + p] / d;
+        D[r] = d;
+        for (int a = 0; a < N; a++)
+            for (int b = 0; b < N; b++)
+                R[a * N + b] -= d * u[a] * u[b];
+    }
+}
+
 /* correct(X, P, A, s, last, dx, M) -> bool: the history shift of history.py, carried step by step
- * (d_j = A_j d_{j-1}, M_j = A_j M_{j-1} A_j'); every corrected P symmetric and checked positive
- * definite before anything is written (False: nothing changed). */
+ * (d_j = A_j d_{j-1}, M_j = A_j M_{j-1} A_j', M_j through its low-rank factor when it has one:
+ * lowrank_factor); every corrected P symmetric and checked positive definite before anything is
+ * written (False: nothing changed). */
 static PyObject *k_correct(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
     if (nargs != 7) {
@@ -351,9 +398,10 @@ static PyObject *k_correct(PyObject *self, PyObject *const *args, Py_ssize_t nar
         PyErr_NoMemory();
         goto r_m;
     }
-    double d[N], M[N * N], T[N * N];
+    double d[N], M[N * N], T[N * N], U[LOWRANK_MAX * N], D[LOWRANK_MAX];
     memcpy(d, dx, sizeof(d));
     memcpy(M, M0, sizeof(M));
+    int rank = count > 1 ? lowrank_factor(M0, U, D) : -1;
     int ok = 1;
     for (long long c = 0; c < count && ok; c++) {
         long long slot = (s + c) % n;
@@ -369,21 +417,42 @@ static PyObject *k_correct(PyObject *self, PyObject *const *args, Py_ssize_t nar
                 d2[a] = v;
             }
             memcpy(d, d2, sizeof(d));
-            for (int a = 0; a < N; a++) /* T = A M */
-                for (int b = 0; b < N; b++) {
-                    double v = 0.0;
-                    for (int k = 0; k < N; k++)
-                        v += Ak[a * N + k] * M[k * N + b];
-                    T[a * N + b] = v;
+            if (rank >= 0) {
+                for (int r = 0; r < rank; r++) { /* u_r = A u_r */
+                    double *u = U + r * N, u2[N];
+                    for (int a = 0; a < N; a++) {
+                        double v = 0.0;
+                        for (int b = 0; b < N; b++)
+                            v += Ak[a * N + b] * u[b];
+                        u2[a] = v;
+                    }
+                    memcpy(u, u2, sizeof(u2));
                 }
-            for (int a = 0; a < N; a++) /* M = T A', lower triangle mirrored */
-                for (int b = 0; b <= a; b++) {
-                    double v = 0.0;
-                    for (int k = 0; k < N; k++)
-                        v += T[a * N + k] * Ak[b * N + k];
-                    M[a * N + b] = v;
-                    M[b * N + a] = v;
-                }
+                for (int a = 0; a < N; a++) /* M = U D U', lower triangle mirrored */
+                    for (int b = 0; b <= a; b++) {
+                        double v = 0.0;
+                        for (int r = 0; r < rank; r++)
+                            v += D[r] * U[r * N + a] * U[r * N + b];
+                        M[a * N + b] = v;
+                        M[b * N + a] = v;
+                    }
+            } else {
+                for (int a = 0; a < N; a++) /* T = A M */
+                    for (int b = 0; b < N; b++) {
+                        double v = 0.0;
+                        for (int k = 0; k < N; k++)
+                            v += Ak[a * N + k] * M[k * N + b];
+                        T[a * N + b] = v;
+                    }
+                for (int a = 0; a < N; a++) /* M = T A', lower triangle mirrored */
+                    for (int b = 0; b <= a; b++) {
+                        double v = 0.0;
+                        for (int k = 0; k < N; k++)
+                            v += T[a * N + k] * Ak[b * N + k];
+                        M[a * N + b] = v;
+                        M[b * N + a] = v;
+                    }
+            }
         }
         double *xo = newX + c * N, *po = newP + c * N * N;
         const double *xi = X + slot * N, *pi = P + slot * N * N;
@@ -811,6 +880,19 @@ w_done:
     return ret;
 }
 
+/* reduction_rank(M) -> the number of terms correct() carries M through (-1: M whole); for tests. */
+static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
+{
+    Py_buffer b;
+    double *M = get_doubles(arg, &b, N * N, "M");
+    if (!M)
+        return NULL;
+    double U[LOWRANK_MAX * N], D[LOWRANK_MAX];
+    int r = lowrank_factor(M, U, D);
+    PyBuffer_Release(&b);
+    return PyLong_FromLong(r);
+}
+
 static PyMethodDef methods[] = {
     {"predict", (PyCFunction)(void (*)(void))k_predict, METH_FASTCALL,
      "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): one model step in place"},
@@ -823,6 +905,8 @@ static PyMethodDef methods[] = {
      "correct(X, P, A, s, last, dx, M) -> applied (False: a covariance would not be positive definite)"},
     {"late_update", (PyCFunction)(void (*)(void))k_late_update, METH_FASTCALL,
      "late_update(P, H, R, y, dx, M) -> NIS; dx = K y, M = P - Joseph(P) (NaN: S not positive definite)"},
+    {"reduction_rank", k_reduction_rank, METH_O,
+     "reduction_rank(M) -> terms of the low-rank factor correct() carries M through (-1: M whole)"},
     {"positive_definite", k_positive_definite, METH_O,
      "positive_definite(P) -> every 8x8 matrix of the stack is finite and positive definite"},
     {"axle_propagate", (PyCFunction)(void (*)(void))k_axle_propagate, METH_FASTCALL,
