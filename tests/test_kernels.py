@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ecu_daemon.estimator import Estimator, backend, kalman
+from ecu_daemon.estimator.fusion import single_track as st
 from ecu_daemon.estimator.fusion import stiffness_regression as sr
 from ecu_daemon.estimator.history import AUX_AY, AUX_R, NAUX, StepHistory, positive_definite
 from ecu_daemon.estimator.kinematic import NX, KinematicModel
@@ -284,6 +285,35 @@ def test_axle_filter_kernels_agree():
     P = comp[4]
     assert np.array_equal(P, P.T) and comp[3][sr.TAU] == comp[1][sr.TAU]  # tau considered: not updated
     assert comp[1][sr.TAU] == pytest.approx(0.31)
+
+
+@pytest.mark.parametrize("case", ["inside the prior", "forgotten beyond it", "beyond it, not PD"])
+def test_single_track_rls_update_agrees(case):
+    """The single-track compliance learner's RLS step (single_track.rls_update): the plain step,
+    and forgetting that would inflate P beyond the prior (clipped to it entrywise while P stays
+    positive definite, else reset to it)."""
+    P0 = np.diag([0.04, 0.09])
+    k0 = np.array([0.2, 0.1])
+    P_in = {"inside the prior": np.array([[0.01, 0.004], [0.004, 0.02]]),
+            "forgotten beyond it": np.array([[0.0405, 0.01], [0.01, 0.05]]),
+            "beyond it, not PD": np.array([[0.0405, 0.3], [0.3, 0.05]])}[case]
+
+    def run():
+        k, P = k0.copy(), P_in.copy()
+        e = st.rls_update(k, P, P0, 0.8, 0.3, 0.5, 1e-3 if case == "inside the prior" else 1e6, 0.999)
+        return st.rls_update is st.rls_update_reference, e, k, P
+
+    (ref, er, kr, Pr), (ref_c, ec, kc, Pc) = _both(run)
+    assert ref and not ref_c
+    assert er == pytest.approx(0.5 - (0.8 * 0.2 + 0.8 * 0.3 * 0.1), rel=1e-12) and ec == pytest.approx(er, rel=1e-12)
+    np.testing.assert_allclose(kc, kr, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(Pc, Pr, rtol=1e-12, atol=1e-15)
+    if case == "inside the prior":
+        assert Pc[0, 0] < P_in[0, 0] and kc[0] > k0[0]
+    elif case == "forgotten beyond it":  # clipped to the prior entrywise, not reset
+        assert Pc[0, 0] == P0[0, 0] and Pc[0, 1] == Pc[1, 0] == 0.0 and P_in[1, 1] < Pc[1, 1] < P0[1, 1]
+    else:
+        np.testing.assert_array_equal(Pc, P0)
 
 
 @pytest.mark.parametrize("lo,hi,s", [(3, 23, 13), (40, 60, 50), (45, 55, 47), (55, 75, 65)])

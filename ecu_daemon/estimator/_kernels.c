@@ -880,6 +880,59 @@ w_done:
     return ret;
 }
 
+/* ---- the single-track model's live cornering-compliance learner (fusion/single_track.py) ---- */
+
+/* rls_update(k, P, P0, phi, n2, y, rv, lam) -> e: one RLS step of AxleRls's [k1, k3] in place,
+ * regressor h = [phi, phi n2]; e = y - h'k before the step. P is kept from growing beyond the
+ * prior P0 under forgetting: min(P, P0) entrywise if P is still positive definite, else P0 (the
+ * 2x2 eigenvalues of its lower triangle, as numpy's eigvalsh takes them). */
+static PyObject *k_rls_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "rls_update(k, P, P0, phi, n2, y, rv, lam)");
+        return NULL;
+    }
+    double phi = PyFloat_AsDouble(args[3]), n2 = PyFloat_AsDouble(args[4]);
+    double y = PyFloat_AsDouble(args[5]), rv = PyFloat_AsDouble(args[6]), lam = PyFloat_AsDouble(args[7]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bk, bp, b0;
+    double *k = get_doubles(args[0], &bk, 2, "k");
+    if (!k)
+        return NULL;
+    double *P = get_doubles(args[1], &bp, 4, "P");
+    if (!P) {
+        PyBuffer_Release(&bk);
+        return NULL;
+    }
+    double *P0 = get_doubles(args[2], &b0, 4, "P0");
+    if (!P0) {
+        PyBuffer_Release(&bp);
+        PyBuffer_Release(&bk);
+        return NULL;
+    }
+    double h[2] = {phi, phi * n2};
+    double Ph[2] = {P[0] * h[0] + P[1] * h[1], P[2] * h[0] + P[3] * h[1]};
+    double S = (h[0] * Ph[0] + h[1] * Ph[1]) + rv;
+    double g[2] = {Ph[0] / S, Ph[1] / S};
+    double e = y - (h[0] * k[0] + h[1] * k[1]);
+    k[0] += g[0] * e;
+    k[1] += g[1] * e;
+    for (int a = 0; a < 2; a++)
+        for (int b = 0; b < 2; b++)
+            P[a * 2 + b] = (P[a * 2 + b] - g[a] * Ph[b]) / lam;
+    if (P[0] > P0[0] || P[3] > P0[3]) {
+        double m = 0.5 * (P[0] + P[3]), r = hypot(0.5 * (P[0] - P[3]), P[2]);
+        int pd = m - r > 0.0; /* the smaller eigenvalue (lower triangle); NaN: not */
+        for (int a = 0; a < 4; a++)
+            P[a] = pd && !(P0[a] < P[a]) ? P[a] : P0[a]; /* numpy's minimum keeps a NaN */
+    }
+    PyBuffer_Release(&b0);
+    PyBuffer_Release(&bp);
+    PyBuffer_Release(&bk);
+    return PyFloat_FromDouble(e);
+}
+
 /* reduction_rank(M) -> the number of terms correct() carries M through (-1: M whole); for tests. */
 static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
 {
@@ -905,6 +958,8 @@ static PyMethodDef methods[] = {
      "correct(X, P, A, s, last, dx, M) -> applied (False: a covariance would not be positive definite)"},
     {"late_update", (PyCFunction)(void (*)(void))k_late_update, METH_FASTCALL,
      "late_update(P, H, R, y, dx, M) -> NIS; dx = K y, M = P - Joseph(P) (NaN: S not positive definite)"},
+    {"rls_update", (PyCFunction)(void (*)(void))k_rls_update, METH_FASTCALL,
+     "rls_update(k, P, P0, phi, n2, y, rv, lam) -> e: the single-track compliance learner's RLS step"},
     {"reduction_rank", k_reduction_rank, METH_O,
      "reduction_rank(M) -> terms of the low-rank factor correct() carries M through (-1: M whole)"},
     {"positive_definite", k_positive_definite, METH_O,

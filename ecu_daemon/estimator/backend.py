@@ -3,7 +3,8 @@
 The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under the same names,
 ``kinematic.KinematicModel.predict``, ``kalman.scalar_update`` / ``index_update`` /
 ``late_update`` / ``symmetrize``, ``history.StepHistory.correct`` and the stiffness regression's
-``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``); the pure-Python
+``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``) and the
+single-track learner's ``rls_update`` (``fusion/single_track.py``); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -13,12 +14,13 @@ import contextlib
 import logging
 
 from . import history, kalman, kinematic
-from .fusion import stiffness_regression
+from .fusion import single_track, stiffness_regression
 
 log = logging.getLogger(__name__)
 
 KERNELS = ("predict", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
 STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum", "window_fit")
+SINGLE_TRACK_KERNELS = ("rls_update",)
 
 try:
     from . import _kernels as compiled
@@ -26,7 +28,8 @@ try:
 except ImportError as e:  # no compiler at install time, or a source checkout never built
     compiled = None
     _import_error = str(e)
-if compiled is not None and not all(hasattr(compiled, name) for name in KERNELS + STIFFNESS_KERNELS):
+if compiled is not None and not all(hasattr(compiled, name)
+                                    for name in KERNELS + STIFFNESS_KERNELS + SINGLE_TRACK_KERNELS):
     _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
     compiled = None
 
@@ -54,6 +57,8 @@ def select(use_compiled: bool = True) -> str:
     for name in STIFFNESS_KERNELS:
         setattr(stiffness_regression, name,
                 getattr(compiled, name) if on else getattr(stiffness_regression, name + "_reference"))
+    for name in SINGLE_TRACK_KERNELS:
+        setattr(single_track, name, getattr(compiled, name) if on else getattr(single_track, name + "_reference"))
     return active()
 
 

@@ -33,6 +33,26 @@ MIN_SPEED = 0.5  # m/s; at low speed the relation tends to slip-free kinematics,
 CORNER_STEPS = 330.0  # 6 ms steps in ~2 s, the correlation time of parameter/nonlinearity errors
 
 
+def rls_update_reference(k: np.ndarray, P: np.ndarray, P0: np.ndarray, phi: float, n2: float, y: float,
+                         rv: float, lam: float) -> float:
+    """One RLS step of :class:`AxleRls`'s [k1, k3] in place (regressor h = [phi, phi n2],
+    measurement y, its variance rv, forgetting lam); returns the prediction error y - h'k before
+    the step. The numpy reference; ``backend.py`` swaps in the compiled one as ``rls_update``."""
+    h = np.array([phi, phi * n2])
+    Ph = P @ h
+    g = Ph / (h @ Ph + rv)
+    e = float(y - h @ k)
+    k += g * e
+    P[:] = (P - np.outer(g, Ph)) / lam
+    # forgetting must not inflate beyond the prior (no information -> back to the prior)
+    if P[0, 0] > P0[0, 0] or P[1, 1] > P0[1, 1]:
+        P[:] = np.minimum(P, P0) if np.all(np.linalg.eigvalsh(P) > 0) else P0
+    return e
+
+
+rls_update = rls_update_reference
+
+
 class AxleRls:
     """Recursive least squares for one axle's slip compliance, with tyre saturation.
 
@@ -61,18 +81,10 @@ class AxleRls:
                 h0 * h0 * (P[0, 0] + self.rel_var) + 2.0 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1])
 
     def update(self, phi: float, n2: float, y: float, rv: float, lam: float = 0.999) -> None:
-        h = np.array([phi, phi * n2])
-        Ph = self.P @ h
-        g = Ph / (h @ Ph + rv)
-        e = y - h @ self.k
+        e = rls_update(self.k, self.P, self.P0, phi, n2, y, rv, lam)
         if phi * phi * self.k10 * self.k10 > rv:  # the slip stands out of the vy noise: a model error
             rel = max(e * e - rv, 0.0) / (phi * phi)
             self.rel_var += 0.02 * (rel - self.rel_var)
-        self.k += g * e
-        self.P = (self.P - np.outer(g, Ph)) / lam
-        # forgetting must not inflate beyond the prior (no information -> back to the prior)
-        if self.P[0, 0] > self.P0[0, 0] or self.P[1, 1] > self.P0[1, 1]:
-            self.P = np.minimum(self.P, self.P0) if np.all(np.linalg.eigvalsh(self.P) > 0) else self.P0.copy()
         lo, hi = 0.33 * self.k10, 3.0 * self.k10
         self.k[0] = min(max(self.k[0], lo), hi)
         self.k[1] = min(max(self.k[1], -self.k10), 4.0 * self.k10)
