@@ -16,7 +16,8 @@ is exact for the linearised system (the later measurement updates are inside ``A
 Every corrected covariance is made exactly symmetric and checked positive definite (Cholesky);
 if one is not, the correction is undone and refused: a filter that believes a variance <= 0 is
 valid-while-wrong from then on. ``correct_reference`` is the numpy version; ``backend.py``
-swaps in the compiled one (the same math, carried step by step) as ``correct``.
+swaps in the compiled one (the same math, carried step by step, M = K S K' through its low-rank
+factor K) as ``correct``.
 """
 from __future__ import annotations
 
