@@ -192,6 +192,7 @@ def test_the_rewind_carries_a_late_update_through_its_low_rank_factor():
     rank = backend.compiled.reduction_rank
     assert [rank(_reduction(k)) for k in ("rank1", "rank2", "full", "indefinite")] == [1, 2, -1, -1]
     assert rank(np.zeros((NX, NX))) == 0
+    assert rank(np.full((NX, NX), np.nan)) == -1
     P0 = spd()
     for m in (1, 2):
         dx, M = np.zeros(NX), np.zeros((NX, NX))

@@ -323,11 +323,12 @@ static int lowrank_factor(const double *M, double *U, double *D)
     double R[N * N];
     memcpy(R, M, sizeof(R));
     double scale = 0.0;
-    for (int a = 0; a < N * N; a++)
+    for (int a = 0; a < N * N; a++) {
+        if (!isfinite(M[a]))
+            return -1;
         if (fabs(M[a]) > scale)
             scale = fabs(M[a]);
-    if (!isfinite(scale))
-        return -1;
+    }
     for (int r = 0;; r++) {
         double amax = 0.0;
         for (int a = 0; a < N * N; a++)
