@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from ecu_daemon import config as config_mod
-from ecu_daemon.estimator.road import G, BaselineMount, RoadAttitude
+from ecu_daemon.estimator.core import LEARNED_VERSION, Estimator
+from ecu_daemon.estimator.road import (G, ROLL_RATE_BIAS_LEARNED_FLOOR, ROLL_RATE_BIAS_PRIOR, BaselineMount,
+                                       RoadAttitude)
 from ecu_daemon.evaluate import evaluate
 from ecu_daemon.gnss import GnssStreamParser, encode
 from ecu_daemon.replay import run_replay
@@ -147,6 +149,41 @@ def test_a_roll_gyro_learns_the_roll_gradient_the_gain_state_does_not_know_yet()
     assert rms_g < 0.1 * DEG and rms_g < 0.2 * rms_p
     assert gyro.gyro.x[2] == pytest.approx(k_true, rel=0.1) and gyro.gyro.x[1] == pytest.approx(bias, abs=0.1 * DEG)
     assert np.mean(np.abs(err_g) <= 3 * np.array(std_g)) >= 0.99  # and its std says so
+
+
+def test_the_roll_gyro_bias_is_saved_in_the_learned_state_and_is_the_next_drives_prior():
+    """A slalom teaches the roll gyro its 0.4 deg/s bias; the learned-state file keeps it (with its
+    std), the restore check lets it through, and the next drive's gyro starts from it, never
+    trusted better than the power-up repeatability floor."""
+    k_true, bias = math.radians(3.0) / G, math.radians(0.4)
+    lag = DT / (0.05 + DT)
+    road = RoadAttitude(DT, 0.1, {}, roll_gyro=(0.0014, 2e-5))
+    assert "roll_rate_bias_radps" not in road.learned()  # nothing learned before the gyro ran
+    rng = np.random.default_rng(2)
+    f_lp, roll = 0.0, 0.0
+    for k in range(int(30.0 / DT)):
+        fy = 4.0 * math.sin(2 * math.pi * k * DT / 4.0)
+        f_lp += lag * (fy - f_lp)
+        p = (k_true * f_lp - roll) / DT + bias + 0.0014 * rng.standard_normal()
+        roll = k_true * f_lp
+        road.step(k, 0.0, 1e-4, 0.0, 1e-4, 0.0)
+        road.set_roll_gyro(fy, 0.0, 0.05 ** 2, 0.0, p, 0.0)
+    learned = road.learned()
+    assert learned["roll_rate_bias_radps"] == pytest.approx(bias, abs=0.1 * DEG)
+    assert learned["roll_rate_bias_std_radps"] < 0.3 * ROLL_RATE_BIAS_PRIOR
+    kept = Estimator._check_learned({"version": LEARNED_VERSION, **learned})
+    assert kept["roll_rate_bias_radps"] == learned["roll_rate_bias_radps"]
+    assert kept["roll_rate_bias_std_radps"] == learned["roll_rate_bias_std_radps"]
+    assert "roll_rate_bias_radps" not in Estimator._check_learned(
+        {"version": LEARNED_VERSION, "roll_rate_bias_radps": 1.0})  # 57 deg/s: no gyro's bias
+    # the next drive: the gyro starts from the restored bias, its std at least the floor
+    nxt = RoadAttitude(DT, 0.1, kept, roll_gyro=(0.0014, 2e-5))
+    nxt.step(0, 0.0, 1e-4, 0.0, 1e-4, 0.0)
+    nxt.set_roll_gyro(0.0, 0.0, 0.05 ** 2, 0.0, bias, 0.0)
+    assert nxt.gyro.x[1] == pytest.approx(learned["roll_rate_bias_radps"], abs=1e-9)
+    assert math.sqrt(nxt.gyro.P[1, 1]) == pytest.approx(ROLL_RATE_BIAS_LEARNED_FLOOR, rel=0.01)
+    # a drive without the gyro mapped keeps the learned bias for the next one that has it
+    assert RoadAttitude(DT, 0.1, kept).learned()["roll_rate_bias_radps"] == kept["roll_rate_bias_radps"]
 
 
 def test_a_roll_gyro_mapped_with_the_wrong_sign_gives_no_promised_roll():
