@@ -105,7 +105,7 @@ def test_a_partial_magnetometer_mapping_is_refused_in_one_line():
 
 def test_magnetometer_diag_pages_only_with_a_magnetometer_mapped():
     """A car without a magnetometer keeps the EST_DIAG rotation it had (25 pages), so its output
-    frames are unchanged; with one, pages 38 and 39 join."""
+    frames are unchanged; with one, pages 38 and 39 join (and 40, every aiding source's status)."""
     def pages(cfg):
         plan = next(p for p in OutputEncoder(cfg)._plans if p.name == "EST_DIAG")
         return [pg for pg, *_ in plan.pages]
@@ -115,7 +115,7 @@ def test_magnetometer_diag_pages_only_with_a_magnetometer_mapped():
     cfg.inputs.update(magnetometer_inputs())
     with_mag = pages(cfg)
     assert len(without) == 25 and 38 not in without
-    assert sorted(set(with_mag) - set(without)) == [38, 39]
+    assert sorted(set(with_mag) - set(without)) == [38, 39, 40]
 
 
 # ------------------------------------------------------------------------------- a drive

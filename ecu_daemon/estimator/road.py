@@ -155,6 +155,7 @@ class RollGyro:
         self.R = ROLL_MODEL_STD ** 2 * ROLL_MODEL_CORR_S / (ROLL_UPDATE_EVERY * dt)
         self.n = 0
         self.rejected = 0
+        self.last_rejected = False  # the last suspension pseudo-measurement was gated out
 
     def step(self, p_m: float, r: float, grade: float, f_lp: float, var_f: float) -> None:
         """One step: ``p_m`` the measured roll rate (NaN: stale, the roll is held and widened)."""
@@ -169,7 +170,8 @@ class RollGyro:
             return
         H = np.array([1.0, 0.0, -f_lp])
         y = x[2] * f_lp - x[0]
-        if not kalman.scalar_update_reference(x, P, y, H, self.R + x[2] * x[2] * var_f, GATE_SIGMA):
+        self.last_rejected = not kalman.scalar_update_reference(x, P, y, H, self.R + x[2] * x[2] * var_f, GATE_SIGMA)
+        if self.last_rejected:
             self.rejected += 1
             P[0, 0] += y * y  # the gyro and the suspension disagree: the roll is that uncertain
 
