@@ -99,6 +99,14 @@ class Diagnostics:
     mag_offset_rad: float = math.nan  # learned magnetic minus vehicle heading
     mag_offset_std_rad: float = math.nan
     mag_rejected: int = 0
+    # per optional aiding source (estimator/source_status.py codes): used / rejected / timed out / isolated
+    src_baseline: int = 0
+    src_roll_gyro: int = 0
+    src_mag: int = 0
+    src_baseline_elevation_rejected: int = 0
+    src_roll_gyro_rejected: int = 0
+    roll_gyro_bias_radps: float = math.nan  # learned roll-rate gyro bias; nan = not learned yet
+    roll_gyro_bias_std_radps: float = math.nan
     can_bus_state: int = BUS_ACTIVE
     can_error_frames: int = 0
     can_tx_failures: int = 0

@@ -26,6 +26,7 @@ from .config import Config, ConfigError
 from .dbc_loading import load_dbc
 from .diagnostics import Diagnostics
 from .estimator import estimate as estimate_module
+from .estimator import source_status
 from .estimator.estimate import ESTIMATE_FIELDS, Estimate
 from .integrity import CRC8H2F_TABLE, data_id_for, e2e_p2_crc, next_counter
 from .io.logging_setup import RateLimitedLog
@@ -125,10 +126,17 @@ _DIAG_FIELDS = {
     "MAG_STATE": ("mag_state", _CLAMP), "MAG_FIELD_NORM": ("mag_field_norm_t", _UNKNOWN_HI),
     "MAG_INCLINATION": ("mag_inclination_rad", _CLAMP), "MAG_OFFSET": ("mag_offset_rad", _CLAMP),
     "MAG_OFFSET_STD": ("mag_offset_std_rad", _UNKNOWN_HI), "MAG_REJECTED": ("mag_rejected", _WRAP),
+    "SRC_BASELINE": ("src_baseline", _CLAMP), "SRC_ROLL_GYRO": ("src_roll_gyro", _CLAMP),
+    "SRC_MAG": ("src_mag", _CLAMP),
+    "SRC_BASELINE_ELEVATION_REJECTED": ("src_baseline_elevation_rejected", _WRAP),
+    "SRC_ROLL_GYRO_REJECTED": ("src_roll_gyro_rejected", _WRAP),
+    "ROLL_GYRO_BIAS": ("roll_gyro_bias_radps", _CLAMP), "ROLL_GYRO_BIAS_STD": ("roll_gyro_bias_std_radps", _UNKNOWN_HI),
 }
 #: EST_DIAG pages of an optional source, sent only when the config maps it (a car without one sends
 #: the same pages, in the same rotation, as before the source existed)
-_OPTIONAL_PAGE_PREFIX = {"MAG_": ("mag_x", "mag_y", "mag_z")}
+_OPTIONAL_PAGE_PREFIX = {"MAG_": ("mag_x", "mag_y", "mag_z"), "ROLL_GYRO_": ("roll_rate",)}
+#: the EST_DIAG page of every optional aiding source's status: sent when the config names any
+_AIDING_PAGE_PREFIX = "SRC_"
 
 
 class OutputFrameError(ValueError):
@@ -265,6 +273,7 @@ class OutputEncoder:
         self.db = load_dbc(self.dbc_path, "[can] output_dbc", allow_non_strict=False)
         self.dt_s = float(cfg.estimator.dt_s)
         self._mapped = set(cfg.inputs)
+        self._aiding = source_status.configured(cfg)
         self._log = RateLimitedLog(log, log_interval_s)
         self.saturated: dict[str, int] = {}
         self.non_finite: dict[str, int] = {}
@@ -329,6 +338,8 @@ class OutputEncoder:
             if any(all(isinstance(n, str) and n.startswith(prefix) for n in signal_names)
                    and not self._mapped.issuperset(inputs)
                    for prefix, inputs in _OPTIONAL_PAGE_PREFIX.items()):
+                continue
+            if not self._aiding and all(isinstance(n, str) and n.startswith(_AIDING_PAGE_PREFIX) for n in signal_names):
                 continue
             values = {"CHECKSUM": 0, "COUNTER": 0, _DIAG_MUX: page}
             fields = []

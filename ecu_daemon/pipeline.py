@@ -35,6 +35,7 @@ from typing import Callable, NamedTuple
 from .config import Config
 from .diagnostics import Diagnostics, HostStatus
 from .estimator import Estimate, Estimator
+from .estimator import source_status
 from .estimator.estimate import STATUS_INPUT_STALE
 from .gnss.stream import GnssStreamParser, sum_stats
 from .io.health import build_diagnostics
@@ -43,6 +44,7 @@ from .signals import SignalDecoder
 from .step_grid import step_of
 
 MAG_INDEX = INPUT_INDEX["mag_x"]
+ROLL_INDEX = INPUT_INDEX["roll_rate"]
 DIAG_S = 0.05  # diagnostics (and the input staleness behind the validity mask) every 50 ms of steps
 
 CAN = "can"
@@ -143,6 +145,7 @@ class Pipeline:
     def __init__(self, cfg: Config, learned: dict | None = None, *, encode: bool = True,
                  gnss_connected: bool = False, record: TickRecord | None = None) -> None:
         self.cfg = cfg
+        self._baseline_configured = source_status.baseline_configured(cfg)
         self.dt = dt = cfg.estimator.dt_s
         self.decoder = SignalDecoder(cfg)
         self.estimator = Estimator(cfg, learned)
@@ -335,7 +338,9 @@ class Pipeline:
             gnss_delay_s=e.gnss_delay_s, host=self.host, gnss_connected=self.gnss_connected,
             error_frames=self.error_frames, status=e.status, isolation_events=dict(self.estimator.fdi.events),
             gnss_heading=self.estimator.heading, gnss_timeout_s=self.cfg.gnss.timeout_s,
-            mag=self.estimator.mag, mag_timeout_s=self.estimator.timeouts[MAG_INDEX])
+            mag=self.estimator.mag, mag_timeout_s=self.estimator.timeouts[MAG_INDEX],
+            road=self.estimator.road, roll_rate_t=self.estimator.held_t[ROLL_INDEX],
+            roll_rate_timeout_s=self.estimator.timeouts[ROLL_INDEX], baseline_configured=self._baseline_configured)
 
     def gnss_stats(self) -> dict:
         """GNSS parser counters summed over every receiver's ports."""

@@ -145,6 +145,7 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     """What a person does on the bench: candump -L | cantools decode dbc/ecu_daemon_outputs.dbc."""
     cfg = config.Config()
     cfg.inputs.update(config.magnetometer_inputs())  # its EST_DIAG pages are sent only with one mapped
+    cfg.inputs.update(config.roll_rate_input())  # and so is the roll gyro's
     enc = OutputEncoder(cfg)
     est = Estimate(t=12.5, sideslip_rad=0.01, sideslip_std_rad=0.002, heading_rad=1.0, heading_std_rad=0.02,
                    vx_mps=20.0, vy_mps=0.2, vx_std_mps=0.05, vy_std_mps=0.1, yaw_rate_radps=0.1,
@@ -157,7 +158,7 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
     log = tmp_path / "out.log"
     with CandumpWriter(log) as w:
         period = max(p for _, _, p, _ in enc.schedule)
-        for k in range(max(period, 2 * 27)):  # every message, and all 27 EST_DIAG pages
+        for k in range(max(period, 2 * 29)):  # every message, and all 29 EST_DIAG pages
             for msg in enc.frames(k, est, Diagnostics()):
                 w.write(msg)
     r = subprocess.run([sys.executable, "-m", "cantools", "decode", str(OUTPUTS_DBC)],
@@ -173,6 +174,31 @@ def test_cantools_decode_cli_reads_every_output_signal_from_a_candump(tmp_path):
                  "STATUS_STANDSTILL: MOVING", "STATUS_GNSS_REJECTED: GNSS_ACCEPTED", "GNSS_FIX_TYPE: NO_FIX",
                  "STATUS_GNSS_HEADING: NO_GNSS_HEADING", "GNSS_HEADING_STATE: NONE"):
         assert f"    {name}" in r.stdout, name
+
+
+def _diag_pages(cfg) -> set:
+    enc = OutputEncoder(cfg)
+    db = cantools.database.load_file(OUTPUTS_DBC)
+    est = Estimate(*([0.0] * 21), *([False] * 4), 0, 0, 0, 0)
+    pages = set()
+    for k in range(max(p for _, _, p, _ in enc.schedule) * 40):
+        for msg in enc.frames(k, est, Diagnostics()):
+            if db.get_message_by_frame_id(msg.arbitration_id).name == "EST_DIAG":
+                pages.add(msg.data[2])
+    return pages
+
+
+def test_aiding_source_pages_are_sent_only_for_the_sources_the_config_names():
+    """A car without a baseline, roll gyro or magnetometer sends the EST_DIAG pages it always
+    sent; a dual-antenna receiver adds AIDING_SOURCES (page 40), a roll gyro also ROLL_GYRO (41)."""
+    plain = _diag_pages(config.Config())
+    assert 40 not in plain and 41 not in plain and {0, 32, 36, 48} <= plain
+    dual = config.Config()
+    dual.gnss.baseline_m = 1.2
+    assert _diag_pages(dual) == plain | {40}
+    gyro = config.Config()
+    gyro.inputs.update(config.roll_rate_input())
+    assert _diag_pages(gyro) == plain | {40, 41}
 
 
 def test_every_validity_and_status_bit_has_a_value_table(outputs_db):

@@ -11,7 +11,9 @@ import pytest
 from ecu_daemon import config as config_mod
 from ecu_daemon.config import ConfigError, magnetometer_inputs
 from ecu_daemon.estimator.estimate import STATUS_MAGNETOMETER
+from ecu_daemon.estimator import source_status as ss
 from ecu_daemon.estimator.fusion import magnetometer as mg
+from ecu_daemon.estimator.kinematic import NX, PSI
 from ecu_daemon.evaluate import read_csv
 from ecu_daemon.outputs import OutputEncoder
 from ecu_daemon.sim.sensors import MagEvent, MagParams, magnetometer
@@ -90,6 +92,35 @@ def test_disturbance_detector_rejects_norm_and_inclination_changes_and_their_edg
     assert _feed(f, t, b)
 
 
+def test_the_magnetometer_source_status_follows_learning_disturbance_gate_and_silence():
+    """EST_DIAG's SRC_MAG through a real fusion object: waiting while it learns its field, rejected
+    on a disturbance, isolated once its gate refused two samples in a row (the heading is invalid
+    then), used when fused, timed out when silent; not configured without one."""
+    assert ss.mag_status(None, 0.0, 0.25) == ss.NOT_CONFIGURED
+    f = _fusion()
+    assert ss.mag_status(f, 0.0, 0.25) == ss.WAITING  # nothing received
+    b = 48e-6 * np.array([math.cos(math.radians(64.0)), 0.0, -math.sin(math.radians(64.0))])
+    t = 0.0
+    for _ in range(mg.NOMINAL_N):
+        _feed(f, t, b)
+        t += 0.02
+    assert ss.mag_status(f, t, 0.25) == ss.WAITING  # learning its nominal field
+    assert not _feed(f, t, b * 1.03) and ss.mag_status(f, t, 0.25) == ss.REJECTED  # a truck
+    t += mg.HOLD_S + 0.02
+    psi_mag = f.measure(t, *b, 0.0, 0.0)
+    assert f.undisturbed(t)
+    f.learn_offset(t, psi_mag, 0.0, 1e-6, 1e-6)
+    x, P, A = np.zeros(NX), np.eye(NX) * 1e-6, np.eye(NX)
+    x[PSI] = psi0 = (psi_mag - f.offset) % (2 * math.pi)
+    assert f.fuse(t, x, P, A, psi_mag, 1e-6) and ss.mag_status(f, t, 0.25) == ss.USED
+    x[PSI] = (psi0 + math.radians(30.0)) % (2 * math.pi)  # the filter 30 deg away: gated
+    assert not f.fuse(t, x, P, A, psi_mag, 1e-6, may_widen=False) and ss.mag_status(f, t, 0.25) == ss.REJECTED
+    assert not f.fuse(t, x, P, A, psi_mag, 1e-6, may_widen=False) and ss.mag_status(f, t, 0.25) == ss.ISOLATED
+    x[PSI] = psi0
+    assert f.fuse(t, x, P, A, psi_mag, 1e-6)
+    assert ss.mag_status(f, t + 0.1, 0.25) == ss.USED and ss.mag_status(f, t + 0.3, 0.25) == ss.TIMED_OUT
+
+
 def test_a_partial_magnetometer_mapping_is_refused_in_one_line():
     cfg = config_mod.Config()
     m = magnetometer_inputs()
@@ -105,7 +136,7 @@ def test_a_partial_magnetometer_mapping_is_refused_in_one_line():
 
 def test_magnetometer_diag_pages_only_with_a_magnetometer_mapped():
     """A car without a magnetometer keeps the EST_DIAG rotation it had (25 pages), so its output
-    frames are unchanged; with one, pages 38 and 39 join."""
+    frames are unchanged; with one, pages 38 and 39 join (and 40, every aiding source's status)."""
     def pages(cfg):
         plan = next(p for p in OutputEncoder(cfg)._plans if p.name == "EST_DIAG")
         return [pg for pg, *_ in plan.pages]
@@ -115,7 +146,7 @@ def test_magnetometer_diag_pages_only_with_a_magnetometer_mapped():
     cfg.inputs.update(magnetometer_inputs())
     with_mag = pages(cfg)
     assert len(without) == 25 and 38 not in without
-    assert sorted(set(with_mag) - set(without)) == [38, 39]
+    assert sorted(set(with_mag) - set(without)) == [38, 39, 40]
 
 
 # ------------------------------------------------------------------------------- a drive

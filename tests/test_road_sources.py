@@ -5,11 +5,15 @@ from __future__ import annotations
 
 import math
 
+import cantools
 import numpy as np
 import pytest
 
 from ecu_daemon import config as config_mod
-from ecu_daemon.estimator.road import G, BaselineMount, RoadAttitude
+from ecu_daemon.estimator import source_status
+from ecu_daemon.estimator.core import LEARNED_VERSION, Estimator
+from ecu_daemon.estimator.road import (G, ROLL_RATE_BIAS_LEARNED_FLOOR, ROLL_RATE_BIAS_PRIOR, BaselineMount,
+                                       RoadAttitude)
 from ecu_daemon.evaluate import evaluate
 from ecu_daemon.gnss import GnssStreamParser, encode
 from ecu_daemon.replay import run_replay
@@ -149,6 +153,41 @@ def test_a_roll_gyro_learns_the_roll_gradient_the_gain_state_does_not_know_yet()
     assert np.mean(np.abs(err_g) <= 3 * np.array(std_g)) >= 0.99  # and its std says so
 
 
+def test_the_roll_gyro_bias_is_saved_in_the_learned_state_and_is_the_next_drives_prior():
+    """A slalom teaches the roll gyro its 0.4 deg/s bias; the learned-state file keeps it (with its
+    std), the restore check lets it through, and the next drive's gyro starts from it, never
+    trusted better than the power-up repeatability floor."""
+    k_true, bias = math.radians(3.0) / G, math.radians(0.4)
+    lag = DT / (0.05 + DT)
+    road = RoadAttitude(DT, 0.1, {}, roll_gyro=(0.0014, 2e-5))
+    assert "roll_rate_bias_radps" not in road.learned()  # nothing learned before the gyro ran
+    rng = np.random.default_rng(2)
+    f_lp, roll = 0.0, 0.0
+    for k in range(int(30.0 / DT)):
+        fy = 4.0 * math.sin(2 * math.pi * k * DT / 4.0)
+        f_lp += lag * (fy - f_lp)
+        p = (k_true * f_lp - roll) / DT + bias + 0.0014 * rng.standard_normal()
+        roll = k_true * f_lp
+        road.step(k, 0.0, 1e-4, 0.0, 1e-4, 0.0)
+        road.set_roll_gyro(fy, 0.0, 0.05 ** 2, 0.0, p, 0.0)
+    learned = road.learned()
+    assert learned["roll_rate_bias_radps"] == pytest.approx(bias, abs=0.1 * DEG)
+    assert learned["roll_rate_bias_std_radps"] < 0.3 * ROLL_RATE_BIAS_PRIOR
+    kept = Estimator._check_learned({"version": LEARNED_VERSION, **learned})
+    assert kept["roll_rate_bias_radps"] == learned["roll_rate_bias_radps"]
+    assert kept["roll_rate_bias_std_radps"] == learned["roll_rate_bias_std_radps"]
+    assert "roll_rate_bias_radps" not in Estimator._check_learned(
+        {"version": LEARNED_VERSION, "roll_rate_bias_radps": 1.0})  # 57 deg/s: no gyro's bias
+    # the next drive: the gyro starts from the restored bias, its std at least the floor
+    nxt = RoadAttitude(DT, 0.1, kept, roll_gyro=(0.0014, 2e-5))
+    nxt.step(0, 0.0, 1e-4, 0.0, 1e-4, 0.0)
+    nxt.set_roll_gyro(0.0, 0.0, 0.05 ** 2, 0.0, bias, 0.0)
+    assert nxt.gyro.x[1] == pytest.approx(learned["roll_rate_bias_radps"], abs=1e-9)
+    assert math.sqrt(nxt.gyro.P[1, 1]) == pytest.approx(ROLL_RATE_BIAS_LEARNED_FLOOR, rel=0.01)
+    # a drive without the gyro mapped keeps the learned bias for the next one that has it
+    assert RoadAttitude(DT, 0.1, kept).learned()["roll_rate_bias_radps"] == kept["roll_rate_bias_radps"]
+
+
 def test_a_roll_gyro_mapped_with_the_wrong_sign_gives_no_promised_roll():
     """A flipped axis (scale -1 in the mapping): the filter would fit a negative roll gradient, a
     body leaning into the turn; no car does, so the roll is not promised (and never 3 sigma off)."""
@@ -165,6 +204,8 @@ def test_a_roll_gyro_mapped_with_the_wrong_sign_gives_no_promised_roll():
         road.set_roll_gyro(fy, 0.0, 0.05 ** 2, 0.0, p, 0.0)
         bad += abs(road.roll - roll) > 3 * road.roll_std
     assert bad == 0 and road.roll_std > 0.5 * DEG
+    # and the diagnostics say why: the gyro is isolated, not merely rejected once
+    assert source_status.roll_gyro_status(road, True, 29.9, 30.0, 0.25) == source_status.ISOLATED
 
 
 def test_a_stale_roll_gyro_widens_the_roll_instead_of_integrating_nothing():
@@ -213,3 +254,44 @@ def test_a_roll_rate_gyro_makes_the_roll_of_a_lane_change_better_and_honest(tmp_
     assert with_gyro["roll"]["rms"] < 0.1 * DEG and with_gyro["roll"]["rms"] < 0.3 * without["roll"]["rms"]
     assert with_gyro["roll"]["validity"]["coverage_3sigma"] >= 0.99
     assert with_gyro["roll"]["validity"]["valid_fraction_above_5mps"] > 0.8
+
+
+def test_est_diag_reports_the_baseline_and_the_roll_gyro_used_then_the_gyro_timed_out(tmp_path):
+    """The suite's dual_bank_roll_rate (moving-base pair across the car, roll gyro on CAN) with the
+    gyro's frames cut 20 s into the drive: on the bus, EST_DIAG's AIDING_SOURCES page says both
+    sources used (magnetometer not configured) before the cut and the gyro timed out after it;
+    its ROLL_GYRO page carries the learned gyro bias (the simulator's 0.3 deg/s)."""
+    sc = next(c.scenario for c in SUITE if c.name == "dual_bank_roll_rate")
+    cfg = vehicle_config(sc)
+    paths = write_all(tmp_path, simulate(sc, cfg), cfg)
+    cfg = config_mod.load(paths["config"])
+    db = cantools.database.load_file(str(cfg.output_dbc_path()))
+    roll_id = cantools.database.load_file(str(cfg.dbc_path())).get_message_by_name("IMU_ROLL").frame_id
+    lines = paths["can"].read_text().splitlines()
+    t0 = float(lines[0].split(")")[0][1:])
+    cut = [ln for ln in lines if not (int(ln.split()[2].split("#")[0], 16) == roll_id
+                                      and float(ln.split(")")[0][1:]) > t0 + 20.0)]
+    assert len(lines) - len(cut) > 500  # the gyro's frames after 20 s are gone
+    can_log = tmp_path / "cut.log"
+    can_log.write_text("\n".join(cut) + "\n")
+    out_can = tmp_path / "out.log"
+    run_replay(cfg, str(can_log), str(paths["gnss"]), str(tmp_path / "out.csv"), out_can=str(out_can))
+    diag_id = db.get_message_by_name("EST_DIAG").frame_id
+    pages = {40: [], 41: []}
+    for ln in out_can.read_text().splitlines():
+        t, _, frame = ln.split()
+        fid, data = frame.split("#")
+        if int(fid, 16) == diag_id:
+            d = db.decode_message(diag_id, bytes.fromhex(data))
+            if d["DIAG_PAGE"] in ("AIDING_SOURCES", "ROLL_GYRO"):
+                pages[40 if d["DIAG_PAGE"] == "AIDING_SOURCES" else 41].append((float(t[1:-1]) - t0, d))
+    before = [d for t, d in pages[40] if 10.0 < t < 20.0]
+    after = [d for t, d in pages[40] if t > 21.0]
+    assert before and after
+    assert all(str(d["SRC_BASELINE"]) == "USED" and str(d["SRC_ROLL_GYRO"]) == "USED" for d in before)
+    assert all(str(d["SRC_MAG"]) == "NOT_CONFIGURED" for d in before + after)
+    assert all(str(d["SRC_ROLL_GYRO"]) == "TIMED_OUT" for d in after)
+    assert any(str(d["SRC_BASELINE"]) == "USED" for d in after)  # the baseline goes on
+    t, last = pages[41][-1]
+    assert last["ROLL_GYRO_BIAS"] == pytest.approx(math.radians(0.3), abs=math.radians(0.1))
+    assert last["ROLL_GYRO_BIAS_STD"] < math.radians(0.1)

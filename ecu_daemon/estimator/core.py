@@ -310,7 +310,8 @@ class Estimator:
                   "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0),
                   "gnss_delay_std_s": (0.0, 1.0),
                   "accel_x_offset_mps2": 2.0, "accel_y_offset_mps2": 2.0,
-                  "accel_x_offset_std_mps2": (0.0, 10.0), "accel_y_offset_std_mps2": (0.0, 10.0)}
+                  "accel_x_offset_std_mps2": (0.0, 10.0), "accel_y_offset_std_mps2": (0.0, 10.0),
+                  "roll_rate_bias_radps": 0.1, "roll_rate_bias_std_radps": (0.0, 1.0)}
         for i in range(1, MAX_RECEIVERS):
             limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
             limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]

@@ -72,6 +72,9 @@ ROLL_UPDATE_EVERY = 3  # steps between suspension pseudo-measurements of the rol
 ROLL_MODEL_STD = math.radians(0.15)  # the suspension model's error (dynamics, road input) ...
 ROLL_MODEL_CORR_S = 0.5  # ... which lasts about this long (so it is not averaged away faster)
 ROLL_RATE_BIAS_PRIOR = math.radians(1.0)  # rad/s: a MEMS roll gyro's bias before it is learned
+#: rad/s: a restored roll-gyro bias (learned-state file) is never trusted better than this: a MEMS
+#: gyro's bias moves by about that much from one power-up to the next (as the yaw-rate bias's 0.3 deg/s)
+ROLL_RATE_BIAS_LEARNED_FLOOR = math.radians(0.3)
 ROLL_GRADIENT_WALK = 1e-5  # rad per m/s^2 per sqrt(s): load and tyre change the roll gradient slowly
 #: roll gradients a car can have (rad per m/s^2: 0 to 10 deg/g; bodies lean out of the turn): one
 #: outside says the gyro is not what its mapping claims (sign, scale), and the roll is not promised
@@ -141,15 +144,18 @@ class RollGyro:
     """
 
     def __init__(self, dt: float, gyro_noise: float, bias_walk: float, roll: float, k: float, k_std: float,
-                 f_lp: float):
+                 f_lp: float, bias: float = 0.0, bias_std: float = ROLL_RATE_BIAS_PRIOR):
+        """``bias`` / ``bias_std``: the gyro bias's prior (rad/s; a restored one, else 0 +- the
+        datasheet's ``ROLL_RATE_BIAS_PRIOR``)."""
         self.dt = dt
-        self.x = np.array([roll, 0.0, k])
-        self.P = np.diag([(f_lp * k_std) ** 2 + ROLL_MODEL_STD ** 2, ROLL_RATE_BIAS_PRIOR ** 2, k_std ** 2])
+        self.x = np.array([roll, bias, k])
+        self.P = np.diag([(f_lp * k_std) ** 2 + ROLL_MODEL_STD ** 2, bias_std ** 2, k_std ** 2])
         self.F = np.array([[1.0, -dt, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
         self.Q = np.diag([(gyro_noise ** 2 + ANGLE_WALK ** 2) * dt, bias_walk ** 2 * dt, ROLL_GRADIENT_WALK ** 2 * dt])
         self.R = ROLL_MODEL_STD ** 2 * ROLL_MODEL_CORR_S / (ROLL_UPDATE_EVERY * dt)
         self.n = 0
         self.rejected = 0
+        self.last_rejected = False  # the last suspension pseudo-measurement was gated out
 
     def step(self, p_m: float, r: float, grade: float, f_lp: float, var_f: float) -> None:
         """One step: ``p_m`` the measured roll rate (NaN: stale, the roll is held and widened)."""
@@ -164,7 +170,8 @@ class RollGyro:
             return
         H = np.array([1.0, 0.0, -f_lp])
         y = x[2] * f_lp - x[0]
-        if not kalman.scalar_update_reference(x, P, y, H, self.R + x[2] * x[2] * var_f, GATE_SIGMA):
+        self.last_rejected = not kalman.scalar_update_reference(x, P, y, H, self.R + x[2] * x[2] * var_f, GATE_SIGMA)
+        if self.last_rejected:
             self.rejected += 1
             P[0, 0] += y * y  # the gyro and the suspension disagree: the roll is that uncertain
 
@@ -205,6 +212,12 @@ class RoadAttitude:
         self._ring = np.full((max(history, 1), 3), np.nan) if any(self.baselines) else None
         self.roll_gyro_params = roll_gyro
         self.gyro: RollGyro | None = None
+        # the roll gyro's bias from an earlier drive (value, std), kept even while no gyro is mapped
+        self.roll_bias0: tuple[float, float] | None = None
+        if "roll_rate_bias_radps" in learned:
+            self.roll_bias0 = (learned["roll_rate_bias_radps"],
+                               max(learned.get("roll_rate_bias_std_radps", ROLL_RATE_BIAS_PRIOR),
+                                   ROLL_RATE_BIAS_LEARNED_FLOOR))
 
     def step(self, k: int, b_ax: float, var_bax: float, b_ay: float, var_bay: float, g_ay: float) -> None:
         """Every ``UPDATE_EVERY`` steps: the main filter's bias sums at step k."""
@@ -254,7 +267,8 @@ class RoadAttitude:
         gy = self.gyro
         if gy is None:
             k_std = math.sqrt(var_gay + GAIN_FLOOR ** 2) / G
-            gy = self.gyro = RollGyro(self.dt, *self.roll_gyro_params, g_ay / G * lp, g_ay / G, k_std, lp)
+            gy = self.gyro = RollGyro(self.dt, *self.roll_gyro_params, g_ay / G * lp, g_ay / G, k_std, lp,
+                                      *(self.roll_bias0 or ()))
         gy.step(p_m, r, float(self.grade.x[0]), lp, var_f)
         self.roll = float(gy.x[0])
         self.roll_std = math.sqrt(max(gy.P[0, 0], 0.0) + gy.x[2] * gy.x[2] * var_f) if gy.plausible() else math.pi
@@ -307,7 +321,15 @@ class RoadAttitude:
         return ch.updates > 0 and ch.std < ANGLE_STD_VALID
 
     def learned(self) -> dict:
-        return {"accel_x_offset_mps2": float(self.grade.x[1]),
-                "accel_x_offset_std_mps2": float(math.sqrt(self.grade.P[1, 1])),
-                "accel_y_offset_mps2": float(self.bank.x[1]),
-                "accel_y_offset_std_mps2": float(math.sqrt(self.bank.P[1, 1]))}
+        """The sensor offsets and (with a roll gyro, or restored from an earlier drive) the roll
+        gyro's bias, with their stds: the next drive's priors."""
+        out = {"accel_x_offset_mps2": float(self.grade.x[1]),
+               "accel_x_offset_std_mps2": float(math.sqrt(self.grade.P[1, 1])),
+               "accel_y_offset_mps2": float(self.bank.x[1]),
+               "accel_y_offset_std_mps2": float(math.sqrt(self.bank.P[1, 1]))}
+        if self.gyro is not None:
+            out["roll_rate_bias_radps"] = float(self.gyro.x[1])
+            out["roll_rate_bias_std_radps"] = float(math.sqrt(max(self.gyro.P[1, 1], 0.0)))
+        elif self.roll_bias0 is not None:
+            out["roll_rate_bias_radps"], out["roll_rate_bias_std_radps"] = map(float, self.roll_bias0)
+        return out

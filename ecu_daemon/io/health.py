@@ -12,6 +12,7 @@ import os
 import time
 
 from ..diagnostics import BUS_ACTIVE, BUS_NOT_AVAILABLE, BUS_OFF, BUS_PASSIVE, Diagnostics, HostStatus
+from ..estimator import source_status
 from ..estimator.fault_detection import SOURCE_BITS
 from ..estimator.fusion.gnss_heading import STATE_STALE
 from ..estimator.fusion.magnetometer import STATE_STALE as MAG_STALE
@@ -55,7 +56,8 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
                       gnss_delay_s: float, host: HostStatus | None, gnss_connected: bool = False,
                       error_frames: int = 0, status: int = 0, isolation_events: dict | None = None,
                       gnss_heading=None, gnss_timeout_s: float = math.inf, mag=None,
-                      mag_timeout_s: float = 0.25) -> Diagnostics:
+                      mag_timeout_s: float = 0.25, road=None, roll_rate_t: float = -math.inf,
+                      roll_rate_timeout_s: float = 0.25, baseline_configured: bool = False) -> Diagnostics:
     """The snapshot at step time ``t``. ``host``: the live host's part (:func:`host_status`);
     offline (replay of a foreign log) there is none: "not available" bus state, tick and CPU,
     ``gnss_connected`` as given and the log's own ``error_frames``. ``status``: the latest
@@ -63,7 +65,10 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
     isolation counts (``FaultDetector.events``); ``gnss_heading``: the estimator's
     ``GnssHeadingFusion`` (its last sample and what became of it), silent for longer than
     ``gnss_timeout_s`` reads as stale; ``mag``: the estimator's ``MagnetometerFusion`` (None: no
-    magnetometer mapped), silent for longer than ``mag_timeout_s`` reads as stale."""
+    magnetometer mapped), silent for longer than ``mag_timeout_s`` reads as stale; ``road``: the
+    estimator's ``RoadAttitude`` (baseline elevations, roll gyro), ``roll_rate_t`` the time of the
+    last roll-rate sample, ``baseline_configured`` a receiver has a baseline in the config; with
+    them the per-source status codes of ``estimator/source_status.py``."""
     d = Diagnostics()
     d.inputs = decoder.input_diagnostics(t)
     for name, src in d.sources.items():
@@ -94,6 +99,18 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
         d.mag_offset_rad = mag.offset
         d.mag_offset_std_rad = math.sqrt(mag.offset_var)
         d.mag_rejected = mag.rejected
+    if gnss_heading is not None:
+        d.src_baseline = source_status.baseline_status(gnss_heading, baseline_configured, t, gnss_timeout_s)
+    d.src_mag = source_status.mag_status(mag, t, mag_timeout_s)
+    if road is not None:
+        d.src_roll_gyro = source_status.roll_gyro_status(road, road.roll_gyro_params is not None, roll_rate_t, t,
+                                                         roll_rate_timeout_s)
+        d.src_baseline_elevation_rejected = road.elevation_rejected
+        gy = road.gyro
+        if gy is not None:
+            d.src_roll_gyro_rejected = gy.rejected
+            d.roll_gyro_bias_radps = float(gy.x[1])
+            d.roll_gyro_bias_std_radps = math.sqrt(max(float(gy.P[1, 1]), 0.0))
     if host is None:
         d.gnss_serial_connected = gnss_connected
         d.can_bus_state = BUS_NOT_AVAILABLE
