@@ -3,7 +3,8 @@
 Why: a replay used to pull frames one at a time through a generator chain (reader -> time
 order -> merge), a few microseconds of Python per frame before any decoding. Here the log is read
 once into arrays, in the same order and with the same checks as :func:`~ecu_daemon.canlog.read_can_log`
-(which it uses, so every format and every error message stays the reader's), and the time-order
+(candump text that ``_candump.c`` takes whole is parsed there in one pass; anything else, every
+other format and every error message stay the reader's), and the time-order
 policy (:class:`~ecu_daemon.time_order.TimeOrder`) runs item by item only for a log that needs it:
 a log that never goes back in time keeps every frame, so for it the check is one comparison of
 arrays.
@@ -11,12 +12,18 @@ arrays.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from .canlog import read_can_log
+from .canlog import _is_python_can, read_can_log
 from .signals import _EXTENDED_KEY
 from .time_order import TimeOrder
+
+try:
+    from . import _candump  # setup.py builds it; optional
+except ImportError:
+    _candump = None
 
 
 @dataclass
@@ -52,6 +59,9 @@ def read_can_arrays(path: str, order: TimeOrder, channel: str | None = None,
     """Every frame of the log that a replay hands over, in order (see the module docstring).
     Raises :class:`~ecu_daemon.canlog.CanLogError` and :class:`~ecu_daemon.time_order.TimeOrderError`
     as reading frame by frame does."""
+    fast = _parse_candump(path, channel, time_offset)
+    if fast is not None:
+        return _ordered(fast, order)
     reader = read_can_log(path, channel=channel, time_offset=time_offset)
     frames = list(reader)
     n = len(frames)
@@ -60,15 +70,39 @@ def read_can_arrays(path: str, order: TimeOrder, channel: str | None = None,
         t = np.array(t, dtype=np.float64)
     else:
         t, fid, ext, err, data = np.zeros(0), (), (), (), ()
+    return _ordered(CanArrays(t, np.array(fid, dtype=np.int64), np.array(ext, dtype=bool),
+                              np.array(err, dtype=bool), list(data), reader.channels), order)
+
+
+def _ordered(can: CanArrays, order: TimeOrder) -> CanArrays:
+    """``can`` as the time-order policy lets it through (all of it, unless it goes back in time)."""
+    t = can.t
+    n = len(t)
     if n > 1 and not bool(np.all(t[1:] >= t[:-1])):  # goes back somewhere: the item-by-item policy
-        kept = [i for _, i in order((ti, i) for i, ti in enumerate(t.tolist()))]
-        t = t[kept]
-        fid = [fid[i] for i in kept]
-        ext = [ext[i] for i in kept]
-        err = [err[i] for i in kept]
-        data = [data[i] for i in kept]
-    else:
-        order.items = n
-    return CanArrays(t, np.array(fid, dtype=np.int64), np.array(ext, dtype=bool), np.array(err, dtype=bool),
-                     list(data), reader.channels)
+        kept = np.array([i for _, i in order((ti, i) for i, ti in enumerate(t.tolist()))], dtype=np.int64)
+        return CanArrays(t[kept], can.fid[kept], can.ext[kept], can.err[kept],
+                         [can.data[i] for i in kept.tolist()], can.channels)
+    order.items = n
+    return can
+
+
+def _parse_candump(path: str, channel: str | None, time_offset: float) -> CanArrays | None:
+    """The log through ``_candump.parse`` when it is candump text that parser takes whole; None
+    otherwise (no extension, another format, an unreadable file, a line it leaves to the reader)."""
+    if _candump is None or _is_python_can(Path(path)) or Path(path).suffix.lower() == ".gz":
+        return None
+    try:
+        text = Path(path).read_bytes()
+    except OSError:
+        return None  # the reader says what is wrong
+    parsed = _candump.parse(text, channel)
+    if parsed is None:
+        return None
+    times, ids, flags, data, channels = parsed
+    t = np.frombuffer(times, dtype=np.float64).copy()
+    if time_offset:  # as the reader: round(t + offset, 6), frame by frame
+        t = np.array([round(x + time_offset, 6) for x in t.tolist()], dtype=np.float64)
+    f = np.frombuffer(flags, dtype=np.uint8)
+    return CanArrays(t, np.frombuffer(ids, dtype=np.int64).copy(), (f & 1).astype(bool), (f & 2).astype(bool),
+                     data, channels)
 

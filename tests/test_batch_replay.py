@@ -202,3 +202,42 @@ def test_can_arrays_keep_the_reader_order_and_drop_what_the_time_order_drops(dam
     assert can.t.tolist() == [f[0] for f in ref] and can.data == [f[4] for f in ref]
     assert can.err.sum() == sum(f[3] for f in ref) > 0
     assert np.all(can.keys()[can.err] == -1)
+
+
+def _reader_arrays(path, channel=None, offset=0.0):
+    r = read_can_log(path, channel=channel, time_offset=offset)
+    fr = list(r)
+    return ([f[0] for f in fr], [f[1] for f in fr], [f[2] for f in fr], [f[3] for f in fr], [f[4] for f in fr],
+            r.channels)
+
+
+@pytest.mark.parametrize("channel,offset", [(None, 0.0), (None, 3.1415927), ("can0", 0.0), ("can1", 0.0)])
+def test_compiled_candump_parser_gives_the_readers_frames(damaged, tmp_path, channel, offset):
+    from ecu_daemon.can_arrays import _candump, _parse_candump
+
+    if _candump is None:
+        pytest.skip("ecu_daemon._candump not built")
+    d, _ = damaged
+    lines = (d / "drive.log").read_text().splitlines()
+    lines += ["(1700000000.000001) can1 1FFFFFFF#00112233445566  T", "  (1700000000.5) can1 7FF#   ",
+              "(1700000001.000000) can1 20000080#0000000000000000 R\r"]
+    log = tmp_path / "two.log"
+    log.write_text("\n".join(lines) + "\n")
+    got = _parse_candump(str(log), channel, offset)
+    assert got is not None
+    want = _reader_arrays(log, channel, offset)
+    assert (got.t.tolist(), got.fid.tolist(), got.ext.tolist(), got.err.tolist(), got.data, got.channels) == want
+
+
+@pytest.mark.parametrize("line", ["# a comment", "", "(1.000000) can0 123#R", "(1.000000) can0 123##1001122",
+                                  "(1.000000) can0 123#01.02", "(1.000000) can0 123#012", "(1.000000) can0 800#00",
+                                  "(1.000000) can0 123#000102030405060708", "(1.0) can0 123#00 X",
+                                  "(1.000000) can0 123#00_9", "(1.000000)can0 123#00", "(1) can0 123#00"])
+def test_compiled_candump_parser_leaves_other_lines_to_the_reader(tmp_path, line):
+    from ecu_daemon.can_arrays import _candump, _parse_candump
+
+    if _candump is None:
+        pytest.skip("ecu_daemon._candump not built")
+    log = tmp_path / "x.log"
+    log.write_text(f"(0.500000) can0 0B0#0011\n{line}\n(2.000000) can0 0B0#0011\n")
+    assert _parse_candump(str(log), None, 0.0) is None  # the reader reads it, or names the bad line
