@@ -19,6 +19,11 @@ setup(ext_modules=[Extension(
     sources=["ecu_daemon/_frames.c"],
     extra_compile_args=["-O2", "-ffp-contract=off"],
     optional=True,
+), Extension(  # candump -L logs read in one pass (ecu_daemon/can_arrays.py falls back to canlog's reader)
+    "ecu_daemon._candump",
+    sources=["ecu_daemon/_candump.c"],
+    extra_compile_args=["-O2", "-ffp-contract=off"],
+    optional=True,
 ) , Extension(  # estimate CSV rows (ecu_daemon/estimate_csv.py falls back to %-formatting)
     "ecu_daemon._estimate_csv",
     sources=["ecu_daemon/_estimate_csv.c"],

@@ -387,6 +387,15 @@ class CandumpWriter:
             body = bytes(msg.data).hex().upper()
         self._line(msg.timestamp, head + body)
 
+    def write_payloads(self, t: float, frames: list) -> None:
+        """Append ``(11-bit id, payload)`` pairs stamped ``t``, in one write: what :meth:`write`
+        writes for the same frames as ``can.Message`` s (an output encoder's frames)."""
+        if self._f is None:
+            raise ValueError("CandumpWriter is closed")
+        head = f"({t:.6f}) {self.channel} "
+        self._f.write("".join([f"{head}{fid:03X}#{bytes(data).hex().upper()}\n" for fid, data in frames]))
+        self.frames += len(frames)
+
     def write_frame(self, t: float, arbitration_id: int, data: bytes, is_extended: bool = False,
                     is_error_frame: bool = False) -> None:
         """Append one frame given as the fields :func:`read_can_log` yields."""
@@ -446,6 +455,11 @@ class PythonCanWriter:
                         " read back, they count from the first frame's millisecond", self.name, msg.timestamp)
         self._w.on_message_received(msg)
         self.frames += 1
+
+    def write_payloads(self, t: float, frames: list) -> None:
+        """:meth:`CandumpWriter.write_payloads`, through ``can.Message`` s."""
+        for fid, data in frames:
+            self.write(can.Message(timestamp=t, arbitration_id=fid, is_extended_id=False, data=data, check=False))
 
     def close(self) -> None:
         if self._w is not None:

@@ -369,8 +369,14 @@ class OutputEncoder:
     # ----------------------------------------------------------------------------- per step
     def frames(self, step_index: int, est: Estimate, diag: Diagnostics | None = None) -> list[can.Message]:
         """The frames due at estimator step ``step_index`` (``est.t`` is their timestamp)."""
-        out = []
         t = est.t
+        return [can.Message(timestamp=t, arbitration_id=fid, is_extended_id=False, data=payload, check=False)
+                for fid, payload in self.payloads(step_index, est, diag)]
+
+    def payloads(self, step_index: int, est: Estimate, diag: Diagnostics | None = None) -> list[tuple[int, bytearray]]:
+        """:meth:`frames` as ``(frame id, payload)`` pairs (11-bit ids): what a log writer needs,
+        without a ``can.Message`` per frame (the replay's output path)."""
+        out = []
         due = self._due
         for p in self._plans if due is None else due[step_index % len(due)]:
             if due is None and step_index % p.period != p.phase:
@@ -385,8 +391,7 @@ class OutputEncoder:
                     payload = _encode_compiled(p.compiled, est, p.counter)
                     if payload is not NotImplemented:  # else a value to check, log or leave to cantools
                         p.counter = (p.counter + 1) & 0xF
-                        out.append(can.Message(timestamp=t, arbitration_id=p.frame_id, is_extended_id=False,
-                                               data=payload, check=False))
+                        out.append((p.frame_id, payload))
                         continue
                 values = p.values
                 layout = p.layout
@@ -404,8 +409,7 @@ class OutputEncoder:
             if payload is None:
                 payload = bytearray(p.encode(values, True, False, False))
             payload[0] = e2e_p2_crc(payload, p.data_id)
-            out.append(can.Message(timestamp=t, arbitration_id=p.frame_id, is_extended_id=False,
-                                   data=payload, check=False))
+            out.append((p.frame_id, payload))
         return out
 
     def _fill(self, msg_name: str, values: dict, fields: list[_Field], src, ok: dict | None,

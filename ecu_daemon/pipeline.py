@@ -32,6 +32,8 @@ import math
 from collections import deque
 from typing import Callable, NamedTuple
 
+import numpy as np
+
 from .config import Config
 from .diagnostics import Diagnostics, HostStatus
 from .estimator import Estimate, Estimator
@@ -41,7 +43,7 @@ from .gnss.stream import GnssStreamParser, sum_stats
 from .io.health import build_diagnostics
 from .samples import INPUT_INDEX, GnssSample, InputSample
 from .signals import SignalDecoder
-from .step_grid import step_of
+from .step_grid import EPS_STEPS, step_of
 
 MAG_INDEX = INPUT_INDEX["mag_x"]
 ROLL_INDEX = INPUT_INDEX["roll_rate"]
@@ -60,7 +62,7 @@ def gnss_source(receiver: int) -> str:
 class Step(NamedTuple):
     k: int
     estimate: Estimate  # as published (validity policy applied)
-    frames: list  # can.Message, empty when this step is not sent
+    frames: list  # can.Message (batch pipeline: (frame id, payload)), empty when this step is not sent
 
 
 class Item(NamedTuple):
@@ -140,20 +142,28 @@ class TickRecord:
 class Pipeline:
     """See the module docstring. ``encode``: build output frames (replay without ``--out-can``
     does not need them); ``gnss_connected``: the offline stand-in for the serial port's state;
-    ``record``: a :class:`TickRecord` to follow (replay of a recording)."""
+    ``record``: a :class:`TickRecord` to follow (replay of a recording); ``batch``: whole logs
+    through :meth:`feed_log` (offline, time rule) instead of item by item, and the steps' frames
+    as ``(frame id, payload)`` pairs (:meth:`OutputEncoder.payloads`) for a log writer."""
 
     def __init__(self, cfg: Config, learned: dict | None = None, *, encode: bool = True,
-                 gnss_connected: bool = False, record: TickRecord | None = None) -> None:
+                 gnss_connected: bool = False, record: TickRecord | None = None, batch: bool = False) -> None:
         self.cfg = cfg
         self._baseline_configured = source_status.baseline_configured(cfg)
         self.dt = dt = cfg.estimator.dt_s
-        self.decoder = SignalDecoder(cfg)
+        if batch:
+            from .batch_decoder import BatchDecoder
+
+            self.decoder = BatchDecoder(cfg)
+        else:
+            self.decoder = SignalDecoder(cfg)
         self.estimator = Estimator(cfg, learned)
         self.encoder = None
         if encode:
             from .outputs import OutputEncoder
 
             self.encoder = OutputEncoder(cfg)
+            self._encode = self.encoder.payloads if batch else self.encoder.frames
         self.parsers: dict[tuple[int, str], GnssStreamParser] = {}  # (receiver, port) -> its parser
         self.gnss_rx_t: dict[int, float] = {}  # receiver -> receive time of its last sample (any kind)
         self.gnss_connected = gnss_connected
@@ -262,6 +272,78 @@ class Pipeline:
             return []
         return [self._publish(e, True) for e in est.advance_to(k_before * self.dt)]
 
+    def feed_log(self, can, gnss, emit: Callable[[list[Step]], None], progress=None) -> None:
+        """Offline, time rule, whole logs at once: exactly what ``push_can`` / ``push_gnss`` and
+        :meth:`feed` do item by item, in the order ``heapq.merge`` gives by (time, CAN before
+        GNSS) -- the same steps, the same diagnostics -- without the per-item machinery.
+
+        ``can``: a :class:`~ecu_daemon.can_arrays.CanArrays` of finite times; ``gnss``: the GNSS
+        items ``(t, receiver, port, bytes, seq)`` in their merged order; ``emit``: called with
+        the steps each hand-over ran. The decoder must be a
+        :class:`~ecu_daemon.batch_decoder.BatchDecoder` (``Pipeline(..., batch=True)``): the
+        frames are decoded before the first step, and its counters follow the hand-over
+        (:attr:`BatchDecoder.cursor`), so EST_DIAG says at each step what it says item by item.
+        """
+        from .batch_decoder import DIRTY
+
+        dec = self.decoder
+        est = self.estimator
+        dt = self.dt
+        t_all = can.t
+        samples = dec.prepare(t_all, can.keys(), can.data)
+        # step_of(t) - 1 per frame, as step_grid computes it (the same float operations)
+        before = (np.ceil(t_all / dt - EPS_STEPS).astype(np.int64) - 1).tolist()
+        times = t_all.tolist()
+        fids = can.fid.tolist()
+        exts = can.ext.tolist()
+        errs = can.err.tolist()
+        data = can.data
+        push = est.queue.extend
+        publish = self._publish
+        on_sample = self.on_sample
+        n = len(times)
+        gnss = list(gnss)
+        gi = 0
+        tg = gnss[0][0] if gnss else math.inf
+
+        def advance(t: float, k_before: int) -> None:
+            ek = est.k
+            if ek is None or k_before >= ek:
+                emit([publish(e, True) for e in est.advance_to(k_before * dt)])
+
+        def take_gnss(t, receiver, port, payload, seq) -> None:
+            self._take(Item(t, 1, seq, gnss_source(receiver), (receiver, port, payload)))
+            advance(t, step_of(t, dt) - 1)
+
+        for j in range(n):
+            t = times[j]
+            while tg < t:  # GNSS items stamped before this frame (CAN first at equal times)
+                dec.cursor = j
+                take_gnss(*gnss[gi])
+                gi += 1
+                tg = gnss[gi][0] if gi < len(gnss) else math.inf
+            s = samples[j]
+            if s is not None:
+                if s is DIRTY:
+                    s = dec.take(j, t, fids[j], data[j], exts[j])
+                push(s)
+                if on_sample is not None:
+                    for x in s:
+                        on_sample(x)
+            elif errs[j]:
+                self.error_frames += 1
+            k = before[j]
+            ek = est.k
+            if ek is None or k >= ek:
+                dec.cursor = j + 1
+                emit([publish(e, True) for e in est.advance_to(k * dt)])
+            if progress is not None and not j & 1023:
+                progress(j, t)
+        dec.cursor = n
+        for item in gnss[gi:]:
+            take_gnss(*item)
+        self.items += n + len(gnss)
+
     def finish(self, t: float) -> list[Step]:
         """Offline: the parsers' last samples, then every step up to ``t``."""
         for p in self.parsers.values():
@@ -327,7 +409,7 @@ class Pipeline:
         mask = self.stale_mask
         if mask:
             e = e._replace(status=e.status | STATUS_INPUT_STALE, **mask)
-        frames = self.encoder.frames(k, e, self.diag) if send and self.encoder is not None else []
+        frames = self._encode(k, e, self.diag) if send and self.encoder is not None else []
         return Step(k, e, frames)
 
     def _update_diagnostics(self, e: Estimate) -> None:

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import config as config_mod
+from .can_arrays import read_can_arrays
 from .canlog import CanLogError, open_can_writer, read_can_log
 from .errors import UnusableInputError, UserError
 from .estimate_csv import csv_header, format_rows
@@ -50,6 +51,8 @@ REQUIRED_INPUTS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_
 MIN_USED_FRACTION = 0.5
 #: the same for GNSS, whose frames also count the sentences and messages that carry no velocity
 MIN_USED_FRACTION_GNSS = 0.1
+#: steps written to the outputs at a time (about 1.5 s of drive)
+WRITE_BATCH = 256
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--config", "-C", help="TOML configuration (default: built-in defaults)")
@@ -93,6 +96,25 @@ def _can_items(path: str, counters: dict, order: TimeOrder, channel: str | None,
         if err:
             counters["error_frames"] += 1
         yield t, 0, seq, CAN, (fid, data, ext, err)
+
+
+def _feed_logs(pl: Pipeline, can_path: str, channel: str | None, time_offset: float, order: TimeOrder,
+               gnss_merged, counters: dict, emit, bar: "_Progress") -> tuple[float | None, float | None]:
+    """The CAN log as arrays and the merged GNSS items through :meth:`Pipeline.feed_log`; returns
+    the first and last item time (None without items)."""
+    can = read_can_arrays(can_path, order, channel, time_offset)
+    counters["channels"] = can.channels
+    counters["frames"] += len(can)
+    counters["error_frames"] += int(can.err.sum())
+    can = can.finite()
+    gnss = [(t, payload[0], payload[1], payload[2], seq) for t, _, seq, _, payload in gnss_merged
+            if math.isfinite(t)]
+    times = [float(can.t[0]), float(can.t[-1])] if len(can) else []
+    times += [gnss[0][0], gnss[-1][0]] if gnss else []
+    t0 = min(times) if times else None
+    progress = (lambda j, t: bar.update(j, t - t0)) if bar.enabled else None
+    pl.feed_log(can, gnss, emit, progress)
+    return t0, (max(times) if times else None)
 
 
 def _count_lines(path: str) -> int:
@@ -178,7 +200,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
         except (OSError, ValueError) as e:
             raise UserError(f"cannot read tick record {ticks_path}: {getattr(e, 'strerror', None) or e}") from None
         log.info("following the tick record %s (a daemon recording: the steps and frames it sent)", ticks_path)
-    pl = Pipeline(cfg, learned, encode=out_can is not None, gnss_connected=bool(gnss_paths), record=record)
+    pl = Pipeline(cfg, learned, encode=out_can is not None, gnss_connected=bool(gnss_paths), record=record,
+                  batch=record is None)
     est = pl.estimator
     counters = {"frames": 0, "error_frames": 0, "gnss_samples": 0, "steps": 0}
 
@@ -207,7 +230,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
             o.keep_partial()
         raise UserError(str(e)) from None
     orders = [TimeOrder(f"CAN log {can_path}", est.gap_s)]
-    streams = [_can_items(can_path, counters, orders[0], channel, can_time_offset or 0.0)]
+    streams = [] if record is None else [_can_items(can_path, counters, orders[0], channel, can_time_offset or 0.0)]
     for i, g in enumerate(gnss_paths):
         orders.append(TimeOrder(f"GNSS log {g}", est.gap_s))
         streams.append(_gnss_items(g, orders[-1], i))
@@ -220,14 +243,34 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
     gap_log = RateLimitedLog(log)
     wall0 = time.perf_counter()
     failed = True
+    flush = _nothing
     try:
         if csv_out:
             _write(csv_file, csv_out.write, csv_header())
 
         def write_frames(steps):
+            if record is None:  # the batch pipeline: (frame id, payload) pairs
+                for st in steps:
+                    if st.frames:
+                        can_out.write_payloads(st.estimate.t, st.frames)
+                return
             for st in steps:
                 for msg in st.frames:
                     can_out.write(msg)
+
+        pending: list = []  # steps not written yet: written WRITE_BATCH at a time (fewer calls per row)
+
+        def flush():
+            if not pending:
+                return
+            batch = pending[:]
+            pending.clear()
+            try:
+                if csv_out:
+                    _write(csv_file, csv_out.write, format_rows([st.estimate for st in batch]))
+            finally:  # one output failing does not keep the other from what it had
+                if can_out is not None:
+                    _write(can_file, write_frames, batch)
 
         def emit(steps):
             nonlocal gaps_said
@@ -236,16 +279,19 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
             if est.gaps != gaps_said:
                 gaps_said = est.gaps
                 gap_log.report("gap", logging.WARNING, gap_line(est))
-            if csv_out:
-                _write(csv_file, csv_out.write, format_rows([st.estimate for st in steps]))
-            if can_out is not None:
-                _write(can_file, write_frames, steps)
+            pending.extend(steps)
+            if len(pending) >= WRITE_BATCH:
+                flush()
             counters["steps"] += len(steps)
 
         ticks = record.ticks() if record is not None else None
         next_tick = next(ticks, None) if ticks is not None else None
         push_can, push_gnss = pl.push_can, pl.push_gnss
         n = 0
+        if ticks is None:  # the time rule: whole logs at once (Pipeline.feed_log)
+            t_first, t_last = _feed_logs(pl, can_path, channel, can_time_offset or 0.0, orders[0], merged,
+                                         counters, emit, bar)
+            merged = ()
         for t, _, seq, source, payload in merged:
             if not math.isfinite(t):
                 continue
@@ -276,12 +322,14 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
                 while next_tick is not None and next_tick <= k_end:
                     emit(pl.tick(next_tick))
                     next_tick = next(ticks, None)
+        flush()
         if can_out is not None:
             _write(can_file, lambda _: can_out.close(), None)
         for o in outputs:
             o.commit()
         failed = False
     except (CanLogError, GnssLogError, TimeOrderError, OutputPathError, OSError) as e:
+        _flush_quietly(flush)
         _close_quietly(can_out)
         if isinstance(e, OSError):
             e = f"I/O error: {e.strerror or e}" + (f": {e.filename}" if e.filename else "")
@@ -289,6 +337,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
     finally:
         bar.done()
         if failed:  # anything else (Ctrl-C, a bug): still keep what was written
+            _flush_quietly(flush)
             _close_quietly(can_out)
             for o in outputs:
                 o.keep_partial()
@@ -332,6 +381,19 @@ def _write(out: OutputFile, write, data) -> None:
         write(data)
     except OSError as e:
         raise OutputPathError(f"cannot write {out.path}: {e.strerror or e}") from None
+
+
+def _flush_quietly(flush) -> None:
+    """Write the steps still buffered, on the way out of a failed replay (a second failure is
+    not worth more than the first)."""
+    try:
+        flush()
+    except (OSError, OutputPathError, ValueError):
+        pass
+
+
+def _nothing() -> None:
+    pass
 
 
 def _close_quietly(writer) -> None:

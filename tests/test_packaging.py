@@ -77,7 +77,8 @@ def test_wheel_ships_the_dbcs_and_the_licence_and_no_data_files(tmp_path):
     requires = [ln.split(":", 1)[1].strip() for ln in meta.splitlines() if ln.startswith("Requires-Dist:")]
     assert "python-can>=4.6" in requires and "crccheck>=1.3" in requires  # imported directly
     # the compiled estimator kernels, frame encoder and CSV rows are built into the wheel (setup.py)
-    for mod in ("ecu_daemon/estimator/_kernels.", "ecu_daemon/_frames.", "ecu_daemon/_estimate_csv."):
+    for mod in ("ecu_daemon/estimator/_kernels.", "ecu_daemon/_frames.", "ecu_daemon/_estimate_csv.",
+                "ecu_daemon/_candump."):
         assert [n for n in names if n.startswith(mod) and n.endswith(".so")], (mod, names)
 
 
@@ -92,7 +93,8 @@ def test_sdist_carries_the_kernel_sources_and_builds_them(tmp_path):
     with tarfile.open(sdist) as tf:
         names = {n.split("/", 1)[1] for n in tf.getnames() if "/" in n}
     assert {"setup.py", "ecu_daemon/estimator/_kernels.c", "ecu_daemon/estimator/_generated.h",
-            "ecu_daemon/estimator/generated.py", "ecu_daemon/_frames.c", "ecu_daemon/_estimate_csv.c"} <= names
+            "ecu_daemon/estimator/generated.py", "ecu_daemon/_frames.c", "ecu_daemon/_estimate_csv.c",
+            "ecu_daemon/_candump.c"} <= names
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheel_dir), str(sdist)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-2000:]
