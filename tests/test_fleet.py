@@ -241,7 +241,7 @@ def test_override_sets_only_well_known_config_parameters_and_loads(tmp_path):
     assert cfg.vehicle.cornering_stiffness_front_n_per_rad == 91500.0  # 2.5 kN/rad: 2.7 % of the value
     rear_default = config_mod.Config().vehicle.cornering_stiffness_rear_n_per_rad
     assert cfg.vehicle.cornering_stiffness_rear_n_per_rad == rear_default  # 30 kN/rad: not set
-    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 5e-05" in text
+    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 0.0001" in text  # identical drives: one drive's std
 
 
 def test_an_unreachable_scheduler_is_one_line(fleet, tmp_path, capsys):
@@ -348,3 +348,28 @@ def test_numeric_csv_reader_gives_read_csvs_columns_and_errors(tmp_path):
     backwards.write_text("t,a\n0.2,1\n0.1,2\n")
     with pytest.raises(EvaluationError, match="not in time order"):
         job_mod.read_numeric_csv(str(backwards), ("t", "a"), "truth CSV")
+
+
+def test_wheel_scale_std_keeps_the_error_its_drives_share():
+    # 20 drives, each with its honest std of 0.05 %: a share common to all (0.045 %, the same car)
+    # and its own (0.02 %); the drives agree to 0.02 %, far better than their stds say
+    rng = np.random.default_rng(3)
+    truth, shared, own = 1.02, 0.00045, 0.0002
+    values = truth + shared + own * rng.standard_normal(20)
+    rows = [_row(i, wheel_scale=(x, math.hypot(shared, own))) for i, x in enumerate(values)]
+    p = vehicle_parameters(rows)[0]["wheel_scale"]
+    independent = math.hypot(shared, own) / math.sqrt(20)  # what 1 / sqrt(sum w) said
+    assert abs(p["value"] - truth) / independent > 3
+    assert abs(p["value"] - truth) / p["std"] < 3  # honest: the shared part does not average down
+    assert p["std"] == pytest.approx(math.hypot(shared, own / math.sqrt(20)), rel=0.35)
+
+
+def test_wheel_scale_std_of_independent_drives_averages_down():
+    rng = np.random.default_rng(4)
+    s = np.full(20, 0.0005)
+    values = 1.02 + s * rng.standard_normal(20)
+    p = vehicle_parameters([_row(i, wheel_scale=(x, 0.0005)) for i, x in enumerate(values)])[0]["wheel_scale"]
+    assert p["std"] < 2.0 * 0.0005 / math.sqrt(20)
+    wide = 1.02 + 3 * s * rng.standard_normal(20)  # scattered 3x their stds: the std follows the scatter
+    q = vehicle_parameters([_row(i, wheel_scale=(x, 0.0005)) for i, x in enumerate(wide)])[0]["wheel_scale"]
+    assert q["std"] == pytest.approx(np.std(wide, ddof=1) / math.sqrt(20), rel=1e-6)
