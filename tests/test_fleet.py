@@ -373,3 +373,18 @@ def test_wheel_scale_std_of_independent_drives_averages_down():
     wide = 1.02 + 3 * s * rng.standard_normal(20)  # scattered 3x their stds: the std follows the scatter
     q = vehicle_parameters([_row(i, wheel_scale=(x, 0.0005)) for i, x in enumerate(wide)])[0]["wheel_scale"]
     assert q["std"] == pytest.approx(np.std(wide, ddof=1) / math.sqrt(20), rel=1e-6)
+
+
+def test_drives_are_handed_out_longest_first(tmp_path):
+    from ecu_daemon.fleet.backends import longest_first
+    from ecu_daemon.fleet.manifest import Drive
+
+    def drive(name: str, can_bytes: int, gnss_bytes: int) -> Drive:
+        (tmp_path / f"{name}.log").write_bytes(b"x" * can_bytes)
+        (tmp_path / f"{name}_gnss.log").write_bytes(b"x" * gnss_bytes)
+        return Drive("v", name, str(tmp_path / f"{name}.log"), (str(tmp_path / f"{name}_gnss.log"),))
+
+    drives = [drive("short", 100, 10), drive("long", 300, 10), drive("mid", 100, 150), drive("same", 100, 10),
+              Drive("v", "missing", str(tmp_path / "nope.log"))]
+    # the last to start are the short ones, so no worker is left with a long drive at the end
+    assert longest_first(drives) == [1, 2, 0, 3, 4]

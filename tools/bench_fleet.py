@@ -7,7 +7,11 @@
 1. ``fleet simulate`` writes the fleet (reused when ``WORK/fleet`` exists): per vehicle its own
    GNSS latency, wheel scale and cornering stiffness, each drive a 45-70 s manoeuvre.
 2. Scaling: the first ``--scaling-drives`` drives on a real ``dask.distributed.LocalCluster`` with 1
-   and then 2 single-threaded worker processes (fresh result stores): drive-hours per wall-hour.
+   and then 2 single-threaded worker processes (fresh result stores): drive-hours per wall-hour,
+   and from Dask's task stream where the wall time goes: the tasks' own compute time (summed,
+   and the first task on each worker, which pays the imports), the time before the first task
+   starts, and the tail (one worker busy, the other idle at the end). ``--report FILE``: also
+   Dask's HTML performance report of each run (FILE with _1/_2 before the suffix).
 3. The whole fleet on the default local process pool (all cores): drive-hours per wall-hour and
    the replay cost per drive-hour (CPU seconds in the jobs).
 4. Calibration against the truth: per vehicle the combined latency, wheel scale and front/rear
@@ -18,6 +22,7 @@ Load averages are printed before and after each timed run (the machine is shared
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shutil
@@ -55,6 +60,28 @@ def timed(label: str, fn) -> tuple[float, list]:
     return wall, recs
 
 
+def task_breakdown(tasks: list[dict], wall: float, workers: int) -> str:
+    """Where a Dask run's wall time went, from the task stream: compute summed over the tasks
+    (and the first task per worker, which imports the replay), the first start and last end
+    relative to the earliest task event, the tail (last end minus the earliest of the workers'
+    last ends) and the busy fraction workers x span."""
+    spans = [(t["worker"], ss["start"], ss["stop"]) for t in tasks for ss in t["startstops"] if ss["action"] == "compute"]
+    if not spans:
+        return "  task stream: empty"
+    t0 = min(s for _, s, _ in spans)
+    t1 = max(e for _, _, e in spans)
+    compute = sum(e - s for _, s, e in spans)
+    by = {}
+    for w, s, e in sorted(spans, key=lambda x: x[1]):
+        by.setdefault(w, []).append(e - s)
+    first = [d[0] for d in by.values()]
+    rest = [x for d in by.values() for x in d[1:]]
+    ends = [max(e for w2, _, e in spans if w2 == w) for w in by]
+    return (f"  tasks {len(spans)}: compute {compute:.1f} s summed (first per worker {', '.join(f'{x:.2f}' for x in first)}"
+            f" s, others mean {sum(rest) / max(len(rest), 1):.2f} s), task span {t1 - t0:.1f} s of {wall:.1f} s wall,"
+            f" tail {t1 - min(ends):.1f} s, busy {compute / (workers * (t1 - t0)):.0%} of {workers} x span")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--work", default="/tmp/bench_fleet")
@@ -62,6 +89,7 @@ def main() -> int:
     ap.add_argument("--drives", type=int, default=20)
     ap.add_argument("--scaling-drives", type=int, default=12)
     ap.add_argument("--skip-scaling", action="store_true")
+    ap.add_argument("--report", metavar="FILE", help="Dask performance report (HTML) of each scaling run")
     ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/run)")
     args = ap.parse_args()
     work = Path(args.work)
@@ -72,7 +100,7 @@ def main() -> int:
         print(f"simulated {args.vehicles} x {args.drives} drives in {time.perf_counter() - t0:.0f} s", flush=True)
     drives = discover(fleet)
     if not args.skip_scaling:
-        from distributed import LocalCluster
+        from distributed import Client, LocalCluster, get_task_stream, performance_report
 
         sub = work / "scaling_manifest.toml"
         sub.write_text("".join(f'[[drive]]\nvehicle = "{d.vehicle}"\ndrive = "{d.drive}"\nconfig = "{d.config}"\n'
@@ -82,9 +110,14 @@ def main() -> int:
         for n in (1, 2):
             out = work / f"scaling_{n}"
             shutil.rmtree(out, ignore_errors=True)
-            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl:
+            html = (Path(args.report).with_name(f"{Path(args.report).stem}_{n}{Path(args.report).suffix}")
+                    if args.report else None)
+            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl, \
+                    Client(cl.scheduler_address) as client, get_task_stream(client) as ts, \
+                    (performance_report(filename=str(html)) if html else contextlib.nullcontext()):
                 walls[n], _ = timed(f"LocalCluster {n} worker(s), {args.scaling_drives} drives",
                                     lambda: run_fleet(str(sub), out, scheduler=cl.scheduler_address, report=False))
+            print(task_breakdown(ts.data, walls[n], n), flush=True)
         print(f"scaling 1 -> 2 workers: x{walls[1] / walls[2]:.2f}", flush=True)
     out = work / "run"
     if not args.skip_full:
