@@ -388,3 +388,41 @@ def test_drives_are_handed_out_longest_first(tmp_path):
               Drive("v", "missing", str(tmp_path / "nope.log"))]
     # the last to start are the short ones, so no worker is left with a long drive at the end
     assert longest_first(drives) == [1, 2, 0, 3, 4]
+
+
+def test_second_pass_starts_half_the_drives_above_and_half_below_the_vehicles_latency():
+    from ecu_daemon.fleet.calibrate import STRADDLE_S, second_pass_starts
+    from ecu_daemon.fleet.manifest import Drive
+
+    drives = [Drive("a", f"d{i}", "x.log") for i in range(6)] + [Drive("b", "d0", "x.log")]
+    records = [_row(i, gnss_delay_s=(0.25 + 0.01 * (i % 2), 0.01)) for i in range(6)]
+    records.append(_row(9))  # vehicle b learned no latency: its drive is left as it was
+    starts = second_pass_starts(drives, records)
+    tau = vehicle_parameters(records[:6])[0]["gnss_delay_s"]["value"]
+    assert sorted(starts[:6]) == [round(tau - STRADDLE_S, 4)] * 3 + [round(tau + STRADDLE_S, 4)] * 3
+    assert starts[6] is None
+    assert second_pass_starts(drives, records) == starts  # by the drives' names, not by chance
+
+
+def test_a_second_pass_replays_each_drive_from_its_vehicles_latency(fleet, serial, tmp_path):
+    from ecu_daemon.fleet.calibrate import second_pass_starts
+
+    out = tmp_path / "two"
+    shutil.copytree(serial[0] / "results", out / "results")  # the first pass is stored already
+    recs = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
+    first = {(r["vehicle"], r["drive"]): r for r in serial[1]}
+    starts = second_pass_starts(load_drives(str(fleet)), serial[1])
+    assert sum(s is not None for s in starts) >= 3  # a vehicle whose 14 s drives learned no latency keeps pass 1
+    moved = []
+    for r, s in zip(recs, starts):
+        f = first[(r["vehicle"], r["drive"])]
+        if s is None:
+            assert r["cached"] and r["key"] == f["key"] and math.isnan(r["start_latency_s"])
+            continue
+        assert r["status"] == "ok" and not r["cached"] and r["key"] != f["key"] and r["start_latency_s"] == s
+        moved.append(r["gnss_delay_s"] - f["gnss_delay_s"])
+    assert any(abs(m) > 0.005 for m in moved)  # the estimator started where it was told
+    assert math.isnan(read_drives(serial[0])[0]["start_latency_s"])  # the first pass: the config's
+    tables = _bytes(out)
+    again = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
+    assert all(r["cached"] for r in again) and _bytes(out) == tables

@@ -2,7 +2,8 @@
 """Benchmark the fleet runner on a simulated fleet (numbers, no asserts).
 
     .venv/bin/python tools/bench_fleet.py [--work /tmp/bench_fleet] [--vehicles 20] [--drives 20]
-                                          [--scaling-drives 12] [--skip-scaling]
+                                          [--scaling-drives 12] [--skip-scaling] [--skip-full]
+                                          [--passes 2] [--report FILE.html]
 
 1. ``fleet simulate`` writes the fleet (reused when ``WORK/fleet`` exists): per vehicle its own
    GNSS latency, wheel scale and cornering stiffness, each drive a 45-70 s manoeuvre.
@@ -13,7 +14,8 @@
    starts, and the tail (one worker busy, the other idle at the end). ``--report FILE``: also
    Dask's HTML performance report of each run (FILE with _1/_2 before the suffix).
 3. The whole fleet on the default local process pool (all cores): drive-hours per wall-hour and
-   the replay cost per drive-hour (CPU seconds in the jobs).
+   the replay cost per drive-hour (wall seconds in the jobs); ``--passes 2`` as ``fleet run
+   --passes 2`` (both passes' drive-hours count).
 4. Calibration against the truth: per vehicle the combined latency, wheel scale and front/rear
    cornering stiffness vs ``vehicle.json``; how many vehicles meet issue 12's targets (0.02 s,
    0.2 %, 10 %).
@@ -46,12 +48,12 @@ def load() -> str:
     return "load %.2f %.2f %.2f" % os.getloadavg()
 
 
-def timed(label: str, fn) -> tuple[float, list]:
+def timed(label: str, fn, passes: int = 1) -> tuple[float, list]:
     print(f"{label}: {load()} before", flush=True)
     t0 = time.perf_counter()
     recs = fn()
     wall = time.perf_counter() - t0
-    hours = sum(r.get("duration_s") or 0.0 for r in recs if r["status"] == "ok" and not r.get("cached")) / 3600
+    hours = passes * sum(r.get("duration_s") or 0.0 for r in recs if r["status"] == "ok" and not r.get("cached")) / 3600
     cpu = sum(r.get("wall_s") or 0.0 for r in recs if not r.get("cached"))
     failed = sum(r["status"] != "ok" for r in recs)
     print(f"{label}: {len(recs)} drives ({failed} failed), {hours:.3f} drive-h in {wall:.1f} s wall ="
@@ -89,6 +91,7 @@ def main() -> int:
     ap.add_argument("--drives", type=int, default=20)
     ap.add_argument("--scaling-drives", type=int, default=12)
     ap.add_argument("--skip-scaling", action="store_true")
+    ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="fleet run --passes for the whole fleet")
     ap.add_argument("--report", metavar="FILE", help="Dask performance report (HTML) of each scaling run")
     ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/run)")
     args = ap.parse_args()
@@ -122,9 +125,10 @@ def main() -> int:
     out = work / "run"
     if not args.skip_full:
         shutil.rmtree(out, ignore_errors=True)
-        timed(f"local pool ({os.cpu_count()} processes), whole fleet", lambda: run_fleet(str(fleet), out))
+        timed(f"local pool ({os.cpu_count()} processes), whole fleet, {args.passes} pass(es)",
+              lambda: run_fleet(str(fleet), out, passes=args.passes), args.passes)
         t0 = time.perf_counter()
-        run_fleet(str(fleet), out, report=False)
+        run_fleet(str(fleet), out, report=False, passes=args.passes)
         print(f"rerun with every drive stored: {time.perf_counter() - t0:.1f} s", flush=True)
     rows = read_drives(out)
     hits = {k: 0 for k in TARGETS}
