@@ -54,11 +54,13 @@ def timed(label: str, fn, passes: int = 1) -> tuple[float, list]:
     recs = fn()
     wall = time.perf_counter() - t0
     hours = passes * sum(r.get("duration_s") or 0.0 for r in recs if r["status"] == "ok" and not r.get("cached")) / 3600
-    cpu = sum(r.get("wall_s") or 0.0 for r in recs if not r.get("cached"))
+    job = sum(r.get("wall_s") or 0.0 for r in recs if not r.get("cached"))
+    cpu = sum(r.get("cpu_s") or 0.0 for r in recs if not r.get("cached"))
     failed = sum(r["status"] != "ok" for r in recs)
     print(f"{label}: {len(recs)} drives ({failed} failed), {hours:.3f} drive-h in {wall:.1f} s wall ="
-          f" {hours / (wall / 3600):.0f} drive-h/h; job time {cpu:.0f} s = {cpu / hours if hours else 0:.0f} s per"
-          f" drive-hour; {load()} after", flush=True)
+          f" {hours / (wall / 3600):.0f} drive-h/h; job time {job:.0f} s = {job / hours if hours else 0:.0f} s per"
+          f" drive-hour, job CPU {cpu:.0f} s = {cpu / hours if hours else 0:.0f} CPU-s per drive-hour"
+          f" ({cpu / wall:.2f} cores busy with them); {load()} after", flush=True)
     return wall, recs
 
 

@@ -73,7 +73,7 @@ def run_drive(drive: Drive, store_dir: str) -> dict:
     done = store.load(key)
     if done is not None:
         return {**done, **base, "cached": True}
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     keep = True
     try:
         with _replay_log_quiet():
@@ -83,7 +83,8 @@ def run_drive(drive: Drive, store_dir: str) -> dict:
     except Exception as e:  # noqa: BLE001 - a bug on one drive is that drive's row, not the fleet's end
         rec = {**base, "status": "error", "error": _one_line(e)}
         keep = False
-    rec.update(key=key, version=__version__, wall_s=time.perf_counter() - started)
+    # wall and CPU time of the job: on a shared machine the wall time also counts the others' load
+    rec.update(key=key, version=__version__, wall_s=time.perf_counter() - started, cpu_s=time.process_time() - cpu)
     if keep:
         store.save(key, rec)
     return {**rec, "cached": False}
