@@ -3,7 +3,7 @@
 
     .venv/bin/python tools/bench_fleet.py [--work /tmp/bench_fleet] [--vehicles 20] [--drives 20]
                                           [--scaling-drives 12] [--skip-scaling] [--skip-full]
-                                          [--passes 2] [--report FILE.html]
+                                          [--passes 2]
 
 1. ``fleet simulate`` writes the fleet (reused when ``WORK/fleet`` exists): per vehicle its own
    GNSS latency, wheel scale and cornering stiffness, each drive a 45-70 s manoeuvre.
@@ -11,8 +11,7 @@
    and then 2 single-threaded worker processes (fresh result stores): drive-hours per wall-hour,
    and from Dask's task stream where the wall time goes: the tasks' own compute time (summed,
    and the first task on each worker, which pays the imports), the time before the first task
-   starts, and the tail (one worker busy, the other idle at the end). ``--report FILE``: also
-   Dask's HTML performance report of each run (FILE with _1/_2 before the suffix).
+   starts, and the tail (one worker busy, the other idle at the end).
 3. The whole fleet on the default local process pool (all cores): drive-hours per wall-hour and
    the replay cost per drive-hour (wall seconds in the jobs); ``--passes 2`` as ``fleet run
    --passes 2`` (both passes' drive-hours count).
@@ -24,7 +23,6 @@ Load averages are printed before and after each timed run (the machine is shared
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import shutil
@@ -94,7 +92,6 @@ def main() -> int:
     ap.add_argument("--scaling-drives", type=int, default=12)
     ap.add_argument("--skip-scaling", action="store_true")
     ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="fleet run --passes for the whole fleet")
-    ap.add_argument("--report", metavar="FILE", help="Dask performance report (HTML) of each scaling run")
     ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/run)")
     args = ap.parse_args()
     work = Path(args.work)
@@ -105,7 +102,7 @@ def main() -> int:
         print(f"simulated {args.vehicles} x {args.drives} drives in {time.perf_counter() - t0:.0f} s", flush=True)
     drives = discover(fleet)
     if not args.skip_scaling:
-        from distributed import Client, LocalCluster, get_task_stream, performance_report
+        from distributed import Client, LocalCluster, get_task_stream
 
         sub = work / "scaling_manifest.toml"
         sub.write_text("".join(f'[[drive]]\nvehicle = "{d.vehicle}"\ndrive = "{d.drive}"\nconfig = "{d.config}"\n'
@@ -115,11 +112,8 @@ def main() -> int:
         for n in (1, 2):
             out = work / f"scaling_{n}"
             shutil.rmtree(out, ignore_errors=True)
-            html = (Path(args.report).with_name(f"{Path(args.report).stem}_{n}{Path(args.report).suffix}")
-                    if args.report else None)
             with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl, \
-                    Client(cl.scheduler_address) as client, get_task_stream(client) as ts, \
-                    (performance_report(filename=str(html)) if html else contextlib.nullcontext()):
+                    Client(cl.scheduler_address) as client, get_task_stream(client) as ts:
                 walls[n], _ = timed(f"LocalCluster {n} worker(s), {args.scaling_drives} drives",
                                     lambda: run_fleet(str(sub), out, scheduler=cl.scheduler_address, report=False))
             print(task_breakdown(ts.data, walls[n], n), flush=True)
