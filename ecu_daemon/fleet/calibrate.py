@@ -184,10 +184,10 @@ def second_pass_starts(drives: list, records: list[dict]) -> list[float | None]:
     test), so a drive's estimate stops at the edge of the latencies its data still accept, on the
     side it started from. Every drive of the first pass starts at the config's prior, so the
     vehicle's combination is pulled towards it (20 x 20 simulated fleet, prior 0.3 s: true
-    latencies of 0.11-0.17 s came out +0.010..+0.015 s, 0.42-0.48 s -0.012..-0.016 s; one drive
-    started at 0.200 / 0.254 / 0.300 s on a car of 0.254 s ended -0.014 / +0.001 / +0.012 s off on
+    latencies of 0.11-0.17 s came out +0.010..+0.015 s, 0.42-0.48 s -0.012..-0.016 s; four drives
+    of a car of 0.254 s started at 0.200 / 0.254 / 0.300 s ended -0.007 / +0.004 / +0.011 s off on
     average), and the cornering stiffness, read from GNSS samples placed by that latency, follows
-    (+4 % per 0.01 s on the front: the stiff-front misses). Started from both sides, the drives'
+    (+4 % per 0.01 s on the front: the front misses). Started from both sides, the drives'
     stopping errors cancel in the combination."""
     from collections import defaultdict
 
