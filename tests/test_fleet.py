@@ -241,7 +241,7 @@ def test_override_sets_only_well_known_config_parameters_and_loads(tmp_path):
     assert cfg.vehicle.cornering_stiffness_front_n_per_rad == 91500.0  # 2.5 kN/rad: 2.7 % of the value
     rear_default = config_mod.Config().vehicle.cornering_stiffness_rear_n_per_rad
     assert cfg.vehicle.cornering_stiffness_rear_n_per_rad == rear_default  # 30 kN/rad: not set
-    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 5e-05" in text
+    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 0.0001" in text  # identical drives: one drive's std
 
 
 def test_an_unreachable_scheduler_is_one_line(fleet, tmp_path, capsys):
@@ -348,3 +348,81 @@ def test_numeric_csv_reader_gives_read_csvs_columns_and_errors(tmp_path):
     backwards.write_text("t,a\n0.2,1\n0.1,2\n")
     with pytest.raises(EvaluationError, match="not in time order"):
         job_mod.read_numeric_csv(str(backwards), ("t", "a"), "truth CSV")
+
+
+def test_wheel_scale_std_keeps_the_error_its_drives_share():
+    # 20 drives, each with its honest std of 0.05 %: a share common to all (0.045 %, the same car)
+    # and its own (0.02 %); the drives agree to 0.02 %, far better than their stds say
+    rng = np.random.default_rng(3)
+    truth, shared, own = 1.02, 0.00045, 0.0002
+    values = truth + shared + own * rng.standard_normal(20)
+    rows = [_row(i, wheel_scale=(x, math.hypot(shared, own))) for i, x in enumerate(values)]
+    p = vehicle_parameters(rows)[0]["wheel_scale"]
+    independent = math.hypot(shared, own) / math.sqrt(20)  # what 1 / sqrt(sum w) said
+    assert abs(p["value"] - truth) / independent > 3
+    assert abs(p["value"] - truth) / p["std"] < 3  # honest: the shared part does not average down
+    assert p["std"] == pytest.approx(math.hypot(shared, own / math.sqrt(20)), rel=0.35)
+
+
+def test_wheel_scale_std_of_independent_drives_averages_down():
+    rng = np.random.default_rng(4)
+    s = np.full(20, 0.0005)
+    values = 1.02 + s * rng.standard_normal(20)
+    p = vehicle_parameters([_row(i, wheel_scale=(x, 0.0005)) for i, x in enumerate(values)])[0]["wheel_scale"]
+    assert p["std"] < 2.0 * 0.0005 / math.sqrt(20)
+    wide = 1.02 + 3 * s * rng.standard_normal(20)  # scattered 3x their stds: the std follows the scatter
+    q = vehicle_parameters([_row(i, wheel_scale=(x, 0.0005)) for i, x in enumerate(wide)])[0]["wheel_scale"]
+    assert q["std"] == pytest.approx(np.std(wide, ddof=1) / math.sqrt(20), rel=1e-6)
+
+
+def test_drives_are_handed_out_longest_first(tmp_path):
+    from ecu_daemon.fleet.backends import longest_first
+    from ecu_daemon.fleet.manifest import Drive
+
+    def drive(name: str, can_bytes: int, gnss_bytes: int) -> Drive:
+        (tmp_path / f"{name}.log").write_bytes(b"x" * can_bytes)
+        (tmp_path / f"{name}_gnss.log").write_bytes(b"x" * gnss_bytes)
+        return Drive("v", name, str(tmp_path / f"{name}.log"), (str(tmp_path / f"{name}_gnss.log"),))
+
+    drives = [drive("short", 100, 10), drive("long", 300, 10), drive("mid", 100, 150), drive("same", 100, 10),
+              Drive("v", "missing", str(tmp_path / "nope.log"))]
+    # the last to start are the short ones, so no worker is left with a long drive at the end
+    assert longest_first(drives) == [1, 2, 0, 3, 4]
+
+
+def test_second_pass_starts_half_the_drives_above_and_half_below_the_vehicles_latency():
+    from ecu_daemon.fleet.calibrate import STRADDLE_S, second_pass_starts
+    from ecu_daemon.fleet.manifest import Drive
+
+    drives = [Drive("a", f"d{i}", "x.log") for i in range(6)] + [Drive("b", "d0", "x.log")]
+    records = [_row(i, gnss_delay_s=(0.25 + 0.01 * (i % 2), 0.01)) for i in range(6)]
+    records.append(_row(9))  # vehicle b learned no latency: its drive is left as it was
+    starts = second_pass_starts(drives, records)
+    tau = vehicle_parameters(records[:6])[0]["gnss_delay_s"]["value"]
+    assert sorted(starts[:6]) == [round(tau - STRADDLE_S, 4)] * 3 + [round(tau + STRADDLE_S, 4)] * 3
+    assert starts[6] is None
+    assert second_pass_starts(drives, records) == starts  # by the drives' names, not by chance
+
+
+def test_a_second_pass_replays_each_drive_from_its_vehicles_latency(fleet, serial, tmp_path):
+    from ecu_daemon.fleet.calibrate import second_pass_starts
+
+    out = tmp_path / "two"
+    shutil.copytree(serial[0] / "results", out / "results")  # the first pass is stored already
+    recs = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
+    first = {(r["vehicle"], r["drive"]): r for r in serial[1]}
+    starts = second_pass_starts(load_drives(str(fleet)), serial[1])
+    assert sum(s is not None for s in starts) >= 3  # a vehicle whose 14 s drives learned no latency keeps pass 1
+    moved = []
+    for r, s in zip(recs, starts):
+        f = first[(r["vehicle"], r["drive"])]
+        if s is None:
+            assert r["cached"] and r["key"] == f["key"] and math.isnan(r["start_latency_s"])
+            continue
+        assert r["status"] == "ok" and not r["cached"] and r["key"] != f["key"] and r["start_latency_s"] == s
+        moved.append(r["gnss_delay_s"] - f["gnss_delay_s"])
+    assert any(abs(m) > 0.005 for m in moved)  # the estimator started where it was told
+    assert math.isnan(read_drives(serial[0])[0]["start_latency_s"])  # the first pass: the config's
+    tables = _bytes(out)
+    again = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
+    assert all(r["cached"] for r in again) and _bytes(out) == tables

@@ -2,14 +2,19 @@
 """Benchmark the fleet runner on a simulated fleet (numbers, no asserts).
 
     .venv/bin/python tools/bench_fleet.py [--work /tmp/bench_fleet] [--vehicles 20] [--drives 20]
-                                          [--scaling-drives 12] [--skip-scaling]
+                                          [--scaling-drives 12] [--skip-scaling] [--skip-full]
+                                          [--passes 2]
 
 1. ``fleet simulate`` writes the fleet (reused when ``WORK/fleet`` exists): per vehicle its own
    GNSS latency, wheel scale and cornering stiffness, each drive a 45-70 s manoeuvre.
 2. Scaling: the first ``--scaling-drives`` drives on a real ``dask.distributed.LocalCluster`` with 1
-   and then 2 single-threaded worker processes (fresh result stores): drive-hours per wall-hour.
+   and then 2 single-threaded worker processes (fresh result stores): drive-hours per wall-hour,
+   and from Dask's task stream where the wall time goes: the tasks' own compute time (summed,
+   and the first task on each worker, which pays the imports), the time before the first task
+   starts, and the tail (one worker busy, the other idle at the end).
 3. The whole fleet on the default local process pool (all cores): drive-hours per wall-hour and
-   the replay cost per drive-hour (CPU seconds in the jobs).
+   the replay cost per drive-hour (wall seconds in the jobs); ``--passes 2`` as ``fleet run
+   --passes 2`` (both passes' drive-hours count).
 4. Calibration against the truth: per vehicle the combined latency, wheel scale and front/rear
    cornering stiffness vs ``vehicle.json``; how many vehicles meet issue 12's targets (0.02 s,
    0.2 %, 10 %).
@@ -41,18 +46,42 @@ def load() -> str:
     return "load %.2f %.2f %.2f" % os.getloadavg()
 
 
-def timed(label: str, fn) -> tuple[float, list]:
+def timed(label: str, fn, passes: int = 1) -> tuple[float, list]:
     print(f"{label}: {load()} before", flush=True)
     t0 = time.perf_counter()
     recs = fn()
     wall = time.perf_counter() - t0
-    hours = sum(r.get("duration_s") or 0.0 for r in recs if r["status"] == "ok" and not r.get("cached")) / 3600
-    cpu = sum(r.get("wall_s") or 0.0 for r in recs if not r.get("cached"))
+    hours = passes * sum(r.get("duration_s") or 0.0 for r in recs if r["status"] == "ok" and not r.get("cached")) / 3600
+    job = sum(r.get("wall_s") or 0.0 for r in recs if not r.get("cached"))
+    cpu = sum(r.get("cpu_s") or 0.0 for r in recs if not r.get("cached"))
     failed = sum(r["status"] != "ok" for r in recs)
     print(f"{label}: {len(recs)} drives ({failed} failed), {hours:.3f} drive-h in {wall:.1f} s wall ="
-          f" {hours / (wall / 3600):.0f} drive-h/h; job time {cpu:.0f} s = {cpu / hours if hours else 0:.0f} s per"
-          f" drive-hour; {load()} after", flush=True)
+          f" {hours / (wall / 3600):.0f} drive-h/h; job time {job:.0f} s = {job / hours if hours else 0:.0f} s per"
+          f" drive-hour, job CPU {cpu:.0f} s = {cpu / hours if hours else 0:.0f} CPU-s per drive-hour"
+          f" ({cpu / wall:.2f} cores busy with them); {load()} after", flush=True)
     return wall, recs
+
+
+def task_breakdown(tasks: list[dict], wall: float, workers: int) -> str:
+    """Where a Dask run's wall time went, from the task stream: compute summed over the tasks
+    (and the first task per worker, which imports the replay), the first start and last end
+    relative to the earliest task event, the tail (last end minus the earliest of the workers'
+    last ends) and the busy fraction workers x span."""
+    spans = [(t["worker"], ss["start"], ss["stop"]) for t in tasks for ss in t["startstops"] if ss["action"] == "compute"]
+    if not spans:
+        return "  task stream: empty"
+    t0 = min(s for _, s, _ in spans)
+    t1 = max(e for _, _, e in spans)
+    compute = sum(e - s for _, s, e in spans)
+    by = {}
+    for w, s, e in sorted(spans, key=lambda x: x[1]):
+        by.setdefault(w, []).append(e - s)
+    first = [d[0] for d in by.values()]
+    rest = [x for d in by.values() for x in d[1:]]
+    ends = [max(e for w2, _, e in spans if w2 == w) for w in by]
+    return (f"  tasks {len(spans)}: compute {compute:.1f} s summed (first per worker {', '.join(f'{x:.2f}' for x in first)}"
+            f" s, others mean {sum(rest) / max(len(rest), 1):.2f} s), task span {t1 - t0:.1f} s of {wall:.1f} s wall,"
+            f" tail {t1 - min(ends):.1f} s, busy {compute / (workers * (t1 - t0)):.0%} of {workers} x span")
 
 
 def main() -> int:
@@ -62,6 +91,7 @@ def main() -> int:
     ap.add_argument("--drives", type=int, default=20)
     ap.add_argument("--scaling-drives", type=int, default=12)
     ap.add_argument("--skip-scaling", action="store_true")
+    ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="fleet run --passes for the whole fleet")
     ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/run)")
     args = ap.parse_args()
     work = Path(args.work)
@@ -72,7 +102,7 @@ def main() -> int:
         print(f"simulated {args.vehicles} x {args.drives} drives in {time.perf_counter() - t0:.0f} s", flush=True)
     drives = discover(fleet)
     if not args.skip_scaling:
-        from distributed import LocalCluster
+        from distributed import Client, LocalCluster, get_task_stream
 
         sub = work / "scaling_manifest.toml"
         sub.write_text("".join(f'[[drive]]\nvehicle = "{d.vehicle}"\ndrive = "{d.drive}"\nconfig = "{d.config}"\n'
@@ -82,16 +112,19 @@ def main() -> int:
         for n in (1, 2):
             out = work / f"scaling_{n}"
             shutil.rmtree(out, ignore_errors=True)
-            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl:
+            with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cl, \
+                    Client(cl.scheduler_address) as client, get_task_stream(client) as ts:
                 walls[n], _ = timed(f"LocalCluster {n} worker(s), {args.scaling_drives} drives",
                                     lambda: run_fleet(str(sub), out, scheduler=cl.scheduler_address, report=False))
+            print(task_breakdown(ts.data, walls[n], n), flush=True)
         print(f"scaling 1 -> 2 workers: x{walls[1] / walls[2]:.2f}", flush=True)
     out = work / "run"
     if not args.skip_full:
         shutil.rmtree(out, ignore_errors=True)
-        timed(f"local pool ({os.cpu_count()} processes), whole fleet", lambda: run_fleet(str(fleet), out))
+        timed(f"local pool ({os.cpu_count()} processes), whole fleet, {args.passes} pass(es)",
+              lambda: run_fleet(str(fleet), out, passes=args.passes), args.passes)
         t0 = time.perf_counter()
-        run_fleet(str(fleet), out, report=False)
+        run_fleet(str(fleet), out, report=False, passes=args.passes)
         print(f"rerun with every drive stored: {time.perf_counter() - t0:.1f} s", flush=True)
     rows = read_drives(out)
     hits = {k: 0 for k in TARGETS}

@@ -4,6 +4,10 @@ Dask gets each drive as one task (``client.map``) and does the scheduling, retri
 results itself; the input files must be readable at the same paths on every worker (a shared file
 system), as the result store must be writable. Every backend returns the same records in the
 order of the drives, so the tables do not depend on the backend.
+
+Drives are handed out longest first (:func:`longest_first`, by the size of their input files,
+which the replay's cost follows): the last drives to start are then the short ones, so the workers
+finish together instead of one replaying a long drive while the others idle.
 """
 from __future__ import annotations
 
@@ -35,10 +39,25 @@ def run_all(drives: list[Drive], store_dir: str, jobs: int | None = None, schedu
     return recs
 
 
+def longest_first(drives: list[Drive]) -> list[int]:
+    """Indices of the drives, the largest inputs first (ties, unreadable files: in order)."""
+    def size(d: Drive) -> int:
+        total = 0
+        for f in (d.can, *d.gnss):
+            try:
+                total += os.path.getsize(f)
+            except OSError:
+                pass
+        return total
+
+    sizes = [size(d) for d in drives]
+    return sorted(range(len(drives)), key=lambda i: (-sizes[i], i))
+
+
 def _pool(drives, store_dir, jobs, done) -> list[dict]:
     out: list = [None] * len(drives)
     with ProcessPoolExecutor(max_workers=min(jobs, len(drives))) as pool:
-        futures = {pool.submit(run_drive, d, store_dir): i for i, d in enumerate(drives)}
+        futures = {pool.submit(run_drive, drives[i], store_dir): i for i in longest_first(drives)}
         for fut in as_completed(futures):
             i = futures[fut]
             out[i] = _result(fut.result, drives[i])
@@ -55,15 +74,17 @@ def _dask(drives, store_dir, address, done) -> list[dict]:
     except ImportError as e:
         raise UserError(f"--scheduler needs Dask (pip install 'ecu-daemon[fleet]'): {e}") from None
     run = uuid.uuid4().hex[:8]
-    keys = [f"fleet-{run}-{i}" for i in range(len(drives))]
+    order = longest_first(drives)
+    keys = [f"fleet-{run}-{i}" for i in order]
     out: list = [None] * len(drives)
     try:
         client = Client(address)
     except (OSError, TimeoutError, ValueError) as e:
         raise UserError(f"cannot reach the Dask scheduler at {address}: {e}") from None
     with client:
-        futures = client.map(run_drive, drives, [store_dir] * len(drives), key=keys, retries=RETRIES, pure=False)
-        index = {f.key: i for i, f in enumerate(futures)}
+        futures = client.map(run_drive, [drives[i] for i in order], [store_dir] * len(drives), key=keys,
+                             retries=RETRIES, pure=False)
+        index = {f.key: i for f, i in zip(futures, order)}
         for fut in dask_completed(futures):
             i = index[fut.key]
             out[i] = _result(fut.result, drives[i])

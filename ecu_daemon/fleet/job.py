@@ -57,6 +57,8 @@ def content_key(drive: Drive) -> str:
         with open(f, "rb") as fh:
             for chunk in iter(lambda: fh.read(1 << 20), b""):
                 h.update(chunk)
+    if drive.start_latency_s is not None:
+        h.update(f"\nstart latency {drive.start_latency_s!r}\n".encode())
     return h.hexdigest()[:40]
 
 
@@ -71,7 +73,7 @@ def run_drive(drive: Drive, store_dir: str) -> dict:
     done = store.load(key)
     if done is not None:
         return {**done, **base, "cached": True}
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     keep = True
     try:
         with _replay_log_quiet():
@@ -81,7 +83,8 @@ def run_drive(drive: Drive, store_dir: str) -> dict:
     except Exception as e:  # noqa: BLE001 - a bug on one drive is that drive's row, not the fleet's end
         rec = {**base, "status": "error", "error": _one_line(e)}
         keep = False
-    rec.update(key=key, version=__version__, wall_s=time.perf_counter() - started)
+    # wall and CPU time of the job: on a shared machine the wall time also counts the others' load
+    rec.update(key=key, version=__version__, wall_s=time.perf_counter() - started, cpu_s=time.process_time() - cpu)
     if keep:
         store.save(key, rec)
     return {**rec, "cached": False}
@@ -109,9 +112,14 @@ def _replay_log_quiet():
 
 
 def _replay(cfg, drive: Drive, est_csv: str) -> dict:
+    from ..estimator.core import LEARNED_VERSION
     from ..replay import run_replay
 
-    return run_replay(cfg, drive.can, list(drive.gnss), est_csv, config_path=drive.config)  # one per receiver
+    learned = None
+    if drive.start_latency_s is not None:  # no std: the estimator's own prior width, as from the config
+        learned = {"version": LEARNED_VERSION, "gnss_delay_s": drive.start_latency_s}
+    return run_replay(cfg, drive.can, list(drive.gnss), est_csv, config_path=drive.config,  # one per receiver
+                      learned=learned)
 
 
 def replay_and_score(drive: Drive) -> dict:
@@ -129,7 +137,8 @@ def replay_and_score(drive: Drive) -> dict:
            "late_inputs": int(summary["late_inputs"]), "steps": int(summary["steps"])}
     for v in VALIDITY:
         out[f"{v}_fraction"] = float(np.mean(est[v] > 0.5)) if len(est[v]) else math.nan
-    out.update(learned_parameters(summary["learned"], summary.get("learned_std", {}), cfg))
+    out["start_latency_s"] = math.nan if drive.start_latency_s is None else float(drive.start_latency_s)
+    out.update(learned_parameters(summary["learned"], summary.get("learned_std", {}), cfg, drive.start_latency_s))
     if drive.truth:
         out.update(truth_scores(read_numeric_csv(drive.truth, TRUTH_REQUIRED, "truth CSV"), est))
     return out
@@ -159,7 +168,7 @@ def read_numeric_csv(path: str, required: tuple[str, ...], what: str) -> dict[st
     return cols if ok else read_csv(path, required, what)
 
 
-def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict:
+def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config, start_latency_s: float | None = None) -> dict:
     """The :data:`PARAMS` and their ``_std`` from the estimator's learned state; the cornering
     stiffness from a compliance kappa = m / C (std by first-order propagation), both axles from the
     drive's own regression on GNSS velocity (``kappa_*_drive``, ``estimator/fusion/
@@ -169,12 +178,13 @@ def learned_parameters(learned: dict, std: dict, cfg: config_mod.Config) -> dict
     latency, its std were the latency exact, and the latency it is for; the calibration moves every
     drive to the vehicle's combined latency with them. A value still bit-identical to the
     config's prior was never learned on this drive: its std is NaN, so the calibration does not
-    count the same prior once per drive."""
+    count the same prior once per drive (the latency's prior: ``start_latency_s`` when the drive
+    started from one, else the config's)."""
     out = {}
     for name in ("gnss_delay_s", "wheel_scale", "steering_offset_rad", "yaw_rate_bias_radps"):
         out[name] = float(learned.get(name, math.nan))
         out[f"{name}_std"] = float(std.get(name, math.nan))
-    if out["gnss_delay_s"] == cfg.gnss.delay_s:
+    if out["gnss_delay_s"] == (cfg.gnss.delay_s if start_latency_s is None else start_latency_s):
         out["gnss_delay_s_std"] = math.nan
     m = cfg.vehicle.mass_kg
     out["stiffness_latency_s"] = float(std.get("kappa_drive_latency_s", math.nan))

@@ -37,6 +37,9 @@ class Drive:
     gnss: tuple[str, ...] = ()
     config: str | None = None
     truth: str | None = None
+    #: the GNSS latency the replay starts from instead of the config's (learned state, as the
+    #: daemon's state_file carries it from one drive to the next); set by ``fleet run --passes 2``
+    start_latency_s: float | None = None
 
 
 def discover(root: str | Path) -> list[Drive]:

@@ -17,7 +17,7 @@ _INT = ("frames", "gnss_samples", "gnss_fused", "gnss_rejected", "gaps", "late_i
 DRIVE_COLUMNS = (
     _STR[:4] + ("duration_s",) + _INT + tuple(f"{v}_fraction" for v in VALIDITY)
     + tuple(c for p in PARAMS for c in (p, f"{p}_std")) + tuple(f"true_{p}" for p in PARAMS)
-    + ("stiffness_latency_s",) + tuple(f"{p}_{e}" for p in PARAMS if p.startswith("cornering") for e in STIFFNESS_EXTRA)
+    + ("start_latency_s", "stiffness_latency_s") + tuple(f"{p}_{e}" for p in PARAMS if p.startswith("cornering") for e in STIFFNESS_EXTRA)
     + tuple(f"{c}_{m}" for c in SCORED.values() for m in ("rms", "coverage_3sigma")) + _STR[4:])
 
 
