@@ -288,6 +288,19 @@ class StiffnessRegression:
             rv = sigma_v ** 2 + (k1 * vx * arm * sig_ay / self.L) ** 2 + (MODEL_ERR * k1 * phi) ** 2
             ax.update(z, hv, rv)
 
+    def model_parameters(self) -> tuple:
+        """Per axle (rear, front): None before MIN_UPDATES samples, else ((k1, k3), their 2x2
+        covariance scaled as :meth:`AxleFilter.k1_std` scales k1's) for the live single-track model."""
+        out = []
+        for ax in (self.rear, self.front):
+            p11 = float(ax.P[K1, K1])
+            if ax.updates < MIN_UPDATES or not p11 > 0.0:
+                out.append(None)
+                continue
+            scale = ax.k1_std() ** 2 / p11
+            out.append(((float(ax.x[K1]), float(ax.x[K3])), ax.P[:2, :2] * scale))
+        return tuple(out)
+
     def learned(self) -> dict:
         return {"kappa_r_drive": float(self.rear.x[K1]), "kappa_f_drive": float(self.front.x[K1])}
 
