@@ -82,11 +82,12 @@ def test_a_restored_uncertainty_is_bounded_by_a_floor_and_the_prior():
 def test_the_model_takes_a_drive_estimate_only_when_it_is_the_more_certain():
     k = M / CR
     st = _fusion()
-    sure = ((1.2 * k, 0.2 * k), np.diag([(0.05 * k) ** 2, (0.2 * k) ** 2]))
-    st.take_drive_estimate((((0.8 * k, 0.0), np.diag([(0.5 * k) ** 2, k * k])), None))  # less certain
+    sure = ((1.2 * k, 0.2 * k), np.diag([(0.05 * k) ** 2, (0.2 * k) ** 2]), 0.1 ** 2)
+    st.take_drive_estimate((((0.8 * k, 0.0), np.diag([(0.5 * k) ** 2, k * k]), None), None))  # less certain
     assert st.rear.k[0] == k
     st.take_drive_estimate((sure, None))
     assert st.rear.k[0] == 1.2 * k and st.rear.P[0, 0] == (0.05 * k) ** 2
+    assert st.rear.rel_var == pytest.approx((0.1 * 1.2 * k) ** 2)  # the law's error the drive showed
     off = SingleTrackFusion(M, IZ, LF, LR, CF, CR, adapt=False)
     off.take_drive_estimate((sure, sure))  # adaptation switched off in the config: the config stands
     assert off.rear.k[0] == k and off.front.k[0] == M / CF

@@ -34,6 +34,9 @@ CORNER_STEPS = 330.0  # 6 ms steps in ~2 s, the correlation time of parameter/no
 PRIOR_REL_STD = 0.4  # m / C of an unlearned configuration (1 sigma, relative): +-30 % is a usual error
 PRIOR_REL_STD3 = 0.8  # the saturation term k3 (relative to k1): rarely known at all
 MODEL_REL_STD = 0.3  # what the two-term law gets wrong beyond its parameters, before residuals say
+MODEL_MIN_REL_STD = 0.05  # the law's error is never taken below this (relaxation, load transfer)
+TAKE_MAX_REL_VAR = 0.25  # the drive estimate is taken once its std is half the prior's (a taught car)
+LEARNED_MAX_N = 0.6  # the regression learns the law's error up to this lateral force (its MAX_N)
 RESTORED_MIN_REL_STD = 0.03  # a restored stiffness is never trusted beyond this (wear, load, temperature)
 
 
@@ -64,7 +67,7 @@ class AxleRls:
         self.P = self.P0.copy()
         self.updates = 0
         # what the two-term law still gets wrong, relative to its regressor (learned from residuals)
-        self.rel_var = (MODEL_REL_STD * k1) ** 2
+        self.rel_var = self.rel_var0 = (MODEL_REL_STD * k1) ** 2
         if learned_std is not None:
             self.restore_std(*learned_std)
 
@@ -95,8 +98,10 @@ class AxleRls:
         h0 = phi
         h1 = phi * n2
         P = self.P
+        # the law's error was learned below LEARNED_MAX_N at best: beyond, no better than the prior's
+        rel_var = self.rel_var if n2 <= LEARNED_MAX_N ** 2 else max(self.rel_var, self.rel_var0)
         return (h0 * self.k[0] + h1 * self.k[1],
-                h0 * h0 * (P[0, 0] + self.rel_var) + 2.0 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1])
+                h0 * h0 * (P[0, 0] + rel_var) + 2.0 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1])
 
     def update(self, phi: float, n2: float, y: float, rv: float, lam: float = 0.999) -> None:
         h = np.array([phi, phi * n2])
@@ -199,7 +204,9 @@ class SingleTrackFusion:
 
     def take_drive_estimate(self, estimates) -> None:
         """Adopt the per-drive regression's compliances (``StiffnessRegression.model_parameters``:
-        per axle None or ((k1, k3), their 2x2 covariance)) where it is the more certain. That
+        per axle None or ((k1, k3), their 2x2 covariance, the law's relative error variance)) where
+        it is the more certain, and clearly taught (half the prior's std: on a banked circle an
+        honest 35 % moved the estimate within its std, and the sideslip RMS doubled). That
         regression sees the stiffness through GNSS and a gyro heading, which the model does not
         pull, so its uncertainty is what the drive has taught; this RLS learns only from the filter's
         vy, which the model itself holds near the prior in every corner (it barely moves off it)."""
@@ -208,12 +215,14 @@ class SingleTrackFusion:
         for axle, est in zip((self.rear, self.front), estimates):
             if est is None:
                 continue
-            k, P = est
-            if not P[0, 0] < axle.P[0, 0]:
+            k, P, rel = est
+            if not P[0, 0] < min(axle.P[0, 0], TAKE_MAX_REL_VAR * axle.P0[0, 0]):
                 continue
             axle.k[0] = min(max(k[0], 0.33 * axle.k10), 3.0 * axle.k10)
             axle.k[1] = min(max(k[1], -axle.k10), 4.0 * axle.k10)
             axle.P = np.array(P, dtype=float)
+            if rel is not None:  # what the law got wrong on this drive, where the slip stood out
+                axle.rel_var = max(rel, MODEL_MIN_REL_STD ** 2) * axle.k[0] ** 2
 
     def learned(self) -> dict:
         out = {"kappa_r": float(self.rear.k[0]), "kappa_r3": float(self.rear.k[1]),
