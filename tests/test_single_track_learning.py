@@ -88,6 +88,13 @@ def test_the_model_takes_a_drive_estimate_only_when_it_is_the_more_certain():
     st.take_drive_estimate((sure, None))
     assert st.rear.k[0] == 1.2 * k and st.rear.P[0, 0] == (0.05 * k) ** 2
     assert st.rear.rel_var == pytest.approx((0.1 * 1.2 * k) ** 2)  # the law's error the drive showed
+    # from then on the model follows the drive estimate (even a less certain one: the same drive,
+    # revised) and no longer learns from the filter's vy, which it holds itself
+    st.take_drive_estimate((((1.15 * k, 0.2 * k), np.diag([(0.08 * k) ** 2, (0.2 * k) ** 2]), None), None))
+    assert st.rear.k[0] == 1.15 * k and st.rear.from_drive
+    n = st.rear.updates
+    st.adapt_from(20.0, 0.3, 0.01 ** 2, 0.2, 4.0, 0.0, 0.0)
+    assert st.rear.updates == n and st.rear.k[0] == 1.15 * k
     off = SingleTrackFusion(M, IZ, LF, LR, CF, CR, adapt=False)
     off.take_drive_estimate((sure, sure))  # adaptation switched off in the config: the config stands
     assert off.rear.k[0] == k and off.front.k[0] == M / CF

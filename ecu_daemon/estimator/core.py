@@ -828,7 +828,8 @@ class Estimator:
                                              a[AUX_RDOT], a[AUX_DELTA])
                 self.stiffness.observe(h, s, fus.course(g), speed, fus.sigma(g), fus.lever_x, lat.delay_s, lat.std_s,
                                        self.steer_offset / self.steer_ratio)
-                self.single_track.take_drive_estimate(self.stiffness.model_parameters())
+                if self.delay_compensation:  # the regression is only right where samples sit at their time
+                    self.single_track.take_drive_estimate(self.stiffness.model_parameters())
         self.last_gnss_rejected = not ok
         if ok:
             self.last_gnss_fused_t = k * self.dt

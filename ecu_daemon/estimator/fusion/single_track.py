@@ -66,6 +66,7 @@ class AxleRls:
         self.P0 = np.diag([(PRIOR_REL_STD * k1) ** 2, (PRIOR_REL_STD3 * k1) ** 2])
         self.P = self.P0.copy()
         self.updates = 0
+        self.from_drive = False  # following the per-drive regression (SingleTrackFusion.take_drive_estimate)
         # what the two-term law still gets wrong, relative to its regressor (learned from residuals)
         self.rel_var = self.rel_var0 = (MODEL_REL_STD * k1) ** 2
         if learned_std is not None:
@@ -193,12 +194,12 @@ class SingleTrackFusion:
         n2 = (ay / G) ** 2
         rv = var_vy + 0.05 ** 2
         phi = self.regressor_rear(vx, ay, rdot)
-        if abs(phi) > 0.05:
+        if abs(phi) > 0.05 and not self.rear.from_drive:
             self.rear.update(phi, n2, vy - self.lr * r, rv)
         if not math.isfinite(delta):
             return
         phf = self.regressor_front(vx, ay, rdot)
-        if abs(phf) > 0.05:
+        if abs(phf) > 0.05 and not self.front.from_drive:
             # alpha_f = (vy + lf r)/vx - delta = -F_yf / C_f  ->  vy + lf r - vx delta = kappa_f phf
             self.front.update(phf, n2, vy + self.lf * r - vx * delta, rv)
 
@@ -206,7 +207,9 @@ class SingleTrackFusion:
         """Adopt the per-drive regression's compliances (``StiffnessRegression.model_parameters``:
         per axle None or ((k1, k3), their 2x2 covariance, the law's relative error variance)) where
         it is the more certain, and clearly taught (half the prior's std: on a banked circle an
-        honest 35 % moved the estimate within its std, and the sideslip RMS doubled). That
+        honest 35 % moved the estimate within its std, and the sideslip RMS doubled); from then on
+        the model follows it, and this RLS stops (its own updates pulled Revs' k_r 7 % off the
+        regression's, with a std that then kept the regression out). That
         regression sees the stiffness through GNSS and a gyro heading, which the model does not
         pull, so its uncertainty is what the drive has taught; this RLS learns only from the filter's
         vy, which the model itself holds near the prior in every corner (it barely moves off it)."""
@@ -216,8 +219,9 @@ class SingleTrackFusion:
             if est is None:
                 continue
             k, P, rel = est
-            if not P[0, 0] < min(axle.P[0, 0], TAKE_MAX_REL_VAR * axle.P0[0, 0]):
+            if not (P[0, 0] < TAKE_MAX_REL_VAR * axle.P0[0, 0] and (axle.from_drive or P[0, 0] < axle.P[0, 0])):
                 continue
+            axle.from_drive = True
             axle.k[0] = min(max(k[0], 0.33 * axle.k10), 3.0 * axle.k10)
             axle.k[1] = min(max(k[1], -axle.k10), 4.0 * axle.k10)
             axle.P = np.array(P, dtype=float)
