@@ -95,6 +95,28 @@ def test_restart_mid_corner_with_learned_state(drives, tmp_path):
     assert r["vx_max_err_valid"] < 0.3  # the wheel scale is known at once
 
 
+def test_restart_mid_corner_after_a_drive_that_taught_the_stiffness(drives):
+    """The state file of a double lane change (the car's stiffness learned from its transients,
+    with the std it was learned to) restores a flying start mid-corner: in a steady corner only the
+    single-track model observes sideslip, so a cold start waits for the corner to end (its 40 %
+    stiffness prior is honest for a car nobody measured); with the learned stiffness and its
+    uncertainty from the file the flags come up within 3 s of the first fix, and are right."""
+    dlc = drives("dlc", lambda: SCENARIOS["dlc_dry"])
+    cfg = config_mod.load(dlc / "config.toml")
+    learned = run_replay(cfg, str(dlc / "drive.log"), str(dlc / "drive_gnss.log"))["learned"]
+    assert learned["kappa_r_std"] < 0.2 * learned["kappa_r"]
+    d = drives("c30r200", lambda: fs.corner(30.0, 200.0, 300.0))  # 0.46 g: where the drive learned the law
+    assert config_mod.load(d / "config.toml").vehicle == cfg.vehicle  # the same car
+    cold, t_gnss = fs.replay_from(d, 35.0)
+    warm, _ = fs.replay_from(d, 35.0, tag="taught", learned=learned)
+    r_cold = fs.score(d / "truth.csv", cold, t_gnss)
+    r = fs.score(d / "truth.csv", warm, t_gnss)
+    _promise_kept(r)
+    assert r_cold["sideslip"]["time_to_valid_s"] > 3.0
+    assert r["sideslip"]["time_to_valid_s"] <= 3.0
+    assert r["heading"]["time_to_valid_s"] <= 3.0
+
+
 def test_latency_identified_from_a_fast_start(drives):
     """Start at 25 m/s with a latency prior 0.2 s short (truth 0.4 s): identified within 0.03 s
     after 30 s of driving with speed changes, mid-corner, and no heading promised meanwhile."""

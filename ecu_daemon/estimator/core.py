@@ -40,7 +40,7 @@ from .fault_detection import ACCEL_X, ACCEL_Y, LAT_WINDOW_S, LEARNED_BOUNDS, WHE
 from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
-from .fusion.single_track import SingleTrackFusion
+from .fusion.single_track import SingleTrackFusion, std_keys as stiffness_std_keys
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
@@ -307,6 +307,8 @@ class Estimator:
         limits = {"yaw_rate_bias_radps": 0.1, "accel_x_bias_mps2": 2.0, "accel_y_bias_mps2": 2.0,
                   "wheel_scale": (0.8, 1.2), "accel_y_gain": 0.2, "kappa_r": (1e-4, 1.0), "kappa_f": (1e-4, 1.0),
                   "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
+                  **{key: (-1.0, 1.0) if key.endswith("_corr") else (0.0, 1.0)
+                     for axle in ("kappa_r", "kappa_f") for key in stiffness_std_keys(axle)},
                   "steering_offset_rad": 0.5, "gnss_delay_s": (0.0, 1.0),
                   "gnss_delay_std_s": (0.0, 1.0),
                   "accel_x_offset_mps2": 2.0, "accel_y_offset_mps2": 2.0,
@@ -827,6 +829,8 @@ class Estimator:
                                              a[AUX_RDOT], a[AUX_DELTA])
                 self.stiffness.observe(h, s, fus.course(g), speed, fus.sigma(g), fus.lever_x, lat.delay_s, lat.std_s,
                                        self.steer_offset / self.steer_ratio)
+                if self.delay_compensation:  # the regression is only right where samples sit at their time
+                    self.single_track.take_drive_estimate(self.stiffness.model_parameters())
         self.last_gnss_rejected = not ok
         if ok:
             self.last_gnss_fused_t = k * self.dt

@@ -31,6 +31,22 @@ from ..kinematic import VX, VY
 G = 9.81
 MIN_SPEED = 0.5  # m/s; at low speed the relation tends to slip-free kinematics, vy = lr r
 CORNER_STEPS = 330.0  # 6 ms steps in ~2 s, the correlation time of parameter/nonlinearity errors
+PRIOR_REL_STD = 0.4  # m / C of an unlearned configuration (1 sigma, relative): +-30 % is a usual error
+PRIOR_REL_STD3 = 0.8  # the saturation term k3 (relative to k1): rarely known at all
+MODEL_REL_STD = 0.3  # what the two-term law gets wrong beyond its parameters, before residuals say
+MODEL_MIN_REL_STD = 0.05  # the law's error is never taken below this (relaxation, load transfer)
+TAKE_MAX_REL_VAR = 0.25  # the drive estimate is taken once its std is half the prior's (a taught car)
+LEARNED_MAX_N = 0.6  # the regression learns the law's error up to this lateral force (its MAX_N)
+RESTORED_MIN_REL_STD = 0.03  # a restored stiffness is never trusted beyond this (wear, load, temperature)
+
+
+def std_keys(name: str) -> tuple[str, str, str, str]:
+    """Learned-state keys of an axle's uncertainty (``name``: kappa_r / kappa_f)."""
+    return f"{name}_std", f"{name}3_std", f"{name}_corr", f"{name}_model_std"
+
+
+def _restored_std(learned: dict, name: str) -> tuple:
+    return tuple(learned.get(key) for key in std_keys(name))
 
 
 def rls_update_reference(k: np.ndarray, P: np.ndarray, P0: np.ndarray, phi: float, n2: float, y: float,
@@ -63,22 +79,50 @@ class AxleRls:
     data this two-term law fits sideslip to 0.39 deg where the best single stiffness gives 0.48.
     """
 
-    def __init__(self, k1: float, k3: float | None = None):
+    def __init__(self, k1: float, k3: float | None = None, learned_std: tuple | None = None):
         self.k10 = k1
         self.k = np.array([k1, 0.6 * k1 if k3 is None else k3])
-        self.P0 = np.diag([(0.4 * k1) ** 2, (0.8 * k1) ** 2])
+        # an unlearned configuration: m / C as a user states it, 40 % (1 sigma), the saturation 80 %
+        self.P0 = np.diag([(PRIOR_REL_STD * k1) ** 2, (PRIOR_REL_STD3 * k1) ** 2])
         self.P = self.P0.copy()
         self.updates = 0
+        self.from_drive = False  # following the per-drive regression (SingleTrackFusion.take_drive_estimate)
         # what the two-term law still gets wrong, relative to its regressor (learned from residuals)
-        self.rel_var = (0.3 * k1) ** 2
+        self.rel_var = self.rel_var0 = (MODEL_REL_STD * k1) ** 2
+        if learned_std is not None:
+            self.restore_std(*learned_std)
+
+    def restore_std(self, s1: float | None, s3: float | None, corr: float | None, model: float | None) -> None:
+        """Take the uncertainty an earlier drive left (the learned-state file): without it a
+        restored stiffness would be trusted no more than the configuration's, and a restart
+        mid-corner would wait for the corner to end. Never tighter than a floor (the tyres wear,
+        warm up, the load changes between drives) nor wider than the prior; a file from before
+        these keys (``None``) keeps the prior."""
+        if s1 is None or s3 is None:
+            return
+        k = self.k10
+        s1 = min(max(s1, RESTORED_MIN_REL_STD * k), math.sqrt(self.P0[0, 0]))
+        s3 = min(max(s3, RESTORED_MIN_REL_STD * k), math.sqrt(self.P0[1, 1]))
+        c = min(max(corr if corr is not None else 0.0, -0.99), 0.99)
+        self.P = np.array([[s1 * s1, c * s1 * s3], [c * s1 * s3, s3 * s3]])
+        if model is not None:
+            self.rel_var = min(max(model, RESTORED_MIN_REL_STD * k), MODEL_REL_STD * k) ** 2
+
+    def learned_std(self) -> tuple[float, float, float, float]:
+        """(std of k1, std of k3, their correlation, the model-error std): what ``restore_std`` takes."""
+        s1, s3 = math.sqrt(max(self.P[0, 0], 0.0)), math.sqrt(max(self.P[1, 1], 0.0))
+        c = self.P[0, 1] / (s1 * s3) if s1 > 0.0 and s3 > 0.0 else 0.0
+        return s1, s3, float(c), math.sqrt(self.rel_var)
 
     def predict(self, phi: float, n2: float) -> tuple[float, float]:
         """(y, variance of y from the parameter uncertainty)."""
         h0 = phi
         h1 = phi * n2
         P = self.P
+        # the law's error was learned below LEARNED_MAX_N at best: beyond, no better than the prior's
+        rel_var = self.rel_var if n2 <= LEARNED_MAX_N ** 2 else max(self.rel_var, self.rel_var0)
         return (h0 * self.k[0] + h1 * self.k[1],
-                h0 * h0 * (P[0, 0] + self.rel_var) + 2.0 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1])
+                h0 * h0 * (P[0, 0] + rel_var) + 2.0 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1])
 
     def update(self, phi: float, n2: float, y: float, rv: float, lam: float = 0.999) -> None:
         e = rls_update(self.k, self.P, self.P0, phi, n2, y, rv, lam)
@@ -100,8 +144,10 @@ class SingleTrackFusion:
         self.L = lf + lr
         self.iz_m = yaw_inertia / mass
         self.mass = mass
-        self.rear = AxleRls(learned.get("kappa_r", mass / cr), learned.get("kappa_r3"))
-        self.front = AxleRls(learned.get("kappa_f", mass / cf), learned.get("kappa_f3"))
+        self.rear = AxleRls(learned.get("kappa_r", mass / cr), learned.get("kappa_r3"),
+                            _restored_std(learned, "kappa_r"))
+        self.front = AxleRls(learned.get("kappa_f", mass / cf), learned.get("kappa_f3"),
+                             _restored_std(learned, "kappa_f"))
         self.rear.k10 = mass / cr
         self.front.k10 = mass / cf
         self.adapt = adapt
@@ -160,18 +206,46 @@ class SingleTrackFusion:
         n2 = (ay / G) ** 2
         rv = var_vy + 0.05 ** 2
         phi = self.regressor_rear(vx, ay, rdot)
-        if abs(phi) > 0.05:
+        if abs(phi) > 0.05 and not self.rear.from_drive:
             self.rear.update(phi, n2, vy - self.lr * r, rv)
         if not math.isfinite(delta):
             return
         phf = self.regressor_front(vx, ay, rdot)
-        if abs(phf) > 0.05:
+        if abs(phf) > 0.05 and not self.front.from_drive:
             # alpha_f = (vy + lf r)/vx - delta = -F_yf / C_f  ->  vy + lf r - vx delta = kappa_f phf
             self.front.update(phf, n2, vy + self.lf * r - vx * delta, rv)
 
+    def take_drive_estimate(self, estimates) -> None:
+        """Adopt the per-drive regression's compliances (``StiffnessRegression.model_parameters``:
+        per axle None or ((k1, k3), their 2x2 covariance, the law's relative error variance)) where
+        it is the more certain, and clearly taught (half the prior's std: on a banked circle an
+        honest 35 % moved the estimate within its std, and the sideslip RMS doubled); from then on
+        the model follows it, and this RLS stops (its own updates pulled Revs' k_r 7 % off the
+        regression's, with a std that then kept the regression out). That
+        regression sees the stiffness through GNSS and a gyro heading, which the model does not
+        pull, so its uncertainty is what the drive has taught; this RLS learns only from the filter's
+        vy, which the model itself holds near the prior in every corner (it barely moves off it)."""
+        if not self.adapt:
+            return
+        for axle, est in zip((self.rear, self.front), estimates):
+            if est is None:
+                continue
+            k, P, rel = est
+            if not (P[0, 0] < TAKE_MAX_REL_VAR * axle.P0[0, 0] and (axle.from_drive or P[0, 0] < axle.P[0, 0])):
+                continue
+            axle.from_drive = True
+            axle.k[0] = min(max(k[0], 0.33 * axle.k10), 3.0 * axle.k10)
+            axle.k[1] = min(max(k[1], -axle.k10), 4.0 * axle.k10)
+            axle.P = np.array(P, dtype=float)
+            if rel is not None:  # what the law got wrong on this drive, where the slip stood out
+                axle.rel_var = max(rel, MODEL_MIN_REL_STD ** 2) * axle.k[0] ** 2
+
     def learned(self) -> dict:
-        return {"kappa_r": float(self.rear.k[0]), "kappa_r3": float(self.rear.k[1]),
-                "kappa_f": float(self.front.k[0]), "kappa_f3": float(self.front.k[1])}
+        out = {"kappa_r": float(self.rear.k[0]), "kappa_r3": float(self.rear.k[1]),
+               "kappa_f": float(self.front.k[0]), "kappa_f3": float(self.front.k[1])}
+        for name, axle in (("kappa_r", self.rear), ("kappa_f", self.front)):
+            out.update(zip(std_keys(name), axle.learned_std()))
+        return out
 
     @property
     def cornering_stiffness_rear(self) -> float:

@@ -56,6 +56,7 @@ GYRO_SCALE_ERR = 0.005  # relative yaw-rate scale uncertainty (heading error per
 MODEL_ERR = 0.1  # relative slip error the two-term law and tyre relaxation leave (white part)
 MIN_UPDATES = 20  # fewer samples: the residuals say too little about the noise level; the prior's std
 MAX_RHO = 0.9  # residual autocorrelation cap (x19 variance)
+SLIP_STANDS_OUT = 4.0  # slip^2 / (rest of the innovation variance) above which a residual measures the tyre law
 
 # state of one axle's filter: compliances k1, k3, heading error, yaw-rate bias error, GNSS latency,
 # road-wheel steering offset (front only)
@@ -149,6 +150,8 @@ class AxleFilter:
         self.lag_sum = 0.0  # sum of products of consecutive normalised innovations
         self.last_nu = 0.0
         self.updates = 0
+        self.model_sum = 0.0  # residual variance beyond every modelled term, relative to slip^2
+        self.model_n = 0
 
     def start_heading(self, psi: float, var_psi: float, bias: float, var_bias: float) -> None:
         self.psi, self.bias = psi, bias
@@ -179,10 +182,16 @@ class AxleFilter:
         self.psi -= (r_sum - steps * self.bias) * dt  # yaw rate positive left, heading clockwise
         axle_propagate(self.P, steps * dt, q_psi, q_bias)
 
-    def update(self, z: float, h: np.ndarray, rv: float) -> None:
+    def update(self, z: float, h: np.ndarray, rv: float, model_var: float = 0.0) -> None:
         """Scalar update, tau considered (its gain zero; Joseph form, the covariance then stays
-        that of the suboptimal gain)."""
+        that of the suboptimal gain). ``model_var``: the two-term law's share of ``rv``; where the
+        slip stands out of the rest, the residual says how wrong the law is (:meth:`model_rel_var`)."""
+        slip = float(h[K1] * self.x[K1] + h[K3] * self.x[K3])
+        rest = float(h @ self.P @ h) + rv - model_var
         nu = axle_update(self.x, self.P, z, h, rv)
+        if slip * slip > SLIP_STANDS_OUT * rest:
+            self.model_sum += max(nu * nu * (rest + model_var) - rest, 0.0) / (slip * slip)
+            self.model_n += 1
         self.nis_sum += nu * nu
         self.lag_sum += nu * self.last_nu
         self.last_nu = nu
@@ -190,6 +199,16 @@ class AxleFilter:
         self.psi -= float(self.x[DPSI])
         self.bias -= float(self.x[EB])
         self.x[DPSI] = self.x[EB] = 0.0
+
+    def model_rel_var(self) -> float | None:
+        """The two-term law's error variance relative to the slip, from the residuals where the
+        slip stood out (None before MIN_UPDATES of them): their mean, raised by two standard
+        errors of a mean of that many squares (as if independent, less their autocorrelation)."""
+        if self.model_n < MIN_UPDATES:
+            return None
+        rho = min(max(self.lag_sum / self.nis_sum, 0.0), MAX_RHO) if self.nis_sum > 0 else 0.0
+        n_eff = self.model_n * (1.0 - rho) / (1.0 + rho)
+        return self.model_sum / self.model_n * (1.0 + 2.0 * math.sqrt(2.0 / max(n_eff, 1.0)))
 
     def k1_per_latency(self) -> float:
         """d k1 / d tau: how the estimate moves per second of latency error (the considered
@@ -286,7 +305,21 @@ class StiffnessRegression:
             # noise: GNSS, the regressor's own (ay noise), what the two-term tyre law leaves
             k1 = ax.x[K1]
             rv = sigma_v ** 2 + (k1 * vx * arm * sig_ay / self.L) ** 2 + (MODEL_ERR * k1 * phi) ** 2
-            ax.update(z, hv, rv)
+            ax.update(z, hv, rv, (MODEL_ERR * k1 * phi) ** 2)
+
+    def model_parameters(self) -> tuple:
+        """Per axle (rear, front): None before MIN_UPDATES samples, else ((k1, k3), their 2x2
+        covariance scaled as :meth:`AxleFilter.k1_std` scales k1's, the law's relative error
+        variance or None) for the live single-track model."""
+        out = []
+        for ax in (self.rear, self.front):
+            p11 = float(ax.P[K1, K1])
+            if ax.updates < MIN_UPDATES or not p11 > 0.0:
+                out.append(None)
+                continue
+            scale = ax.k1_std() ** 2 / p11
+            out.append(((float(ax.x[K1]), float(ax.x[K3])), ax.P[:2, :2] * scale, ax.model_rel_var()))
+        return tuple(out)
 
     def learned(self) -> dict:
         return {"kappa_r_drive": float(self.rear.x[K1]), "kappa_f_drive": float(self.front.x[K1])}
