@@ -90,10 +90,13 @@ MAG_LEARN_STD = math.radians(1.0)  # ... and the filter's heading std is below t
 COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
 
 
-# A receiver's latency error becomes a filter state (latency_consider.py) once latency.py has it
-# within this (s). Before, its prior is wide enough (0.15 s at start-up) for the lateral
-# dynamics' own model errors at a corner's entry to pass for a latency error (measured: 0.02 s,
-# sideslip RMS x2 on the 10-15 m circles at 5-10 m/s); until then the timing stays white noise.
+# A receiver's latency error is a filter state (latency_consider.py) while its dual-antenna heading
+# is fresh (the heading measures r d against the course's r d: course - heading is the sideslip at
+# any latency) and latency.py has the latency within this (s). Without a baseline only the lateral
+# dynamics' model would tell a latency error from a sideslip error, and it passed its own errors
+# for one (0.02 s at the 10-15 m circles' entry, sideslip RMS x2; Revs sideslip RMS +3 %, +10 %
+# with the wrong parameters; a warm restart mid-corner 0.7 deg off in heading): the timing stays
+# white noise there, as its std says.
 AUGMENT_MAX_STD_S = 0.05
 LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step over this
 
@@ -138,6 +141,7 @@ class Estimator:
         self.latency = self.latencies[0]
         # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
         self.considers = [LatencyConsider(self.hist.n) for _ in receivers]
+        self.augmented = False  # the primary receiver's last velocity fix had its latency error as a state
         self._velocity_latencies = [lat for lat, v in zip(self.latencies, self.uses_velocity) if v]
         # each velocity receiver's latency also from its speed against the integrated accelerometer
         self.speed_latencies = [LatencyEstimator(dt, lat.delay_s, gn.max_delay_s, lat.enabled, extra=1)
@@ -540,7 +544,8 @@ class Estimator:
         h.auxr[i][:] = (r, ay, rdot, wheel_z, delta, ax)
         h.last = k
         for cons in self.considers:
-            cons.step(i, ip, A, predict)
+            if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
+                cons.step(i, ip, A, predict)
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
@@ -720,7 +725,7 @@ class Estimator:
                 # the magnetometer holds the heading: its slow error is a bias the filter cannot
                 # average away (module docstring of fusion/magnetometer.py)
                 floor = math.sqrt(COURSE_FLOOR_RAD ** 2 + mag.last_slow_var)
-        turn = 0.0 if self.considers[0].var else self.turn_lp * self._latency_std()
+        turn = 0.0 if self.augmented else self.turn_lp * self._latency_std()
         psi_std = math.sqrt(sd[PSI] ** 2 + turn ** 2 + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -777,7 +782,10 @@ class Estimator:
         """Receiver rx's latency-error state, synchronised with its latency estimate (None without
         delay compensation: then the error is the whole latency, not a small unknown)."""
         cons = self.considers[rx]
-        if not self.delay_compensation or (cons.var == 0.0 and lat.std_s > AUGMENT_MAX_STD_S):
+        hd = self.heading
+        if (not self.delay_compensation or not hd.fused or hd.last is None or hd.last.source != rx
+                or self.hist.last * self.dt - self.last_heading_fused_t > HEADING_FRESH_S
+                or (cons.var == 0.0 and lat.std_s > AUGMENT_MAX_STD_S)):
             return None
         cons.sync(self.hist, lat.delay_s, lat.std_s)
         return cons
@@ -837,7 +845,10 @@ class Estimator:
             if ok and speed >= ALIGN_SPEED and g.course_known:
                 self._align(s, g, fus, lat)
         else:
-            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=self._consider(g.source, lat))
+            cons = self._consider(g.source, lat)
+            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=cons)
+            if g.source == 0:
+                self.augmented = cons is not None
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
