@@ -20,6 +20,11 @@ the gyro's heading, the baseline heading): along the track the timing error stay
 bias-weighted noise of ``gnss_velocity.py``, because the speed is what ``latency.py`` identifies
 the latency from, and its std is ``d``'s prior (:meth:`LatencyConsider.sync`), so nothing counts
 twice. ``latency.py``'s own algorithm is untouched; its delay stays the published one.
+
+The core uses it for a receiver while that receiver's dual-antenna heading is fresh
+(``Estimator._consider``): there the heading measures the ``r d`` the course carries. Without a
+baseline only the lateral dynamics' model separates a latency error from a sideslip error, and
+on the simulator's low-speed circles and on Revs it passed its own errors for one.
 """
 from __future__ import annotations
 
