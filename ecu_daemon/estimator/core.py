@@ -47,6 +47,7 @@ from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
+from .latency_consider import LatencyConsider
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
 
@@ -89,6 +90,14 @@ MAG_LEARN_STD = math.radians(1.0)  # ... and the filter's heading std is below t
 COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
 
 
+# A receiver's latency error is a filter state (latency_consider.py) while its dual-antenna heading
+# is fresh (the heading measures r d against the course's r d: course - heading is the sideslip at
+# any latency) and latency.py has the latency within this (s). Without a baseline only the lateral
+# dynamics' model would tell a latency error from a sideslip error, and it passed its own errors
+# for one (0.02 s at the 10-15 m circles' entry, sideslip RMS x2; Revs sideslip RMS +3 %, +10 %
+# with the wrong parameters; a warm restart mid-corner 0.7 deg off in heading): the timing stays
+# white noise there, as its std says.
+AUGMENT_MAX_STD_S = 0.05
 LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step over this
 
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
@@ -130,6 +139,9 @@ class Estimator:
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
         self.latency = self.latencies[0]
+        # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
+        self.considers = [LatencyConsider(self.hist.n) for _ in receivers]
+        self.augmented = False  # the primary receiver's last velocity fix had its latency error as a state
         self._velocity_latencies = [lat for lat, v in zip(self.latencies, self.uses_velocity) if v]
         # each velocity receiver's latency also from its speed against the integrated accelerometer
         self.speed_latencies = [LatencyEstimator(dt, lat.delay_s, gn.max_delay_s, lat.enabled, extra=1)
@@ -534,6 +546,9 @@ class Estimator:
                                         held[I_ROLL] if t - held_t[I_ROLL] <= tmo[I_ROLL] else math.nan, r)
         h.auxr[i][:] = (r, ay, rdot, wheel_z, delta, ax)
         h.last = k
+        for cons in self.considers:
+            if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
+                cons.step(i, ip, A, predict)
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
@@ -713,7 +728,8 @@ class Estimator:
                 # the magnetometer holds the heading: its slow error is a bias the filter cannot
                 # average away (module docstring of fusion/magnetometer.py)
                 floor = math.sqrt(COURSE_FLOOR_RAD ** 2 + mag.last_slow_var)
-        psi_std = math.sqrt(sd[PSI] ** 2 + (self.turn_lp * self._latency_std()) ** 2 + floor ** 2)
+        turn = 0.0 if self.augmented else self.turn_lp * self._latency_std()
+        psi_std = math.sqrt(sd[PSI] ** 2 + turn ** 2 + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
@@ -764,6 +780,18 @@ class Estimator:
         if len(vel) == 1:
             return vel[0].std_s
         return max(lat.std_s for lat in vel)
+
+    def _consider(self, rx: int, lat: LatencyEstimator) -> LatencyConsider | None:
+        """Receiver rx's latency-error state, synchronised with its latency estimate (None without
+        delay compensation: then the error is the whole latency, not a small unknown)."""
+        cons = self.considers[rx]
+        hd = self.heading
+        if (not self.delay_compensation or not hd.fused or hd.last is None or hd.last.source != rx
+                or self.hist.last * self.dt - self.last_heading_fused_t > HEADING_FRESH_S
+                or (cons.var == 0.0 and lat.std_s > AUGMENT_MAX_STD_S)):
+            return None
+        cons.sync(self.hist, lat.delay_s, lat.std_s)
+        return cons
 
     # ----------------------------------------------------------------------------------------
     def _on_gnss(self, g: GnssSample, k: int) -> None:
@@ -820,7 +848,10 @@ class Estimator:
             if ok and speed >= ALIGN_SPEED and g.course_known:
                 self._align(s, g, fus, lat)
         else:
-            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s)
+            cons = self._consider(g.source, lat)
+            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=cons)
+            if g.source == 0:
+                self.augmented = cons is not None
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
                 a = h.aux[i]
@@ -849,7 +880,8 @@ class Estimator:
         if not fus.usable(g):
             fus.rejected += 1
             return
-        lat = self.latencies[min(g.source, len(self.latencies) - 1)]
+        rx = min(g.source, len(self.latencies) - 1)
+        lat = self.latencies[rx]
         if self.yaw_integral is not None and g.source < len(self.uses_velocity) and not self.uses_velocity[g.source]:
             self.yaw_integral.pair(g.source, k, fus.vehicle_heading(g), lat)
         delay = lat.delay_s if self.delay_compensation else 0.0
@@ -861,10 +893,12 @@ class Estimator:
             self.realignments += 1
             self.aligned = False
         if self.aligned:
-            if not fus.fuse(h, s, g, std):
+            if not fus.fuse(h, s, g, std, self._consider(rx, lat)):
                 return
         else:
             fus.align(h, s, g, std, self.model.Qd[PSI, PSI])
+            for cons in self.considers:
+                cons.zero_heading(h)
             self.aligned = True
             for f in self.receivers:
                 f.consecutive_rejects = 0
@@ -948,6 +982,8 @@ class Estimator:
         JP = np.einsum("ki,kij->kj", J, P)
         var = np.einsum("kj,kj->k", JP, J) + var_course
         h.X[idx, PSI] = (X[:, PSI] + dpsi) % (2.0 * math.pi)
+        for cons in self.considers:
+            cons.set_heading(idx, J)
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var

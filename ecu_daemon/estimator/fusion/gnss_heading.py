@@ -23,6 +23,7 @@ from ...samples import GnssHeadingSample
 from .. import kalman
 from ..history import AUX_R, StepHistory
 from ..kinematic import NX, PSI, wrap_pi
+from ..latency_consider import LatencyConsider
 from .gnss_velocity import NOT_PD
 
 # what happened to the last heading sample (EST_DIAG.GNSS_HEADING_STATE)
@@ -34,6 +35,9 @@ STATE_GATE = 4  # disagreed with the filter
 STATE_STALE = 5  # none received for longer than the GNSS timeout (set by whoever knows the time)
 
 HEADING_ACC_FLOOR_RAD = math.radians(0.05)  # below what any receiver's accHeading is honest about
+#: the heading's time stamp against its velocity's (s): the receiver sends an epoch's messages one
+#: after another (a NAV-PVT is ~9 ms at 115200 baud), so the two latencies differ by about this much
+STAGGER_S = 0.01
 #: consecutive gate rejections after which the filter, not the baseline, is taken to be wrong
 REALIGN_REJECTS = 5
 
@@ -95,15 +99,23 @@ class GnssHeadingFusion:
         r = hist.aux[hist.slot(s), AUX_R]
         return self.sigma(g) ** 2 + (r * delay_std_s) ** 2
 
-    def fuse(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float) -> bool:
+    def fuse(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float,
+             consider: LatencyConsider | None = None) -> bool:
         """Scalar heading update at stored step s (Joseph form, through ``kalman.late_update`` as
         the velocity's); False (counted) when gated out, or when the corrected covariance would
-        not be positive definite (``StepHistory.correct`` refuses it)."""
+        not be positive definite (``StepHistory.correct`` refuses it). With ``consider`` (the
+        receiver's latency error, shared with its velocity) the heading reads ``psi + r d``
+        (d psi / dt = -r) instead of carrying ``(r std)^2`` of white noise
+        (``latency_consider.py``); only the stagger of its time stamp stays noise."""
         i = hist.slot(s)
         y = wrap_pi(self.vehicle_heading(g) - hist.X[i, PSI])
-        self._R[0, 0] = self.variance(hist, s, g, delay_std_s)
+        self._R[0, 0] = self.variance(hist, s, g, STAGGER_S if consider is not None else delay_std_s)
         self._y[0] = y
-        nis = kalman.late_update(hist.P[i], self._H, self._R, self._y, self._dx, self._M)
+        if consider is None:
+            nis = kalman.late_update(hist.P[i], self._H, self._R, self._y, self._dx, self._M)
+        else:
+            nis, c = consider.late_update(hist.P[i], consider.Cr[i], self._H, np.array((hist.aux[i, AUX_R],)),
+                                          self._R, self._y, self._dx, self._M)
         if not nis <= self.gate_sigma ** 2:  # NaN: no usable innovation covariance
             self.consecutive_rejects += 1
             self.rejected += 1
@@ -114,6 +126,8 @@ class GnssHeadingFusion:
             self.rejected += 1
             self.last_reason = NOT_PD
             return False
+        if consider is not None:
+            consider.commit(hist, s, c)
         self.consecutive_rejects = 0
         self.fused += 1
         return True

@@ -24,8 +24,9 @@ from ...samples import GnssSample
 from .. import generated as gen
 from .. import kalman
 from ..gnss_noise import GnssNoiseLearner
-from ..history import AUX_AX, AUX_AY, AUX_R, StepHistory
-from ..kinematic import NX, VX
+from ..history import AUX_AX, AUX_AY, AUX_R, AUX_RDOT, StepHistory
+from ..kinematic import NX, PSI, VX
+from ..latency_consider import LatencyConsider, antenna_acceleration_ned
 
 ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
 MAX_CONSECUTIVE_REJECTS = 10
@@ -127,15 +128,18 @@ class GnssVelocityFusion:
         return True
 
     def fuse(self, hist: StepHistory, s: int, g: GnssSample, gate: bool = True,
-             delay_std_s: float = 0.0) -> bool:
+             delay_std_s: float = 0.0, consider: LatencyConsider | None = None) -> bool:
         """Full 2-D velocity update at stored step s. Returns False if gated out.
 
         ``delay_std_s``: uncertainty of the time of validity. A timing error dt looks like a
         velocity error of a dt (a = horizontal acceleration), so it is added to the noise:
         until the latency is identified, hard cornering de-weights GNSS instead of tearing the
         heading away (and the gate does not lock GNSS out). Along the track (speed, wheel
-        scale) it is also weighted as the bias it is (``TIMING_FIXES``); across the track its
-        effect on heading is published in the heading std by the core.
+        scale) it is also weighted as the bias it is (``TIMING_FIXES``). With ``consider`` (the
+        receiver's :class:`~ecu_daemon.estimator.latency_consider.LatencyConsider`) the timing
+        error across the track is not noise but the shared latency error, an augmented state
+        (``latency_consider.py``); along the track (the speed, which ``latency.py`` identifies
+        the latency from) it stays the bias-weighted noise above, so no information counts twice.
         """
         i = hist.slot(s)
         a = hist.aux[i]
@@ -146,12 +150,23 @@ class GnssVelocityFusion:
         d2 = delay_std_s * delay_std_s
         sp = math.hypot(vn, ve)
         u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
-        iso = self.sigma(g) ** 2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
-        along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
+        if consider is None:
+            iso = self.sigma(g) ** 2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
+            along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
+        else:  # across the track the latency error is the augmented state; along it, as before
+            iso = self.sigma(g) ** 2
+            along = TIMING_FIXES * a[AUX_AX] ** 2 * d2
         R = self._R2
         R.flat = (iso + along * u0 * u0, along * u0 * u1, along * u0 * u1, iso + along * u1 * u1)
         self._y2.flat = (g.vel_n_mps - vn, g.vel_e_mps - ve)
-        nis = kalman.late_update(hist.P[i], H, R, self._y2, self._dx, self._M)
+        if consider is None:
+            nis = kalman.late_update(hist.P[i], H, R, self._y2, self._dx, self._M)
+        else:
+            an, ae = antenna_acceleration_ned(hist.X[i, PSI], a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
+                                              self.lever_x, self.lever_y)
+            across = u1 * an - u0 * ae  # the acceleration's part normal to the track (v(t_s - d) = v - a d)
+            nis, c = consider.late_update(hist.P[i], consider.Cr[i], H, np.array((-across * u1, across * u0)),
+                                          R, self._y2, self._dx, self._M)
         if not nis == nis or (gate and nis > self.gate):  # NaN: no usable innovation covariance
             self.consecutive_rejects += 1
             self.rejected += 1
@@ -160,6 +175,8 @@ class GnssVelocityFusion:
         self.noise.observe(u0 * self._y2[0] + u1 * self._y2[1])
         if not self._correct(hist, s, self._dx, self._M):
             return False
+        if consider is not None:
+            consider.commit(hist, s, c)
         self.consecutive_rejects = 0
         self.fused += 1
         return True
