@@ -382,8 +382,9 @@ def test_a_whole_drive_compiled_and_reference_agree_within_1e9(drive_events):
     for key, v in er.stiffness.learned().items():
         assert ec.stiffness.learned()[key] == pytest.approx(v, rel=1e-9)
         assert ec.stiffness.learned_std()[key] == pytest.approx(er.stiffness.learned_std()[key], rel=1e-9)
-    # the single-track model's live compliance learner (its RLS step a kernel too)
-    assert ec.single_track.rear.updates == er.single_track.rear.updates > 20
+    # the single-track model's live compliance learner (its RLS step a kernel too); it stops once
+    # it takes the drive regression's stiffness (ttv7b), so only a few updates run before that
+    assert ec.single_track.rear.updates == er.single_track.rear.updates > 5
     for key, v in er.single_track.learned().items():
         assert ec.single_track.learned()[key] == pytest.approx(v, rel=1e-9)
     # every step's covariance exactly symmetric (and positive definite) as stored

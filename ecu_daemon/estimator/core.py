@@ -728,7 +728,9 @@ class Estimator:
                 # the magnetometer holds the heading: its slow error is a bias the filter cannot
                 # average away (module docstring of fusion/magnetometer.py)
                 floor = math.sqrt(COURSE_FLOOR_RAD ** 2 + mag.last_slow_var)
-        turn = 0.0 if self.augmented else self.turn_lp * self._latency_std()
+        # with the latency error a state, what the filter still does not know of it (its variance)
+        # turns the heading the same way on every fix, so it stays in the published std
+        turn = self.turn_lp * (math.sqrt(self.considers[0].var) if self.augmented else self._latency_std())
         psi_std = math.sqrt(sd[PSI] ** 2 + turn ** 2 + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
