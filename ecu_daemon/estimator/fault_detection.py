@@ -444,7 +444,10 @@ class FaultDetector:
         ring = self._yaw_ring
         ring[k % len(ring)] = self._yaw_cum
         ay = ay_m - x[BAY] - x[GAY] * ay_m
-        self._lateral(vx, r_g, ay, rdot)
+        # an isolated gyro is not the lateral check's yaw rate: its substitute (the wheels') is what
+        # the filter integrates vy with, so that is what the check must judge (a stuck gyro left
+        # in here read as an ay fault of 10 m/s^2 and kept sideslip invalid the whole fault)
+        self._lateral(vx, r_wheels if self.gyro.active and have_w else r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
         e_a = self.e_a
         e_as = self.e_as
