@@ -22,7 +22,13 @@ alive, in range and with good CRCs, is caught by physics rather than by its own 
   unseen, and the core grows the vy std by it: sideslip is not promised while it lasts;
 * GNSS speed against the wheel speed at its time of validity (or, with the wheels out, against the
   filter's velocity; the comparison itself is ``core.Estimator._gnss_agrees_with_wheels``);
-* standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree.
+* standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree;
+* stuck: a reading that has not changed by a single count while its witness says it should have
+  moved well beyond its noise (a wheel against what the other wheels say it should read; all four
+  wheels against the gyro's yaw rate and the integrated ax; the gyro against both its witnesses;
+  ay against r vx). No working sensor stays bit-identical through such a change, so this isolates
+  at once, before the residual tests (which must tolerate transients) have integrated the error,
+  and holds until the reading moves again (a stuck value may happen to agree for a while).
 
 When the longitudinal check fails, wheels and accelerometer are both suspects until the evidence
 says which: a GNSS fix taken after the onset (which one it agrees with), else an impossible jump
@@ -109,6 +115,13 @@ LAT_TOL_RDOT_M = 0.5  # x |change of r|: IMU lever arm (rdot * x_imu integrates 
 LAT_RATE_TOL = 0.8  # m/s^2 beyond which the residual's rate is unexplained (Revs: 99 % below 0.75)
 LAT_RATE_TOL_REL = 0.05  # x mean |ay|: roll (gravity in ay) and ay scale errors
 LAT_MIN_SPEED = 6.0
+# --- stuck: unchanged for STUCK_S while the witness moved by (10 counts of a 0.03 m/s wheel speed,
+# 6 deg/s of yaw rate through both witnesses, 1 m/s^2 of r vx)
+STUCK_S = 0.25
+STUCK_WHEEL_MPS = 0.3
+STUCK_YAW_RADPS = 0.1
+STUCK_AY_MPS2 = 1.0
+WHEEL_KEYS = ("w0", "w1", "w2", "w3")
 # --- standstill
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
 # --- hysteresis (steps at 6 ms)
@@ -238,6 +251,14 @@ class FaultDetector:
         self.events = {name: 0 for name in SOURCE_BITS}
         self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
         self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
+        self._stuck_steps = max(1, int(round(STUCK_S / dt)))
+        # per watched reading: (its value, the witness's value, the step) when it last changed
+        self._stuck_ref: dict[str, tuple] = {}
+        self.stuck_wheels = 0  # bit i: wheel i stuck (replaced like a wheel the others outvote)
+        self.wheels_stuck = False  # all four stuck together (no wheel left to vote)
+        self.gyro_stuck = False
+        self._k = 0
+        self.ay_stuck = False
 
     # ------------------------------------------------------------------------------------------
     def step(self, k: int, wheels: tuple, wheels_ok: bool, r_m: float, ax_m: float, ay_m: float,
@@ -252,6 +273,7 @@ class FaultDetector:
         if type(x) is not list:
             x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
+        self._k = k
         fl, fr, rl, rr = wheels
         if wheels_ok:
             r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
@@ -262,6 +284,7 @@ class FaultDetector:
         v = self.wheel_z * kw if wheels_ok else math.nan
         ax = ax_m - x[BAX] if imu_ok else math.nan
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
+        self._all_wheels_stuck(k, wheels, wheels_ok, r_m - x[BR] if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
         self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
         iso = WHEEL_SPEED if self.wheel_mask else 0
@@ -294,6 +317,21 @@ class FaultDetector:
         self.isolated = iso
         return iso
 
+    def _unchanged(self, key: str, k: int, value: float, witness: float, tol: float) -> bool:
+        """Has ``value`` stayed bit-identical for STUCK_S while ``witness`` (what it should read, or
+        a quantity that moves with it) moved by more than ``tol`` since its last change? Once
+        found stuck it stays so until the value changes (the truth may come back past it)."""
+        ref = self._stuck_ref.get(key)
+        if ref is None or value != ref[0] or not math.isfinite(witness) or not math.isfinite(ref[1]):
+            self._stuck_ref[key] = (value, witness, k, False)
+            return False
+        if ref[3]:
+            return True
+        if k - ref[2] >= self._stuck_steps and abs(witness - ref[1]) > tol:
+            self._stuck_ref[key] = (value, witness, k, True)
+            return True
+        return False
+
     def _each_wheel(self, w: tuple, r: float, delta: float, vy: float) -> tuple:
         """Each fused wheel against the others; returns the readings with a wrong one replaced."""
         h = 0.5 * self.track * r
@@ -309,9 +347,22 @@ class FaultDetector:
             o0, o1 = self._other_wheels
             med = sorted((cv[a], cv[b], 0.5 * (cv[o0] + cv[o1])))[1]
         tol = WHEEL_TOL_MPS + WHEEL_TOL_REL * abs(med)
+        stuck = 0
+        for j in range(4):  # what each wheel should read, from the other three
+            others = (cv[0] + cv[1] + cv[2] + cv[3] - cv[j]) / 3.0
+            if self._unchanged(WHEEL_KEYS[j], self._k, w[j], others - (cv[j] - w[j]), STUCK_WHEEL_MPS):
+                stuck |= 1 << j
+        if stuck & ~self.stuck_wheels & 0b1100:  # a rear wheel newly out: its yaw residual is stale
+            self.e_w = self.e_ws = 0.0
+        self.stuck_wheels = stuck
         mask = 0
         for j in fused:
-            if self.wheel_latches[j].update(abs(cv[j] - med) > tol):
+            latch = self.wheel_latches[j]
+            if latch.update(abs(cv[j] - med) > tol) or stuck & 1 << j:
+                if stuck & 1 << j and not latch.active:
+                    latch.active = True
+                    latch.events += 1
+                latch.good = 0 if stuck & 1 << j else latch.good
                 mask |= 1 << j
         self.wheel_mask = mask
         if not mask:
@@ -393,8 +444,26 @@ class FaultDetector:
         if wj != aj:
             self.lon_culprit = WHEELS if wj else ACCEL_X
 
+    def _all_wheels_stuck(self, k: int, wheels: tuple, wheels_ok: bool, r: float) -> None:
+        """All four wheels frozen together (a dead wheel-speed ECU repeating its last frame):
+        no wheel can outvote the others, so the IMU is the witness: the rear wheels' difference
+        should have followed the gyro's yaw rate (track * r), their speed the integrated ax."""
+        if not wheels_ok:
+            return
+        was = self.wheels_stuck
+        turn = self._unchanged("wheels_r", k, wheels, self.track * r, STUCK_WHEEL_MPS)
+        self.wheels_stuck = self._unchanged("wheels_a", k, wheels, self._cum_a, STUCK_WHEEL_MPS) or turn
+        if self.wheels_stuck:
+            self.wheels_isolated = True
+            self.wheels_back.active = True
+            self.wheels_back.good = 0
+            if not was:
+                self.e_w = self.e_ws = 0.0
+
     def _wheels_return(self, v: float, vx: float, p_vx: float, wheel_r2: float) -> None:
         """Isolated wheels come back only when they agree with the filter's (IMU/GNSS) speed."""
+        if self.wheels_stuck:
+            return
         if self.lon.active:
             if self.lon_culprit & WHEELS:
                 self.wheels_isolated = True
