@@ -258,6 +258,7 @@ class FaultDetector:
         self.wheels_stuck = False  # all four stuck together (no wheel left to vote)
         self.gyro_stuck = False
         self._k = 0
+        self._rw_lp = math.nan  # the wheels' yaw rate, low-passed (YAW_TAU_S): the stuck-ay witness
         self.ay_stuck = False
 
     # ------------------------------------------------------------------------------------------
@@ -452,7 +453,11 @@ class FaultDetector:
             return
         was = self.wheels_stuck
         turn = self._unchanged("wheels_r", k, wheels, self.track * r, STUCK_WHEEL_MPS)
-        self.wheels_stuck = self._unchanged("wheels_a", k, wheels, self._cum_a, STUCK_WHEEL_MPS) or turn
+        # ax is a witness only while nothing speaks against it (implausible, jumping, isolated)
+        ax_trusted = (not self.isolated & ACCEL_X and not self.lon_culprit & ACCEL_X
+                      and k - self._ax_jump_k > JUMP_MEMORY_S / self.dt)
+        speed = self._unchanged("wheels_a", k, wheels, self._cum_a if ax_trusted else math.nan, STUCK_WHEEL_MPS)
+        self.wheels_stuck = turn or speed
         if self.wheels_stuck:
             self.wheels_isolated = True
             self.wheels_back.active = True
@@ -496,6 +501,8 @@ class FaultDetector:
         e_ws = self.e_ws
         if have_w:
             r_wheels = self.r_wheels = ((rr - rl) * kw - self.lr * v_rear) / self.track
+            rw_lp = self._rw_lp
+            self._rw_lp = r_wheels if rw_lp != rw_lp else rw_lp + a_yaw * (r_wheels - rw_lp)
             d = r_g - r_wheels
             e_w = self.e_w = e_w + a_yaw * (d - e_w)
             e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
@@ -509,7 +516,7 @@ class FaultDetector:
                 a[4] += e_w * r_g
                 a[5] += e_w * e_w
         else:
-            r_wheels = self.r_wheels = math.nan
+            r_wheels = self.r_wheels = self._rw_lp = math.nan
         ring = self._yaw_ring
         ring[k % len(ring)] = self._yaw_cum
         ay = ay_m - x[BAY] - x[GAY] * ay_m
@@ -543,6 +550,28 @@ class FaultDetector:
         if jump:  # no car turns that fast: not integrated even for the steps the vote needs
             w_fail = a_fail = True
             gyro.bad = max(gyro.bad, gyro.on - 1)
+        # stuck gyro: both witnesses (the wheels' yaw rate, and ay / vx when there) moved, it did not
+        was_stuck = self.gyro_stuck
+        g_w = self._unchanged("gyro_w", k, r_m, r_g - e_w if have_w else math.nan, STUCK_YAW_RADPS)
+        g_a = self._unchanged("gyro_a", k, r_m, r_g - e_a if have_a else math.nan, STUCK_YAW_RADPS)
+        gyro_stuck = self.gyro_stuck = g_w and (g_a or not have_a)
+        if gyro_stuck:
+            w_fail = True
+            gyro.bad = max(gyro.bad, gyro.on - 1)
+            if not was_stuck:  # its drift began when it last changed, not when the residual showed it
+                since = self._stuck_ref["gyro_w"][2]
+                self._w_fail_since = since if self._w_fail_since < 0 else min(self._w_fail_since, since)
+        elif was_stuck:  # moving again: the residuals of the stuck stretch say nothing about it now
+            self.e_w = self.e_ws = self.e_a = self.e_as = 0.0
+        # stuck ay: r vx moved, ay did not (r from the wheels, low-passed, else from a trusted gyro)
+        was_ay = self.ay_stuck
+        ay_w = self._unchanged("ay_w", k, ay_m, self._rw_lp * vx if have_a and have_w else math.nan,
+                               STUCK_AY_MPS2)
+        ay_g = self._unchanged("ay_g", k, ay_m, r_g * vx if have_a and not have_w and not gyro.active
+                               else math.nan, STUCK_AY_MPS2)
+        ay_stuck = self.ay_stuck = ay_w or ay_g
+        if was_ay and not ay_stuck:  # ay's residual against the gyro restarts from the wheels' view
+            self.e_a, self.e_as = self.e_w, self.e_ws
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not ay_latch.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
@@ -570,7 +599,12 @@ class FaultDetector:
                 self._relearn_bias()
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
-        ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
+        if ay_stuck:
+            ay_latch.bad = max(ay_latch.bad, ay_latch.on - 1)
+            ay_latch.good = 0
+            ay_latch.update(True)
+        else:
+            ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
         if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
