@@ -122,6 +122,7 @@ STUCK_WHEEL_MPS = 0.3
 STUCK_YAW_RADPS = 0.1
 STUCK_AY_MPS2 = 1.0
 WHEEL_KEYS = ("w0", "w1", "w2", "w3")
+STUCK_MIN_SPEED_MPS = 3.0  # wheels are judged above this only (below ~0.3 m/s they read 0)
 # --- standstill
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
 # --- hysteresis (steps at 6 ms)
@@ -351,7 +352,9 @@ class FaultDetector:
         stuck = 0
         for j in range(4):  # what each wheel should read, from the other three
             others = (cv[0] + cv[1] + cv[2] + cv[3] - cv[j]) / 3.0
-            if self._unchanged(WHEEL_KEYS[j], self._k, w[j], others - (cv[j] - w[j]), STUCK_WHEEL_MPS):
+            # not near rest: a wheel-speed sensor reads 0 below ~1 km/h, one wheel after another
+            should = others - (cv[j] - w[j]) if abs(others) > STUCK_MIN_SPEED_MPS else math.nan
+            if self._unchanged(WHEEL_KEYS[j], self._k, w[j], should, STUCK_WHEEL_MPS):
                 stuck |= 1 << j
         if stuck & ~self.stuck_wheels & 0b1100:  # a rear wheel newly out: its yaw residual is stale
             self.e_w = self.e_ws = 0.0
@@ -452,11 +455,14 @@ class FaultDetector:
         if not wheels_ok:
             return
         was = self.wheels_stuck
+        if not max(abs(wheels[0]), abs(wheels[1]), abs(wheels[2]), abs(wheels[3])) > STUCK_MIN_SPEED_MPS:
+            r = math.nan  # near rest (sensors' dead band): no verdict, the references restart
         turn = self._unchanged("wheels_r", k, wheels, self.track * r, STUCK_WHEEL_MPS)
         # ax is a witness only while nothing speaks against it (implausible, jumping, isolated)
         ax_trusted = (not self.isolated & ACCEL_X and not self.lon_culprit & ACCEL_X
                       and k - self._ax_jump_k > JUMP_MEMORY_S / self.dt)
-        speed = self._unchanged("wheels_a", k, wheels, self._cum_a if ax_trusted else math.nan, STUCK_WHEEL_MPS)
+        speed = self._unchanged("wheels_a", k, wheels, self._cum_a if ax_trusted and r == r else math.nan,
+                                STUCK_WHEEL_MPS)
         self.wheels_stuck = turn or speed
         if self.wheels_stuck:
             self.wheels_isolated = True
