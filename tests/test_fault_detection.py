@@ -528,3 +528,12 @@ def test_stuck_input_in_a_lane_change_keeps_sideslip_available_and_honest(tmp_pa
     assert np.mean(e_beta[vb] <= 3.0 * est["sideslip_std_rad"][vb]) >= 0.99
     vv = (est["velocity_valid"] > 0.5) & run
     assert np.mean(e_vx[vv] <= 3.0 * est["vx_std_mps"][vv]) >= 0.99, "vx beyond 3 sigma while valid"
+
+
+def test_wheels_at_rest_on_a_grade_are_not_stuck():
+    """At rest on a 10 % grade the accelerometer reads ~1 m/s^2 and the wheels 0 for as long as
+    the car stands: the integrated ax is no witness there (the wheels' dead band near 0 neither),
+    so the stuck test does not judge the wheels below STUCK_MIN_SPEED_MPS."""
+    det = fd.FaultDetector(DT, TRACK)
+    masks = _run(det, 400, v=0.0, ax=0.98, x=_state(0.0))
+    assert not any(masks) and not det.wheels_stuck
