@@ -253,7 +253,8 @@ class FaultDetector:
         self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
         self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
         self._stuck_steps = max(1, int(round(STUCK_S / dt)))
-        # per watched reading: (its value, the witness's value, the step) when it last changed
+        # per watched reading: (its value, the witness's value, the step) when it last changed, and
+        # whether it was found stuck since
         self._stuck_ref: dict[str, tuple] = {}
         self.stuck_wheels = 0  # bit i: wheel i stuck (replaced like a wheel the others outvote)
         self.wheels_stuck = False  # all four stuck together (no wheel left to vote)
