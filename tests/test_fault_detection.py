@@ -416,3 +416,124 @@ def test_isolation_reaches_the_can_output(tmp_path, drive):
             ["STATUS_GNSS_ISOLATED"] for t, fid, ext, err, data in read_can_log(str(tmp_path / "o.log"))
             if fid == hdg and FAULT_START < t < FAULT_END + 1.0]
     assert any(bits) and est_mod.STATUS_GNSS_ISOLATED == fd.GNSS
+
+
+# ------------------------------------------------------------------------------ stuck readings
+def _turning(j: int) -> float:
+    """A lane-change-like yaw rate (rad/s): the witnesses of a stuck reading move."""
+    return 0.3 * math.sin(2.0 * math.pi * 0.5 * j * DT)
+
+
+def test_stuck_rear_wheel_inside_the_vote_tolerance_is_isolated_and_stays_out_until_it_moves():
+    """A rear wheel frozen at its reading while the car weaves: it never leaves the wheel vote's
+    tolerance (0.5 m/s + 3 %), only its yaw rate is wrong (the gyro and ay / vx outvote the
+    wheels' yaw rate, which cannot say which wheel). Isolated within ~0.5 s, replaced by its
+    partner, kept out even while the truth passes back through the frozen value."""
+    det = fd.FaultDetector(DT, TRACK, 1.2, "front", lambda fl, fr, rl, rr: 0.5 * (rl + rr))
+    x = _state()
+
+    def wheels(j):
+        r = _turning(j)
+        return (22.0 - r * TRACK / 2, 22.0 + r * TRACK / 2, 22.0 - r * TRACK / 2, 22.0 + r * TRACK / 2)
+
+    for j in range(300):
+        det.step(j, wheels(j), True, _turning(j), 0.0, _turning(j) * 22.0, True, x, 1e-4, 4e-4)
+    stuck = wheels(300)[2]
+    masks = []
+    for j in range(300, 1100):  # 4.8 s: the true rear-left speed crosses the frozen one again
+        w = wheels(j)
+        masks.append(det.step(j, (w[0], w[1], stuck, w[3]), True, _turning(j), 0.0, _turning(j) * 22.0,
+                              True, x, 1e-4, 4e-4))
+        assert abs(w[2] - stuck) < fd.WHEEL_TOL_MPS  # the vote alone cannot see it
+    first = next(i for i, m in enumerate(masks) if m & fd.WHEEL_SPEED)
+    assert first * DT < 0.6 and det.wheel_mask == 0b0100
+    assert all(m & fd.WHEEL_SPEED for m in masks[first:]), "released while still frozen"
+    assert not any(m & fd.YAW_RATE for m in masks), "the gyro is not blamed for the wheel"
+    assert not det.yaw_suspect  # the wheels' yaw rate (now from the partner) agrees with the gyro
+    back = [det.step(j, wheels(j), True, _turning(j), 0.0, _turning(j) * 22.0, True, x, 1e-4, 4e-4)
+            for j in range(1100, 1500)]
+    assert back[-1] == 0, "returns after it moves and agrees again"
+
+
+def test_all_four_wheels_frozen_while_the_gyro_and_ay_turn_are_isolated():
+    """A wheel-speed ECU repeating its last frame: four wheels agree with each other, so only
+    the IMU can tell; the gyro and ay agree on a turn the frozen wheels do not show."""
+    det = fd.FaultDetector(DT, TRACK)
+    _run(det, 300)
+    masks = _run(det, 200, 300, rl=22.0, rr=22.0, r=lambda j: _turning(j - 300))
+    assert masks[-1] & fd.WHEELS and not any(m & fd.YAW_RATE for m in masks)
+    assert next(i for i, m in enumerate(masks) if m & fd.WHEELS) * DT < 0.6
+
+
+def test_stuck_lateral_accelerometer_stays_isolated_while_its_value_happens_to_agree():
+    det = fd.FaultDetector(DT, TRACK)
+    _run(det, 300)
+    # ay frozen at 0 while the car turns and comes back straight (where 0 is right again)
+    masks = _run(det, 1500, 300, r=lambda j: _turning(j - 300) if j < 300 + 333 else 0.0, ay=0.0)
+    first = next(i for i, m in enumerate(masks) if m & fd.ACCEL_Y)
+    assert first * DT < 0.5
+    assert all(m & fd.ACCEL_Y for m in masks[first:]), "a frozen ay returned because it agreed"
+    assert det.events["yaw_rate"] == 0
+
+
+def test_lateral_check_with_the_gyro_isolated_judges_its_substitute():
+    """A gyro frozen mid-corner is isolated; vy is then integrated with the wheels' yaw rate, and
+    ay agrees with that: the lateral check must not report an ay fault of the size of the gyro's
+    error times the speed (it did, 10 m/s^2, and sideslip stayed invalid the whole fault)."""
+    lr = 1.5
+    det = fd.FaultDetector(DT, TRACK, model_vy=lambda vx, r, ay, rdot: lr * r)
+    excess = []
+    for j in range(1200):
+        r = _turning(j)
+        gyro = r if j < 400 else _turning(400)
+        left, right = 22.0 - r * TRACK / 2, 22.0 + r * TRACK / 2
+        ay = r * 22.0 + lr * (_turning(j + 1) - r) / DT
+        det.step(j, (left, right, left, right), True, gyro, 0.0, ay, True, _state(), 1e-4, 4e-4)
+        excess.append((j, det.isolated, det.lat_excess))
+    iso = [j for j, m, _ in excess if m & fd.YAW_RATE]
+    assert iso and iso[0] < 400 + 100
+    assert max(e for j, m, e in excess if j > iso[0] + int(fd.LAT_WINDOW_S / DT)) == 0.0
+    assert not any(m & fd.ACCEL_Y for _, m, _ in excess)
+
+
+def _frozen():
+    """value(t, v) for fault_can: the reading at the fault's start, held."""
+    held = []
+    return lambda t, v: held[0] if held else held.append(v) or v
+
+
+STUCK = {  # frozen at their reading in the first lane change (22 m/s): never wrong while valid,
+    # and isolated fast enough that sideslip stays available (issue 7: >= 90 % once converged)
+    "wheel_rl": ("wheel_speed_rl",),
+    "wheel_rr": ("wheel_speed_rr",),
+    "all_wheels": WHEEL_INPUTS,
+    "yaw_rate": ("yaw_rate",),
+}
+
+
+@pytest.mark.parametrize("name", list(STUCK))
+def test_stuck_input_in_a_lane_change_keeps_sideslip_available_and_honest(tmp_path, drive, name):
+    result = drive
+    for inp in STUCK[name]:  # each its own held value
+        result = fault_can(result, (inp,), T0 + 22.0, T0 + 27.0, _frozen())
+    est, tr = _replay(tmp_path, result)
+    t = est["t"]
+    speed = tr["vx_mps"]
+    run = (t > T0 + 12.0) & (speed > 5.0)
+    valid_b = est["sideslip_valid"] > 0.5
+    e_beta = np.abs(_wrap(est["sideslip_rad"] - tr["sideslip_rad"]))
+    e_vx = np.abs(est["vx_mps"] - tr["vx_mps"])
+    assert valid_b[run].mean() >= 0.9, f"sideslip valid on {valid_b[run].mean():.0%} of the rows"
+    vb = valid_b & run
+    assert np.mean(e_beta[vb] <= 3.0 * est["sideslip_std_rad"][vb]) >= 0.99
+    vv = (est["velocity_valid"] > 0.5) & run
+    assert np.mean(e_vx[vv] <= 3.0 * est["vx_std_mps"][vv]) >= 0.99, "vx beyond 3 sigma while valid"
+
+
+def test_wheels_at_rest_on_a_grade_are_not_stuck():
+    """At rest on a 10 % grade the accelerometer reads ~1 m/s^2 and the wheels 0 for as long as
+    the car stands: the integrated ax is no witness there (the wheels' dead band near 0 neither),
+    so the stuck test does not judge the wheels below STUCK_MIN_SPEED_MPS."""
+    det = fd.FaultDetector(DT, TRACK)
+    masks = _run(det, 400, v=0.0, ax=0.98, x=_state(0.0))
+    assert not any(masks) and not det.wheels_stuck

@@ -22,7 +22,13 @@ alive, in range and with good CRCs, is caught by physics rather than by its own 
   unseen, and the core grows the vy std by it: sideslip is not promised while it lasts;
 * GNSS speed against the wheel speed at its time of validity (or, with the wheels out, against the
   filter's velocity; the comparison itself is ``core.Estimator._gnss_agrees_with_wheels``);
-* standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree.
+* standstill: only when the wheels *and* the filter's IMU-propagated speed (and fresh GNSS) agree;
+* stuck: a reading that has not changed by a single count while its witness says it should have
+  moved well beyond its noise (a wheel against what the other wheels say it should read; all four
+  wheels against the gyro's yaw rate and the integrated ax; the gyro against both its witnesses;
+  ay against r vx). No working sensor stays bit-identical through such a change, so this isolates
+  at once, before the residual tests (which must tolerate transients) have integrated the error,
+  and holds until the reading moves again (a stuck value may happen to agree for a while).
 
 When the longitudinal check fails, wheels and accelerometer are both suspects until the evidence
 says which: a GNSS fix taken after the onset (which one it agrees with), else an impossible jump
@@ -109,6 +115,14 @@ LAT_TOL_RDOT_M = 0.5  # x |change of r|: IMU lever arm (rdot * x_imu integrates 
 LAT_RATE_TOL = 0.8  # m/s^2 beyond which the residual's rate is unexplained (Revs: 99 % below 0.75)
 LAT_RATE_TOL_REL = 0.05  # x mean |ay|: roll (gravity in ay) and ay scale errors
 LAT_MIN_SPEED = 6.0
+# --- stuck: unchanged for STUCK_S while the witness moved by (10 counts of a 0.03 m/s wheel speed,
+# 6 deg/s of yaw rate through both witnesses, 1 m/s^2 of r vx)
+STUCK_S = 0.25
+STUCK_WHEEL_MPS = 0.3
+STUCK_YAW_RADPS = 0.1
+STUCK_AY_MPS2 = 1.0
+WHEEL_KEYS = ("w0", "w1", "w2", "w3")
+STUCK_MIN_SPEED_MPS = 3.0  # wheels are judged above this only (below ~0.3 m/s they read 0)
 # --- standstill
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
 # --- hysteresis (steps at 6 ms)
@@ -238,6 +252,16 @@ class FaultDetector:
         self.events = {name: 0 for name in SOURCE_BITS}
         self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
         self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
+        self._stuck_steps = max(1, int(round(STUCK_S / dt)))
+        # per watched reading: (its value, the witness's value, the step) when it last changed, and
+        # whether it was found stuck since
+        self._stuck_ref: dict[str, tuple] = {}
+        self.stuck_wheels = 0  # bit i: wheel i stuck (replaced like a wheel the others outvote)
+        self.wheels_stuck = False  # all four stuck together (no wheel left to vote)
+        self.gyro_stuck = False
+        self._k = 0
+        self._rw_lp = math.nan  # the wheels' yaw rate, low-passed (YAW_TAU_S): the stuck-ay witness
+        self.ay_stuck = False
 
     # ------------------------------------------------------------------------------------------
     def step(self, k: int, wheels: tuple, wheels_ok: bool, r_m: float, ax_m: float, ay_m: float,
@@ -252,6 +276,7 @@ class FaultDetector:
         if type(x) is not list:
             x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
+        self._k = k
         fl, fr, rl, rr = wheels
         if wheels_ok:
             r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
@@ -262,6 +287,7 @@ class FaultDetector:
         v = self.wheel_z * kw if wheels_ok else math.nan
         ax = ax_m - x[BAX] if imu_ok else math.nan
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
+        self._all_wheels_stuck(k, wheels, wheels_ok, r_m - x[BR] if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
         self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
         iso = WHEEL_SPEED if self.wheel_mask else 0
@@ -294,6 +320,21 @@ class FaultDetector:
         self.isolated = iso
         return iso
 
+    def _unchanged(self, key: str, k: int, value: float, witness: float, tol: float) -> bool:
+        """Has ``value`` stayed bit-identical for STUCK_S while ``witness`` (what it should read, or
+        a quantity that moves with it) moved by more than ``tol`` since its last change? Once
+        found stuck it stays so until the value changes (the truth may come back past it)."""
+        ref = self._stuck_ref.get(key)
+        if ref is None or value != ref[0] or not math.isfinite(witness) or not math.isfinite(ref[1]):
+            self._stuck_ref[key] = (value, witness, k, False)
+            return False
+        if ref[3]:
+            return True
+        if k - ref[2] >= self._stuck_steps and abs(witness - ref[1]) > tol:
+            self._stuck_ref[key] = (value, witness, k, True)
+            return True
+        return False
+
     def _each_wheel(self, w: tuple, r: float, delta: float, vy: float) -> tuple:
         """Each fused wheel against the others; returns the readings with a wrong one replaced."""
         h = 0.5 * self.track * r
@@ -309,9 +350,24 @@ class FaultDetector:
             o0, o1 = self._other_wheels
             med = sorted((cv[a], cv[b], 0.5 * (cv[o0] + cv[o1])))[1]
         tol = WHEEL_TOL_MPS + WHEEL_TOL_REL * abs(med)
+        stuck = 0
+        for j in range(4):  # what each wheel should read, from the other three
+            others = (cv[0] + cv[1] + cv[2] + cv[3] - cv[j]) / 3.0
+            # not near rest: a wheel-speed sensor reads 0 below ~1 km/h, one wheel after another
+            should = others - (cv[j] - w[j]) if abs(others) > STUCK_MIN_SPEED_MPS else math.nan
+            if self._unchanged(WHEEL_KEYS[j], self._k, w[j], should, STUCK_WHEEL_MPS):
+                stuck |= 1 << j
+        if stuck & ~self.stuck_wheels & 0b1100:  # a rear wheel newly out: its yaw residual is stale
+            self.e_w = self.e_ws = 0.0
+        self.stuck_wheels = stuck
         mask = 0
         for j in fused:
-            if self.wheel_latches[j].update(abs(cv[j] - med) > tol):
+            latch = self.wheel_latches[j]
+            if latch.update(abs(cv[j] - med) > tol) or stuck & 1 << j:
+                if stuck & 1 << j and not latch.active:
+                    latch.active = True
+                    latch.events += 1
+                latch.good = 0 if stuck & 1 << j else latch.good
                 mask |= 1 << j
         self.wheel_mask = mask
         if not mask:
@@ -393,8 +449,33 @@ class FaultDetector:
         if wj != aj:
             self.lon_culprit = WHEELS if wj else ACCEL_X
 
+    def _all_wheels_stuck(self, k: int, wheels: tuple, wheels_ok: bool, r: float) -> None:
+        """All four wheels frozen together (a dead wheel-speed ECU repeating its last frame):
+        no wheel can outvote the others, so the IMU is the witness: the rear wheels' difference
+        should have followed the gyro's yaw rate (track * r), their speed the integrated ax."""
+        if not wheels_ok:
+            return
+        was = self.wheels_stuck
+        if not max(abs(wheels[0]), abs(wheels[1]), abs(wheels[2]), abs(wheels[3])) > STUCK_MIN_SPEED_MPS:
+            r = math.nan  # near rest (sensors' dead band): no verdict, the references restart
+        turn = self._unchanged("wheels_r", k, wheels, self.track * r, STUCK_WHEEL_MPS)
+        # ax is a witness only while nothing speaks against it (implausible, jumping, isolated)
+        ax_trusted = (not self.isolated & ACCEL_X and not self.lon_culprit & ACCEL_X
+                      and k - self._ax_jump_k > JUMP_MEMORY_S / self.dt)
+        speed = self._unchanged("wheels_a", k, wheels, self._cum_a if ax_trusted and r == r else math.nan,
+                                STUCK_WHEEL_MPS)
+        self.wheels_stuck = turn or speed
+        if self.wheels_stuck:
+            self.wheels_isolated = True
+            self.wheels_back.active = True
+            self.wheels_back.good = 0
+            if not was:
+                self.e_w = self.e_ws = 0.0
+
     def _wheels_return(self, v: float, vx: float, p_vx: float, wheel_r2: float) -> None:
         """Isolated wheels come back only when they agree with the filter's (IMU/GNSS) speed."""
+        if self.wheels_stuck:
+            return
         if self.lon.active:
             if self.lon_culprit & WHEELS:
                 self.wheels_isolated = True
@@ -427,6 +508,8 @@ class FaultDetector:
         e_ws = self.e_ws
         if have_w:
             r_wheels = self.r_wheels = ((rr - rl) * kw - self.lr * v_rear) / self.track
+            rw_lp = self._rw_lp
+            self._rw_lp = r_wheels if rw_lp != rw_lp else rw_lp + a_yaw * (r_wheels - rw_lp)
             d = r_g - r_wheels
             e_w = self.e_w = e_w + a_yaw * (d - e_w)
             e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
@@ -440,11 +523,14 @@ class FaultDetector:
                 a[4] += e_w * r_g
                 a[5] += e_w * e_w
         else:
-            r_wheels = self.r_wheels = math.nan
+            r_wheels = self.r_wheels = self._rw_lp = math.nan
         ring = self._yaw_ring
         ring[k % len(ring)] = self._yaw_cum
         ay = ay_m - x[BAY] - x[GAY] * ay_m
-        self._lateral(vx, r_g, ay, rdot)
+        # an isolated gyro is not the lateral check's yaw rate: its substitute (the wheels') is what
+        # the filter integrates vy with, so that is what the check must judge (a stuck gyro left
+        # in here read as an ay fault of 10 m/s^2 and kept sideslip invalid the whole fault)
+        self._lateral(vx, r_wheels if self.gyro.active and have_w else r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
         e_a = self.e_a
         e_as = self.e_as
@@ -471,6 +557,28 @@ class FaultDetector:
         if jump:  # no car turns that fast: not integrated even for the steps the vote needs
             w_fail = a_fail = True
             gyro.bad = max(gyro.bad, gyro.on - 1)
+        # stuck gyro: both witnesses (the wheels' yaw rate, and ay / vx when there) moved, it did not
+        was_stuck = self.gyro_stuck
+        g_w = self._unchanged("gyro_w", k, r_m, r_g - e_w if have_w else math.nan, STUCK_YAW_RADPS)
+        g_a = self._unchanged("gyro_a", k, r_m, r_g - e_a if have_a else math.nan, STUCK_YAW_RADPS)
+        gyro_stuck = self.gyro_stuck = g_w and (g_a or not have_a)
+        if gyro_stuck:
+            w_fail = True
+            gyro.bad = max(gyro.bad, gyro.on - 1)
+            if not was_stuck:  # its drift began when it last changed, not when the residual showed it
+                since = self._stuck_ref["gyro_w"][2]
+                self._w_fail_since = since if self._w_fail_since < 0 else min(self._w_fail_since, since)
+        elif was_stuck:  # moving again: the residuals of the stuck stretch say nothing about it now
+            self.e_w = self.e_ws = self.e_a = self.e_as = 0.0
+        # stuck ay: r vx moved, ay did not (r from the wheels, low-passed, else from a trusted gyro)
+        was_ay = self.ay_stuck
+        ay_w = self._unchanged("ay_w", k, ay_m, self._rw_lp * vx if have_a and have_w else math.nan,
+                               STUCK_AY_MPS2)
+        ay_g = self._unchanged("ay_g", k, ay_m, r_g * vx if have_a and not have_w and not gyro.active
+                               else math.nan, STUCK_AY_MPS2)
+        ay_stuck = self.ay_stuck = ay_w or ay_g
+        if was_ay and not ay_stuck:  # ay's residual against the gyro restarts from the wheels' view
+            self.e_a, self.e_as = self.e_w, self.e_ws
         # three witnesses of one yaw rate: the odd one out is blamed; two cannot tell
         a_witness = have_a and not ay_latch.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
@@ -498,7 +606,12 @@ class FaultDetector:
                 self._relearn_bias()
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
-        ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
+        if ay_stuck:
+            ay_latch.bad = max(ay_latch.bad, ay_latch.on - 1)
+            ay_latch.good = 0
+            ay_latch.update(True)
+        else:
+            ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
         if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
