@@ -378,8 +378,9 @@ def test_checksum_valid_nonsense_never_raises_and_never_gives_a_valid_nan(kind, 
     samples, parser = feed_lines([_with_checksum("$" + ",".join([kind] + fields)), good])
     assert parser.stats["nmea_sentences"] == 2
     assert samples[-1].fix_time_utc_s == T0  # the good sentence after it still parses
-    for s in samples:
-        assert not s.fix_ok or (math.isfinite(s.vel_n_mps) and math.isfinite(s.vel_e_mps))
+    for s in samples:  # a speed without a course is a course-less epoch: its ground speed is the number
+        assert not s.fix_ok or (math.isfinite(s.vel_n_mps) and math.isfinite(s.vel_e_mps)) or (
+            not s.course_known and math.isfinite(s.ground_speed_mps))
 
 
 @pytest.mark.parametrize("bad_date", ["310219", "1A0320", "000000"])
@@ -411,3 +412,13 @@ def test_nav_sol_is_released_by_time_when_no_frame_follows_it():
     assert s.t == 10.0 and s.fix_ok and s.num_sv == 9 and s.speed_acc_mps == pytest.approx(0.2)
     assert s.vel_e_mps == pytest.approx(3.0, abs=0.01) and s.vel_n_mps == pytest.approx(0.0, abs=0.01)
     assert s.fix_time_utc_s == 315964800 + 2300 * 604800 + 1.0 - 18
+
+
+def test_a_vtg_with_a_speed_and_no_course_is_a_course_less_epoch_not_a_nan_velocity():
+    """Hypothesis found ``$GPVTG,,,,,0``: a valid speed, a blank course. The sample is usable for its
+    speed (course_known False, ground speed 0) and never claims a direction."""
+    good = enc.nmea_rmc(utc=T0, lat_deg=1, lon_deg=2, speed_mps=1, course_deg=0)
+    samples, _ = feed_lines([_with_checksum("$GPVTG,,,,,0"), good])
+    s = samples[0]
+    assert s.fix_ok and not s.course_known and s.ground_speed_mps == 0.0
+    assert math.isnan(s.vel_n_mps) and math.isnan(s.vel_e_mps)
