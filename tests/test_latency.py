@@ -144,28 +144,6 @@ def test_accelerometer_alone_finds_the_latency_despite_its_bias(delay_s):
     assert est.delay_s == pytest.approx(delay_s, abs=0.015)
 
 
-def steady_then_braking(t):
-    """50 m/s, braking at 2 m/s^2 from 15 to 20 s, 40 m/s after (flying_50_straight_h200)."""
-    return 50.0 - 2.0 * min(max(t - 15.0, 0.0), 5.0)
-
-
-def fast_braking_slip(v, dvdt):
-    """Braking slip of a passenger car's tyres (C_x ~ 15 per unit load): v * decel / (15 g)."""
-    return v * (1.0 + min(dvdt, 0.0) / (15.0 * 9.81))
-
-
-def test_braked_wheels_do_not_move_the_delay_before_the_accelerometer_can_judge_them():
-    """At 50 m/s braked wheels read as a delay 0.17 s too long. The braking's first second gives
-    the wheels a profile before the accelerometer's integral (whose ramp takes the constant
-    deceleration) has one: the wheels alone moved the delay 0.032 s (flying_50_straight_h200).
-    Only the accelerometer, or unbraked wheels it does not contradict, may refute the delay."""
-    trace = []
-    est = run_with_accelerometer(steady_then_braking, 0.4, wheel=fast_braking_slip, prior_s=0.4, seconds=45.0,
-                                 trace=trace)
-    assert max(abs(d - 0.4) for d, _ in trace) <= 0.006
-    assert est.delay_s == pytest.approx(0.4, abs=0.006)
-
-
 def speed_steps(t):
     """22 m/s with a 3 m/s change every 20 s (up, then down), as the two-receiver drives have."""
     edge = math.tanh(((t % 20.0) - 10.0) / 1.5)

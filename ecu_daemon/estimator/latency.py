@@ -28,14 +28,13 @@ than the wheels (on Revs the latency std would stay wide and the heading invalid
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
 the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
 cost profile), with a slew limit; otherwise the prior (config ``delay_s``) stands, and nothing
-drifts on a drive without speed changes. Who may reject it: the accelerometer, or the clean
-wheel fixes (unbraked, antenna and wheels reading the same speed) that it does not contradict,
-or those alone while it has no profile -- never braked wheels, nor wheels in a corner, alone
-(braking slip, the antenna-to-wheel ratio's drift: flying_50_straight, lowspeed_r10 and
-dual_circle were 0.03-0.05 s off by them). Rejected by wheels and accelerometer that agree, the
-delay moves on into the data's 1-sigma set rather than stopping at the edge of what they reject
-(4 sigma: two_rx_slalom stopped 0.027 s short); when they disagree (on Revs the accelerometer
-reads the car's pitch under hard braking), only to that edge.
+drifts on a drive without speed changes. While the accelerometer has a profile, the wheels
+reject the delay only with it (see :meth:`_refine`): braked wheels and wheels in a corner are
+biased clocks (flying_50_straight, dual_circle, bank_circle were 0.024-0.036 s off by them).
+Rejected by wheels and accelerometer that agree, the delay moves on into the data's 1-sigma set
+rather than stopping at the edge of what they reject (4 sigma: two_rx_slalom stopped 0.027 s
+short); when they disagree (on Revs the accelerometer reads the car's pitch under hard braking),
+only to that edge.
 
 Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
@@ -60,6 +59,7 @@ from .kinematic import VX, VY
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
+JUDGE_SPAN_S = 0.2  # the accelerometer vouches for wheels it agrees with once its own 4-sigma set is this narrow
 LR_ARRIVE = 1.0  # a refuted delay moves on until the data's 1-sigma set holds it (not only their 4-sigma one)
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
@@ -174,8 +174,8 @@ class LatencyEstimator:
         ratio = _antenna_to_wheel(X[c:c + 1], aux[c:c + 1], lever, wheels)[0]
         if slip_free:
             # ... and where the antenna and the wheels read the same speed over the window: in a
-            # corner the filter's error in their ratio drifts and steps with the speed and at the
-            # exit (lowspeed_r10: 0.558 s for 0.4; dual_circle: 0.48)
+            # corner the filter's error in their ratio drifts with the speed and steps at the exit
+            # (lowspeed_r10: 0.558 s for 0.4; dual_circle: 0.48)
             ends = _antenna_to_wheel(X[::self.max_steps], aux[::self.max_steps], lever, wheels)
             slip_free = abs(ends[0] - 1.0) <= RATIO_ERROR and abs(ends[-1] - 1.0) <= RATIO_ERROR
         if slip_free:
@@ -307,18 +307,17 @@ class LatencyEstimator:
         cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
         # The wheels are a biased clock (braking slip, the antenna-to-wheel ratio's errors in a
-        # tight circle, filtered sensors): they sharpen where the delay goes, but only the
-        # accelerometer (no slip) or the unbraked wheels it does not contradict may refute the
-        # current one. Without its profile (mid-corner, after an outage, no change of
-        # acceleration yet) nothing moves: braked wheels alone took flying_50_straight 0.032 s off.
+        # corner, filtered sensors). While the accelerometer (no slip) has a profile, they refute
+        # the delay only with it: it refutes it itself, or it is sharp (its 4-sigma set within
+        # JUDGE_SPAN_S) and agrees with them, or clean unbraked wheel fixes refute it and it does
+        # not contradict them. A broad or stale accelerometer profile passing braked wheels took
+        # flying_50_straight 0.032 s off, and wheels in a circle dual_circle 0.036 s.
         refuted = lr[cur] > LR_REJECT
-        if refuted and len(self.references) > 1:
+        if refuted and judge is not None:
             sf = self.slip_free._profile() if self.slip_free is not None else None
-            sf_refutes = sf is not None and sf[0][cur] > LR_REJECT
-            if judge is not None:
-                refuted = judge[0][cur] > LR_REJECT or (sf_refutes and judge[0][int(np.argmin(sf[0]))] <= LR_REJECT)
-            else:
-                refuted = sf_refutes
+            sharp = np.count_nonzero(judge[0] < LR_REJECT) * self.dt <= JUDGE_SPAN_S
+            refuted = judge[0][cur] > LR_REJECT or (agree and sharp) or (
+                sf is not None and sf[0][cur] > LR_REJECT and judge[0][int(np.argmin(sf[0]))] <= LR_REJECT)
         if refuted and agree:
             self._chasing = True
         elif self._chasing and (not agree or lr[cur] <= LR_ARRIVE):
