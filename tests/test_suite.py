@@ -114,8 +114,8 @@ SUBSET = {
                            "ttv-h": "heading valid 17.1 s after the first fix"},
     # vx within 3 sigma needs the wheel-slip bias under braking in the published std (89 % without)
     # latency +0.123 s off from braking slip, +0.030 with the accelerometer, +0.032 since the braked
-    # wheel fixes are judged apart; 0.000 since only the accelerometer (or unbraked wheels it does
-    # not contradict) may refute the delay (braked wheels alone moved it before it could judge them)
+    # wheel fixes are judged apart; +0.008 since the accelerometer, while it has a profile, must
+    # refute the delay itself or be sharp and agree (its broad profile passed the braked wheels)
     "flying_50_straight_h200": {},
     "restart_flying_30_r150": {"ttv-b": "sideslip valid 4.3 s after the first fix"},
     # sideslip valid on 80 % above 5 m/s while its std was 3-10x its error (vy's own process noise now)
