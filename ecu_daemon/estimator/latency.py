@@ -28,7 +28,13 @@ than the wheels (on Revs the latency std would stay wide and the heading invalid
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
 the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
 cost profile), with a slew limit; otherwise the prior (config ``delay_s``) stands, and nothing
-drifts on a drive without speed changes.
+drifts on a drive without speed changes. While the accelerometer has a profile, the wheels
+reject the delay only with it (see :meth:`_refine`): braked wheels and wheels in a corner are
+biased clocks (flying_50_straight, dual_circle, bank_circle were 0.024-0.036 s off by them).
+Rejected by wheels and accelerometer that agree, the delay moves on into the data's 1-sigma set
+rather than stopping at the edge of what they reject (4 sigma: two_rx_slalom stopped 0.027 s
+short); when they disagree (on Revs the accelerometer reads the car's pitch under hard braking),
+only to that edge.
 
 Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
@@ -53,6 +59,8 @@ from .kinematic import VX, VY
 MIN_SPEED = 3.0  # m/s: below walking pace wheel sensors read zero
 MIN_UPDATES = 30  # informative fixes before the prior is left
 LR_REJECT = 16.0  # likelihood ratio (4 sigma: GNSS and wheel errors are correlated over fixes)
+JUDGE_SPAN_S = 0.2  # the accelerometer vouches for wheels it agrees with once its own 4-sigma set is this narrow
+LR_ARRIVE = 1.0  # a refuted delay moves on until the data's 1-sigma set holds it (not only their 4-sigma one)
 MAX_SLEW_S = 0.004  # per fix (x4 for a very clear minimum)
 PRIOR_STD_S = 0.15
 FIXED_STD_S = 0.01
@@ -165,6 +173,12 @@ class LatencyEstimator:
         c = min(max(int(round(self.delay_s / self.dt)) - 1, 0), self.max_steps)
         ratio = _antenna_to_wheel(X[c:c + 1], aux[c:c + 1], lever, wheels)[0]
         if slip_free:
+            # ... and where the antenna and the wheels read the same speed over the window: in a
+            # corner the filter's error in their ratio drifts with the speed and steps at the exit
+            # (lowspeed_r10: 0.558 s for 0.4; dual_circle: 0.48)
+            ends = _antenna_to_wheel(X[::self.max_steps], aux[::self.max_steps], lever, wheels)
+            slip_free = abs(ends[0] - 1.0) <= RATIO_ERROR and abs(ends[-1] - 1.0) <= RATIO_ERROR
+        if slip_free:
             if self.slip_free is None:
                 self.slip_free = LatencyEstimator(self.dt, self.delay_s, (self.max_steps + 0.5) * self.dt,
                                                   forgetting=self.forgetting, min_spread=self.min_spread)
@@ -208,6 +222,7 @@ class LatencyEstimator:
         self.references.append(other)
         other.owner = self
 
+    _chasing = False  # refuted by clocks that agree: moving to their best, not only to the edge of what they reject
     _profile_memo: tuple | None = None  # (statistics, profile, cost) of the last _profile_of_statistics
 
     def _profile(self) -> tuple[np.ndarray, bool] | None:
@@ -263,8 +278,14 @@ class LatencyEstimator:
             # The last reference attached (the accelerometer's) has no lag and no slip; the
             # others (the wheels) have both, and they show as a timing bias. A reference whose
             # best delay it rejects is biased and left out.
-            profiles = [p for p in profiles[:-1] if p is not None
-                        and judge[0][int(np.argmin(p[0]))] <= LR_REJECT] + [judge]
+            wheels = [p for p in profiles[:-1] if p is not None]
+            profiles = [p for p in wheels if judge[0][int(np.argmin(p[0]))] <= LR_REJECT] + [judge]
+            # two clocks that agree: the data's best is where the delay goes, not only the edge of
+            # what they reject; that disagree (on Revs the accelerometer reads the car's pitch under
+            # hard braking: 0.37 s for 0.40), only as far as the data reject the delay
+            agree = bool(wheels) and len(profiles) == len(wheels) + 1
+        else:
+            agree = False
         profiles = [p for p in profiles if p is not None]
         if not profiles:
             return
@@ -285,7 +306,23 @@ class LatencyEstimator:
         width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
         cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
         prior_std = self.prior_std_s
-        if lr[cur] > LR_REJECT:
+        # The wheels are a biased clock (braking slip, the antenna-to-wheel ratio's errors in a
+        # corner, filtered sensors). While the accelerometer (no slip) has a profile, they refute
+        # the delay only with it: it refutes it itself, or it is sharp (its 4-sigma set within
+        # JUDGE_SPAN_S) and agrees with them, or clean unbraked wheel fixes refute it and it does
+        # not contradict them. A broad or stale accelerometer profile passing braked wheels took
+        # flying_50_straight 0.032 s off, and wheels in a circle dual_circle 0.036 s.
+        refuted = lr[cur] > LR_REJECT
+        if refuted and judge is not None:
+            sf = self.slip_free._profile() if self.slip_free is not None else None
+            sharp = np.count_nonzero(judge[0] < LR_REJECT) * self.dt <= JUDGE_SPAN_S
+            refuted = judge[0][cur] > LR_REJECT or (agree and sharp) or (
+                sf is not None and sf[0][cur] > LR_REJECT and judge[0][int(np.argmin(sf[0]))] <= LR_REJECT)
+        if refuted and agree:
+            self._chasing = True
+        elif self._chasing and (not agree or lr[cur] <= LR_ARRIVE):
+            self._chasing = False
+        if refuted or self._chasing:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
             # very clear minimum may move faster. The prior is refuted: only the data count.
             slew = MAX_SLEW_S * (4.0 if any(p[1] for p in profiles) else 1.0)
