@@ -32,8 +32,6 @@ import math
 from collections import deque
 from typing import Callable, NamedTuple
 
-import numpy as np
-
 from .config import Config
 from .diagnostics import Diagnostics, HostStatus
 from .estimator import Estimate, Estimator
@@ -43,7 +41,7 @@ from .gnss.stream import GnssStreamParser, sum_stats
 from .io.health import build_diagnostics
 from .samples import INPUT_INDEX, GnssSample, InputSample
 from .signals import SignalDecoder
-from .step_grid import EPS_STEPS, step_of
+from .step_grid import step_of, steps_of
 
 MAG_INDEX = INPUT_INDEX["mag_x"]
 ROLL_INDEX = INPUT_INDEX["roll_rate"]
@@ -291,8 +289,7 @@ class Pipeline:
         dt = self.dt
         t_all = can.t
         samples = dec.prepare(t_all, can.keys(), can.data)
-        # step_of(t) - 1 per frame, as step_grid computes it (the same float operations)
-        before = (np.ceil(t_all / dt - EPS_STEPS).astype(np.int64) - 1).tolist()
+        before = (steps_of(t_all, dt) - 1).tolist()  # the last step before each frame
         times = t_all.tolist()
         fids = can.fid.tolist()
         exts = can.ext.tolist()
@@ -306,14 +303,14 @@ class Pipeline:
         gi = 0
         tg = gnss[0][0] if gnss else math.inf
 
-        def advance(t: float, k_before: int) -> None:
+        def advance(k_before: int) -> None:  # what feed() runs after a hand-over
             ek = est.k
             if ek is None or k_before >= ek:
                 emit([publish(e, True) for e in est.advance_to(k_before * dt)])
 
         def take_gnss(t, receiver, port, payload, seq) -> None:
             self._take(Item(t, 1, seq, gnss_source(receiver), (receiver, port, payload)))
-            advance(t, step_of(t, dt) - 1)
+            advance(step_of(t, dt) - 1)
 
         for j in range(n):
             t = times[j]
@@ -332,11 +329,8 @@ class Pipeline:
                         on_sample(x)
             elif errs[j]:
                 self.error_frames += 1
-            k = before[j]
-            ek = est.k
-            if ek is None or k >= ek:
-                dec.cursor = j + 1
-                emit([publish(e, True) for e in est.advance_to(k * dt)])
+            dec.cursor = j + 1
+            advance(before[j])
             if progress is not None and not j & 1023:
                 progress(j, t)
         dec.cursor = n

@@ -9,12 +9,20 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 EPS_STEPS = 1e-6
 
 
 def step_of(t: float, dt: float) -> int:
     """The first step that uses an input stamped ``t``."""
     return math.ceil(t / dt - EPS_STEPS)
+
+
+def steps_of(t: np.ndarray, dt: float) -> np.ndarray:
+    """:func:`step_of` of every time in ``t`` at once (the same float operations, so the same
+    steps): offline replay hands whole logs over."""
+    return np.ceil(t / dt - EPS_STEPS).astype(np.int64)
 
 
 def last_step_at(t: float, dt: float) -> int:

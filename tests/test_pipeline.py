@@ -169,3 +169,16 @@ def test_a_step_before_the_first_input_publishes_finite_invalid_values(live):
     assert not (e.sideslip_valid or e.heading_valid or e.velocity_valid or e.biases_valid)
     assert all(math.isfinite(v) for v in e[:21])
     assert {m.arbitration_id for m in st.frames}  # the frames due at this step go out
+
+
+def test_steps_of_a_whole_log_is_step_of_of_each_time():
+    """The batch replay takes each frame's step from ``steps_of``; it must be the step rule itself,
+    including times on a step boundary and a microsecond either side of one."""
+    import numpy as np
+
+    from ecu_daemon.step_grid import steps_of
+
+    rng = np.random.default_rng(7)
+    k = rng.integers(0, 2_000_000, 20_000)
+    t = np.round(np.concatenate([k * DT, k * DT + 1e-6, k * DT - 1e-6, rng.uniform(0, 3e5, 20_000)]), 6)
+    assert steps_of(t, DT).tolist() == [step_of(x, DT) for x in t.tolist()]

@@ -174,6 +174,11 @@ class _Latch:
                 self.active = False
         return self.active
 
+    def trip(self) -> bool:
+        """A failing verdict that isolates at once (a fault no transient explains)."""
+        self.bad = max(self.bad, self.on - 1)
+        return self.update(True)
+
 
 class FaultDetector:
     """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
@@ -363,11 +368,7 @@ class FaultDetector:
         mask = 0
         for j in fused:
             latch = self.wheel_latches[j]
-            if latch.update(abs(cv[j] - med) > tol) or stuck & 1 << j:
-                if stuck & 1 << j and not latch.active:
-                    latch.active = True
-                    latch.events += 1
-                latch.good = 0 if stuck & 1 << j else latch.good
+            if latch.trip() if stuck & 1 << j else latch.update(abs(cv[j] - med) > tol):
                 mask |= 1 << j
         self.wheel_mask = mask
         if not mask:
@@ -607,9 +608,7 @@ class FaultDetector:
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
-            ay_latch.bad = max(ay_latch.bad, ay_latch.on - 1)
-            ay_latch.good = 0
-            ay_latch.update(True)
+            ay_latch.trip()
         else:
             ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
         if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
