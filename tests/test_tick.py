@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from ecu_daemon.io.tick import ScaledClock, TickStats, TickThread
+from ecu_daemon.io.tick import ScaledClock, TickStats, TickThread, WakeLead
 
 PERIOD = 0.006
 
@@ -108,3 +108,28 @@ def test_snapshot_percentiles_are_numpys():
         x = rng.exponential(1e-3, size=n)
         for q in (0, 50, 99, 100):
             assert _percentile(np.sort(x), q) == pytest.approx(float(np.percentile(x, q)), rel=1e-12, abs=0)
+
+
+def test_wake_lead_follows_the_median_wake_up_delay_within_its_cap():
+    """The tick is woken a typical wake-up delay before its deadline, not a fixed worst case:
+    the spin after the wake-up is CPU burned on every tick."""
+    lead = WakeLead(max_s=200e-6, window=8)
+    assert lead.lead_s == 200e-6  # no wake-ups seen yet: the longest spin
+    for d in (30e-6, 40e-6, 20e-6, 35e-6, 5e-3, 25e-6, 45e-6, 33e-6)[:-1]:
+        lead.observe(d)
+    assert lead.lead_s == 200e-6  # changes once per window, not per tick
+    lead.observe(33e-6)
+    assert lead.lead_s == pytest.approx(33e-6)  # the 5 ms outlier (a busy core) does not drag it up
+    for d in [3e-3] * 8:  # a host that wakes everything late: a spin of at most the cap
+        lead.observe(d)
+    assert lead.lead_s == 200e-6
+    for d in [-1e-6] * 8:  # woken early (a timer that fires ahead): no negative lead
+        lead.observe(d)
+    assert lead.lead_s == 0.0
+
+
+def test_the_spin_accounting_counts_the_spin_not_the_sleep():
+    """The learned lead stays within spin_s, and ``spun_s`` holds the spins (not the 6 ms sleeps)."""
+    t, calls = run_ticks(80, spin_s=0.0002)
+    assert 0.0 <= t.lead.lead_s <= 0.0002
+    assert 0.0 <= t.spun_s <= len(calls) * 0.0002 + 0.05  # bounded by the spin it may do

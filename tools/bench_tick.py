@@ -92,6 +92,7 @@ def main() -> int:
         threads0 = threads_cpu_s()
         rx0, tx0 = daemon.canio.rx_frames + daemon.canio.rx_ignored, daemon.frames_sent
         late0 = daemon.late_samples
+        spun0, ticks0 = daemon.tick.spun_s, daemon.tick_stats.ticks
         await asyncio.sleep(args.seconds)
         used = cpu_used(threads0, threads_cpu_s())
         w = time.monotonic() - w0
@@ -102,7 +103,8 @@ def main() -> int:
             tick_cpu=pct.get(tick_id, 0.0), loop_cpu=pct.get(threading.main_thread().native_id, 0.0),
             feeder_cpu=feeder_cpu,
             rx_rate=(daemon.canio.rx_frames + daemon.canio.rx_ignored - rx0) / w,
-            tx_rate=(daemon.frames_sent - tx0) / w, late=daemon.late_samples - late0)
+            tx_rate=(daemon.frames_sent - tx0) / w, late=daemon.late_samples - late0,
+            spin=(daemon.tick.spun_s - spun0) / max(1, daemon.tick_stats.ticks - ticks0), lead=daemon.tick.lead.lead_s)
         daemon.request_stop()
         await task
 
@@ -121,6 +123,7 @@ def main() -> int:
           f" max {snap.late_max_total_s * 1e6:.0f} us")
     print(f"  overruns {snap.overruns}, skipped deadlines {snap.skipped},"
           f" tick work p99 {snap.work_p99_s * 1e6:.0f} us, samples late for their step {result['late']}")
+    print(f"  spin before the deadline {result['spin'] * 1e6:.0f} us per tick (wake-up lead now {result['lead'] * 1e6:.0f} us)")
     other = max(0.0, result["daemon_cpu"] - result["tick_cpu"] - result["loop_cpu"])
     print(f"  CPU: daemon {result['daemon_cpu']:.1f} % of one core (tick thread {result['tick_cpu']:.1f} %,"
           f" event loop {result['loop_cpu']:.1f} %, other threads {other:.1f} %);"
