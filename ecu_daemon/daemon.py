@@ -37,6 +37,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import gc
+import importlib
 import logging
 import math
 import os
@@ -183,6 +184,7 @@ class Daemon:
         old_switch = sys.getswitchinterval()
         try:
             self._setup()
+            _preload()
             # Everything allocated so far (modules, DBCs, config) lives as long as the process:
             # take it out of the cyclic GC's scans so a full collection does not stall the tick.
             gc.collect()
@@ -517,6 +519,17 @@ class Daemon:
             self.frames_sent += len(sent)
             if self.recorder is not None:
                 self._out.append(("out", sent))
+
+
+# Modules the pipeline's code imports on first use, in the middle of a drive: loaded before the
+# first tick instead of in it (numpy.ma, which np.median's NaN check pulls in at the first GNSS
+# latency fit: 20-80 ms in the tick thread, a burst of overruns).
+LAZY_MODULES = ("numpy.ma",)
+
+
+def _preload() -> None:
+    for name in LAZY_MODULES:
+        importlib.import_module(name)
 
 
 def _short_port(port: str) -> str:

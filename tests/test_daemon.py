@@ -464,3 +464,41 @@ def test_corrupt_state_file_is_reported_once_and_ignored_then_rewritten(tmp_path
     with LiveDaemon(cfg2) as live2:
         assert live2.daemon.learned_restored
     assert json.loads(state.read_text())["format"] == "ecu-daemon-state"
+
+
+_IMPORTS_DURING_A_DRIVE = """
+import sys
+from ecu_daemon.daemon import _preload
+from ecu_daemon.pipeline import Pipeline
+from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+scenario = SCENARIOS["demo"].with_(duration_s=30.0)
+cfg = vehicle_config(scenario)
+sim = simulate(scenario, cfg)
+pipeline = Pipeline(cfg)
+_preload()
+before = set(sys.modules)
+items = sorted([(t, 0, f, d) for t, f, d in sim.can_frames] + [(t, 1, 0, p) for t, p in sim.gnss_messages])
+k = None
+for t, kind, fid, data in items:
+    if kind == 0:
+        pipeline.push_can(t, fid, data, fid in sim.extended_ids)
+    else:
+        pipeline.push_gnss(t, data)
+    if k is None or int(t / pipeline.dt) > k:
+        k = int(t / pipeline.dt)
+        pipeline.tick(k)
+print(" ".join(sorted(set(sys.modules) - before)))
+"""
+
+
+def test_no_module_is_first_imported_by_a_tick():
+    """An import inside the 6 ms tick (a library loading a submodule on first use, mid-drive) is a
+    20-80 ms stall and a burst of overruns: the daemon loads them before its first tick. A fresh
+    interpreter, because this test process has long imported everything."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _IMPORTS_DURING_A_DRIVE], capture_output=True, text=True,
+                         timeout=300, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == []
