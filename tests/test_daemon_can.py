@@ -7,6 +7,7 @@ import time
 
 import can
 import pytest
+from can.interfaces.virtual import VirtualBus
 
 from ecu_daemon.config import CanSettings, ConfigError
 from ecu_daemon.io import can_bus
@@ -244,6 +245,71 @@ def test_a_batch_keeps_each_frames_own_time():
         assert abs((t2 - t1) - (m2.timestamp - m1.timestamp)) < 2e-6  # the sender's spacing, to the us
         assert m2.timestamp - m1.timestamp >= 0.05
         assert io.drain() == 0
+    finally:
+        io.shutdown()
+        peer.shutdown()
+
+
+class _FilteringBus(VirtualBus):
+    """A virtual bus that filters where socketcan does, below ``recv`` (``_apply_filters``, the
+    frames it drops never reach Python); ``refuse`` makes it fall back like socketcan does when
+    the kernel refuses the filter list (``_is_filtered`` False, python-can's software filter)."""
+
+    refuse = False
+
+    def _apply_filters(self, filters):
+        self.applied = filters
+        self._is_filtered = bool(filters) and not self.refuse
+
+    def _recv_internal(self, timeout):
+        while True:
+            msg, _ = super()._recv_internal(timeout)
+            if msg is None or not self._is_filtered or msg.is_error_frame or self._matches_filters(msg):
+                return msg, self._is_filtered
+            timeout = 0  # dropped below recv, as CAN_RAW_FILTER does
+
+
+def test_unconsumed_ids_are_filtered_on_the_bus_where_it_can():
+    """On an interface that filters (socketcan: CAN_RAW_FILTER), the frames the decoder does not
+    consume never reach the reader: CanIO hands the bus exactly the decoder's ids."""
+    ch = channel()
+    got = []
+    bus = _FilteringBus(channel=ch)
+    peer = can.Bus(interface="virtual", channel=ch)
+    io = CanIO(bus, [(0x0B0, False), (0x18FF0010, True)], on_frame=lambda t, m: got.append(m))
+    try:
+        assert io.kernel_filters
+        assert sorted((f["can_id"], f["can_mask"], f["extended"]) for f in bus.applied) == [
+            (0x0B0, 0x7FF, False), (0x18FF0010, 0x1FFFFFFF, True)]
+        for fid, ext in ((0x0B1, False), (0x0B0, False), (0x0B0, True), (0x18FF0010, True), (0x120, False)):
+            peer.send(can.Message(arbitration_id=fid, data=bytes(8), is_extended_id=ext))
+        peer.send(can.Message(is_error_frame=True, arbitration_id=can_bus.CAN_ERR_CRTL, data=bytes(8)))
+        assert io.drain() == 3  # two of ours and the error frame: the others stayed below recv
+        assert [(m.arbitration_id, m.is_extended_id) for m in got] == [(0x0B0, False), (0x18FF0010, True)]
+        assert io.rx_ignored == 0 and io.health.error_frames == 1
+    finally:
+        io.shutdown()
+        peer.shutdown()
+
+
+def test_a_refused_bus_filter_falls_back_to_filtering_here_with_error_frames_and_whole_batches():
+    """socketcan falls back to python-can's software filter when the kernel refuses the list; that
+    one drops error frames and ends a recv(0) batch at the first frame it drops. CanIO takes it
+    off and filters itself."""
+    ch = channel()
+    got = []
+    bus = _FilteringBus(channel=ch)
+    bus.refuse = True
+    peer = can.Bus(interface="virtual", channel=ch)
+    io = CanIO(bus, [(0x0B0, False)], on_frame=lambda t, m: got.append(m))
+    try:
+        assert not io.kernel_filters and bus.applied is None
+        peer.send(can.Message(arbitration_id=0x120, data=bytes(8), is_extended_id=False))  # not ours
+        peer.send(can.Message(arbitration_id=0x0B0, data=bytes(8), is_extended_id=False))
+        peer.send(can.Message(is_error_frame=True, arbitration_id=can_bus.CAN_ERR_CRTL, data=bytes(8)))
+        assert io.drain() == 3 and io.rx_batches == 1  # one batch: the foreign frame did not end it
+        assert [m.arbitration_id for m in got] == [0x0B0]
+        assert io.rx_ignored == 1 and io.health.error_frames == 1
     finally:
         io.shutdown()
         peer.shutdown()

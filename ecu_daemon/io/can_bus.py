@@ -303,7 +303,13 @@ class CanIO:
         if _has_own_filtering(bus) and self.wanted:
             bus.set_filters([{"can_id": i, "can_mask": 0x1FFFFFFF if e else 0x7FF, "extended": e}
                              for i, e in sorted(self.wanted)])
-            self.kernel_filters = True
+            if getattr(bus, "_is_filtered", True):
+                self.kernel_filters = True
+            else:
+                # The kernel refused (python-can logged it) and fell back to its software filter,
+                # which would drop error frames and end a recv(0) batch at the first frame it
+                # drops: take the filter off and check the ids here, as on a virtual bus.
+                bus.set_filters(None)
 
     def start(self, loop: asyncio.AbstractEventLoop | None = None, *, period_s: float | None = None,
               offset_s: float = 0.0, speed: float = 1.0) -> None:
