@@ -69,7 +69,7 @@ from .pipeline import DIAG_S, Pipeline, TickRecord
 log = logging.getLogger("ecu_daemon.daemon")
 
 INPUT_GRACE_S = 0.001  # the step for time T runs at T + grace: frames stamped <= T get there first
-HOUSEKEEPING_S = 0.05
+HOUSEKEEPING_S = 0.05  # the loop's housekeeping at least this often (real time), half-way between ticks
 FLUSH_S = 1.0
 STATUS_S = 5.0
 PERSIST_S = 60.0  # learned state written this often (and at exit)
@@ -388,8 +388,11 @@ class Daemon:
         next_persist = now + self.persist_interval_s * self.speed
         persist_task = None
         while not stop.is_set():
+            # half a step away from the ticks: the loop holding the GIL when the tick thread wakes
+            # costs the tick up to a switch interval of lateness
+            wake = between_ticks(self.clock() + HOUSEKEEPING_S * self.speed, self.dt, self.grace_s)
             try:
-                await asyncio.wait_for(stop.wait(), HOUSEKEEPING_S)
+                await asyncio.wait_for(stop.wait(), max(0.0, (wake - self.clock()) / self.speed))
             except asyncio.TimeoutError:
                 pass
             now = self.clock()
@@ -530,6 +533,12 @@ LAZY_MODULES = ("numpy.ma",)
 def _preload() -> None:
     for name in LAZY_MODULES:
         importlib.import_module(name)
+
+
+def between_ticks(t: float, period: float, offset: float) -> float:
+    """The first time >= ``t`` half-way between two ticks (ticks at ``k * period + offset``)."""
+    mid = offset + 0.5 * period
+    return (math.ceil((t - mid) / period) * period) + mid
 
 
 def _short_port(port: str) -> str:

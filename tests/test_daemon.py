@@ -502,3 +502,16 @@ def test_no_module_is_first_imported_by_a_tick():
                          timeout=300, cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == []
+
+
+def test_housekeeping_wakes_half_way_between_ticks():
+    """The loop's housekeeping (diagnostics, recording) holds the GIL for ~0.1 ms: placed half a
+    step from the ticks (k * dt + grace), it is never what a waking tick waits for."""
+    from ecu_daemon.daemon import between_ticks
+
+    dt, grace = 0.006, 0.001
+    for t in (0.0, 0.003, 0.004, 0.0041, 0.05, 1.2345, 1000.0007):
+        w = between_ticks(t, dt, grace)
+        assert t <= w < t + dt + 1e-12
+        phase = (w - grace) / dt % 1.0
+        assert abs(phase - 0.5) < 1e-6  # half-way: 3 ms from the tick before and the one after
