@@ -74,7 +74,7 @@ FLUSH_S = 1.0
 STATUS_S = 5.0
 PERSIST_S = 60.0  # learned state written this often (and at exit)
 RX_OFFSET = 0.25  # the CAN reader wakes this fraction of the input grace after each step boundary
-SWITCH_INTERVAL_S = 0.0002  # GIL hand-over: <= the tick's 0.2 ms spin, so waking up costs no lateness
+SWITCH_INTERVAL_S = 0.0002  # GIL hand-over: the longest a waking tick waits for a thread running Python
 
 
 class Daemon:
