@@ -508,6 +508,8 @@ STUCK = {  # frozen at their reading in the first lane change (22 m/s): never wr
     "wheel_rr": ("wheel_speed_rr",),
     "all_wheels": WHEEL_INPUTS,
     "yaw_rate": ("yaw_rate",),
+    # its stand-in r vx rests on the gyro the wheels vouch for: valid on the straight after the lane change
+    "accel_y": ("accel_y",),
 }
 
 

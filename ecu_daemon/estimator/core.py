@@ -73,6 +73,9 @@ GNSS_FRESH_S = 1.0
 ISO_ACCEL_NOISE = 2.0  # m/s^2/sqrt(Hz)
 ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
 ISO_HEADING_STEP = math.radians(3.0)
+# ay substituted by r vx while the gyro is trusted: vy's rate the model expects (single_track.py
+# substitute_vy_rate) plus this floor (road, wind, relaxation the model does not have)
+ISO_LATERAL_FLOOR = 0.5  # m/s^2/sqrt(Hz)
 SUBSTITUTE_MODEL_VAR_SCALE = 4.0  # the single-track model's vy from the wheels' yaw rate: 2x its std
 MODEL_EVERY = 3  # steps between single-track pseudo-measurements (18 ms; noise scaled to match)
 LEARNED_VERSION = 1
@@ -617,7 +620,12 @@ class Estimator:
         if iso & (YAW_RATE | ACCEL_Y):
             # vy integrates ay - r vx: a substituted ay errs by up to ISO_ACCEL_NOISE, a substituted
             # yaw rate by ISO_YAW_RATE_NOISE times the speed
-            q = ISO_ACCEL_NOISE ** 2 if iso & ACCEL_Y else (ISO_YAW_RATE_NOISE * vx) ** 2
+            if iso & ACCEL_Y and not iso & YAW_RATE:
+                # the substitute r vx leaves out only dvy/dt, which the model bounds from the
+                # gyro's yaw acceleration: a straight does not widen vy as a lane change does
+                q = ISO_LATERAL_FLOOR ** 2 + self.single_track.substitute_vy_rate(vx, self.rdot) ** 2
+            else:
+                q = ISO_ACCEL_NOISE ** 2 if iso & ACCEL_Y else (ISO_YAW_RATE_NOISE * vx) ** 2
             P[VY, VY] += (0.25 if new & (YAW_RATE | ACCEL_Y) else 0.0) + q * dt
         if iso & YAW_RATE:
             P[PSI, PSI] += (ISO_HEADING_STEP ** 2 if new & YAW_RATE else 0.0) + ISO_YAW_RATE_NOISE ** 2 * dt
@@ -741,9 +749,16 @@ class Estimator:
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
-        # only while ay vouches for that substitute and the wheels are trusted (its std says how well)
-        imu_trusted = not iso & ACCEL_Y and (
-            (wheels_trusted and self.fdi.witnesses_agree) if iso & YAW_RATE else not self.fdi.yaw_suspect)
+        # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
+        # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
+        # for the gyro (the isolated ay's own yaw check still fails) and the std allows
+        fdi = self.fdi
+        if iso & YAW_RATE:
+            imu_trusted = not iso & ACCEL_Y and wheels_trusted and fdi.witnesses_agree
+        elif iso & ACCEL_Y:
+            imu_trusted = wheels_trusted and fdi.wheels_vouch_gyro
+        else:
+            imu_trusted = not fdi.yaw_suspect
         st = self.single_track
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],

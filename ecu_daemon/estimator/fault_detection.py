@@ -246,6 +246,7 @@ class FaultDetector:
         self.bias_relearn: tuple[float, float] | None = None
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
+        self.wheels_vouch_gyro = False  # the wheels' yaw rate passes the gyro (ay's substitute r vx)
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
@@ -584,6 +585,7 @@ class FaultDetector:
         a_witness = have_a and not ay_latch.active
         # any yaw witness out of line: sideslip is not promised until the vote is clear
         self.yaw_suspect = w_fail or a_fail
+        self.wheels_vouch_gyro = have_w and not w_fail
         # how fast the heading may be drifting meanwhile, when the gyro is the one the check
         # points at (the wheels disagree with it, or ay does and no wheels can say otherwise)
         gyro_suspect = w_fail or (a_fail and not have_w)

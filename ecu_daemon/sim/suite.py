@@ -57,6 +57,11 @@ def _conditions() -> list[SuiteCase]:
                               params=(("v", 30.0), ("radius_m", 150.0), ("left", True))), restart_at_s=8.0),
            SuiteCase("reversing", "reversing", Scenario("reversing", "reversing")),
            SuiteCase("gnss_outage_30s", "gnss", _base("gnss_outage_30s", "demo",
+                                                      gnss_faults=(Fault("gnss", "dropout", 25.0, 30.0),))),
+           # the same outage on mu 0.3: its 16 s corner asks for 0.65 g, the car ploughs at the limit
+           # (front slip ~30 deg, rear ~9 deg) with only the single-track model -- its law extrapolated
+           # past saturation -- to hold sideslip: the case a less pessimistic outage std must not break
+           SuiteCase("mu03_outage_30s", "gnss", _base("mu03_outage_30s", "demo", mu=0.3,
                                                       gnss_faults=(Fault("gnss", "dropout", 25.0, 30.0),)))]
     for rate in (1.0, 10.0):
         out.append(SuiteCase(f"gnss_{rate:g}hz", "gnss", _base(f"gnss_{rate:g}hz", "dlc_dry", gnss_rate_hz=rate)))

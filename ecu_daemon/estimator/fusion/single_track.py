@@ -178,6 +178,15 @@ class SingleTrackFusion:
         var = 16.0 * (self.base_sigma_beta * vx) ** 2 + CORNER_STEPS * (var_par + (nl * vx) ** 2)
         return vy, var
 
+    def substitute_vy_rate(self, vx: float, rdot: float) -> float:
+        """|d vy / dt| the single-track model expects from the yaw acceleration ``rdot``: what an
+        ay substituted by r vx (which says vy is steady) leaves out. In the steady state,
+        vy = lr r - kappa_r vx (lf ay) / L with ay = r vx, so vy moves with r by the sideslip
+        gradient lr - kappa_r vx^2 lf / L (the understeer term), twice the linear law's for the
+        saturation (k3) and the stiffness error (a lane change at 22 m/s: ~1.3 m/s^2 per rad/s^2)."""
+        k = self.rear.k[0]
+        return 2.0 * abs((self.lr - k * vx * vx * self.lf / self.L) * rdot)
+
     def model_vy(self, vx: float, r: float, ay: float, rdot: float) -> float:
         """:meth:`pseudo_measurement`'s vy alone (the same arithmetic; the fault detector's lateral
         check needs no variance, and it runs every step)."""
