@@ -79,7 +79,7 @@ def run_fleet(source: str, out: str | Path, jobs: int | None = None, scheduler: 
             records = run_all(drives, str((out / RESULTS).resolve()), jobs=jobs, scheduler=scheduler, on_done=bar.done)
             replayed_s += _replayed_s(records)
             for r, f in zip(records, first):  # the work of both passes counts
-                for t in ("wall_s", "cpu_s"):
+                for t in ("wall_s", "cpu_s", "replay_s"):
                     r[t] = (r.get(t) or 0.0) + (f.get(t) or 0.0)
                 r["cached"] = bool(r.get("cached")) and bool(f.get("cached"))
     wall = time.perf_counter() - started
