@@ -426,3 +426,36 @@ def test_a_second_pass_replays_each_drive_from_its_vehicles_latency(fleet, seria
     tables = _bytes(out)
     again = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
     assert all(r["cached"] for r in again) and _bytes(out) == tables
+
+
+def test_pool_workers_start_with_the_replay_imported():
+    """A fresh interpreter (nothing of the replay imported) hands its pool workers a warm start."""
+    import subprocess
+    import sys
+
+    code = ("from ecu_daemon.fleet.backends import pool_executor\n"
+            "with pool_executor(1) as pool:\n"
+            "    print(pool.submit(eval, \"'ecu_daemon.replay' in __import__('sys').modules\").result())\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"
+
+
+def test_a_drive_record_says_how_long_the_replay_itself_took(serial):
+    _, recs = serial
+    assert all(0.0 < r["replay_s"] <= r["wall_s"] for r in recs if r["status"] == "ok")
+
+
+def test_free_rolling_wheels_read_the_scale_the_fleet_truth_names(tmp_path):
+    """The non-driven (rear) wheels roll against their rolling resistance with a braking slip of
+    -f_rr / kx1: at steady speed they read ground speed / wheel_scale_free_rolling, not / wheel_scale
+    (the learned scale's +0.07 % over vehicle.json's wheel_scale on every simulated car)."""
+    write_fleet(tmp_path, vehicles=1, drives=1, seed=5, duration_s=25.0, jobs=1)  # demo: speeds up, then holds 16 m/s
+    truth = json.loads((tmp_path / "car01" / "vehicle.json").read_text())
+    ws, free = truth["wheel_scale"], truth["wheel_scale_free_rolling"]
+    assert free / ws - 1.0 == pytest.approx(0.012 / 18.0, rel=0.01)  # sim defaults: f_rr 0.012, kx1 18
+    t = job_mod.read_numeric_csv(str(tmp_path / "car01" / "drive001" / "truth.csv"), ("t",), "truth")
+    reported = 0.5 * (t["wheel_speed_rl_mps"] + t["wheel_speed_rr_mps"]) / ws  # what the ABS sensor sends
+    steady = (t["vx_mps"] > 3.0) & (np.abs(t["ax_mps2"]) < 0.05)
+    assert steady.sum() > 500
+    shown = float(np.median(t["vx_mps"][steady] / reported[steady]))
+    assert abs(shown / free - 1.0) < 5e-5 < 5e-4 < abs(shown / ws - 1.0)
