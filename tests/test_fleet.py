@@ -459,3 +459,51 @@ def test_free_rolling_wheels_read_the_scale_the_fleet_truth_names(tmp_path):
     assert steady.sum() > 500
     shown = float(np.median(t["vx_mps"][steady] / reported[steady]))
     assert abs(shown / free - 1.0) < 5e-5 < 5e-4 < abs(shown / ws - 1.0)
+
+
+def test_a_partial_second_pass_takes_the_most_informative_drives_straddled():
+    from ecu_daemon.fleet.calibrate import STRADDLE_S, second_pass_starts
+    from ecu_daemon.fleet.manifest import Drive
+
+    drives = [Drive("a", f"d{i}", "x.log") for i in range(8)]
+    # drives 5 and 6 know the latency best, 2 and 7 the front stiffness: a scale-free ranking
+    lat_std = [0.04, 0.04, 0.04, 0.04, 0.04, 0.005, 0.006, 0.04]
+    cf_std = [30e3, 30e3, 2e3, 30e3, 30e3, 30e3, 30e3, 2.5e3]
+    records = [_row(i, gnss_delay_s=(0.25, lat_std[i]), cornering_stiffness_front_n_per_rad=(9e4, cf_std[i]))
+               for i in range(8)]
+    starts = second_pass_starts(drives, records, share=0.5)
+    chosen = [i for i, s in enumerate(starts) if s is not None]
+    assert chosen == [2, 5, 6, 7]
+    tau = vehicle_parameters(records)[0]["gnss_delay_s"]["value"]
+    assert sorted(starts[i] for i in chosen) == [round(tau - STRADDLE_S, 4)] * 2 + [round(tau + STRADDLE_S, 4)] * 2
+    assert second_pass_starts(drives, records, share=0.01).count(None) == 6  # at least two drives
+    assert second_pass_starts(drives, records) == second_pass_starts(drives, records, share=1.0)
+
+
+def test_after_a_partial_second_pass_latency_and_stiffness_come_from_its_drives_alone():
+    rows = [_row(i, gnss_delay_s=(0.30, 0.01), wheel_scale=(1.010, 1e-3),
+                 cornering_stiffness_front_n_per_rad=(120e3, 5e3)) for i in range(4)]  # first pass
+    for i in (0, 1):
+        rows[i] = {**_row(i, gnss_delay_s=(0.20 + 0.02 * i, 0.01), wheel_scale=(1.012, 1e-3),
+                          cornering_stiffness_front_n_per_rad=(90e3, 5e3)), "start_latency_s": 0.2 + 0.06 * i}
+    p, _ = vehicle_parameters(rows)
+    assert p["gnss_delay_s"]["value"] == pytest.approx(0.21) and p["gnss_delay_s"]["drives"] == 2
+    assert p["cornering_stiffness_front_n_per_rad"]["drives"] == 2
+    assert p["wheel_scale"]["drives"] == 4 and p["wheel_scale"]["value"] == pytest.approx(1.011)
+    first_only = [{**r, "start_latency_s": math.nan} for r in rows]
+    assert vehicle_parameters(first_only)[0]["gnss_delay_s"]["drives"] == 4
+
+
+def test_a_partial_second_pass_replays_only_its_drives(fleet, serial, tmp_path):
+    from ecu_daemon.fleet.calibrate import second_pass_starts
+
+    out = tmp_path / "part"
+    shutil.copytree(serial[0] / "results", out / "results")  # the first pass is stored already
+    assert cli_main(["fleet", "run", str(fleet), "--out", str(out), "--jobs", "1", "--no-report", "--no-progress",
+                     "--passes", "2", "--second-pass-share", "0.5"]) == 0
+    starts = second_pass_starts(load_drives(str(fleet)), serial[1], share=0.5)
+    rows = read_drives(out)
+    assert sum(s is not None for s in starts) >= 2
+    for r, s in zip(rows, starts):
+        assert (r["start_latency_s"] == s) if s is not None else math.isnan(r["start_latency_s"])
+    assert cli_main(["fleet", "run", str(fleet), "--out", str(out), "--second-pass-share", "0"]) == 2
