@@ -426,3 +426,84 @@ def test_a_second_pass_replays_each_drive_from_its_vehicles_latency(fleet, seria
     tables = _bytes(out)
     again = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
     assert all(r["cached"] for r in again) and _bytes(out) == tables
+
+
+def test_pool_workers_start_with_the_replay_imported():
+    """A fresh interpreter (nothing of the replay imported) hands its pool workers a warm start."""
+    import subprocess
+    import sys
+
+    code = ("from ecu_daemon.fleet.backends import pool_executor\n"
+            "with pool_executor(1) as pool:\n"
+            "    print(pool.submit(eval, \"'ecu_daemon.replay' in __import__('sys').modules\").result())\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True"
+
+
+def test_a_drive_record_says_how_long_the_replay_itself_took(serial):
+    _, recs = serial
+    assert all(0.0 < r["replay_s"] <= r["wall_s"] for r in recs if r["status"] == "ok")
+
+
+def test_free_rolling_wheels_read_the_scale_the_fleet_truth_names(tmp_path):
+    """The non-driven (rear) wheels roll against their rolling resistance with a braking slip of
+    -f_rr / kx1: at steady speed they read ground speed / wheel_scale_free_rolling, not / wheel_scale
+    (the learned scale's +0.07 % over vehicle.json's wheel_scale on every simulated car)."""
+    write_fleet(tmp_path, vehicles=1, drives=1, seed=5, duration_s=25.0, jobs=1)  # demo: speeds up, then holds 16 m/s
+    truth = json.loads((tmp_path / "car01" / "vehicle.json").read_text())
+    ws, free = truth["wheel_scale"], truth["wheel_scale_free_rolling"]
+    assert free / ws - 1.0 == pytest.approx(0.012 / 18.0, rel=0.01)  # sim defaults: f_rr 0.012, kx1 18
+    t = job_mod.read_numeric_csv(str(tmp_path / "car01" / "drive001" / "truth.csv"), ("t",), "truth")
+    reported = 0.5 * (t["wheel_speed_rl_mps"] + t["wheel_speed_rr_mps"]) / ws  # what the ABS sensor sends
+    steady = (t["vx_mps"] > 3.0) & (np.abs(t["ax_mps2"]) < 0.05)
+    assert steady.sum() > 500
+    shown = float(np.median(t["vx_mps"][steady] / reported[steady]))
+    assert abs(shown / free - 1.0) < 5e-5 < 5e-4 < abs(shown / ws - 1.0)
+
+
+def test_a_partial_second_pass_takes_the_most_informative_drives_straddled():
+    from ecu_daemon.fleet.calibrate import STRADDLE_S, second_pass_starts
+    from ecu_daemon.fleet.manifest import Drive
+
+    drives = [Drive("a", f"d{i}", "x.log") for i in range(8)]
+    # drives 5 and 6 know the latency best, 2 and 7 the front stiffness: a scale-free ranking
+    lat_std = [0.04, 0.04, 0.04, 0.04, 0.04, 0.005, 0.006, 0.04]
+    cf_std = [30e3, 30e3, 2e3, 30e3, 30e3, 30e3, 30e3, 2.5e3]
+    records = [_row(i, gnss_delay_s=(0.25, lat_std[i]), cornering_stiffness_front_n_per_rad=(9e4, cf_std[i]))
+               for i in range(8)]
+    starts = second_pass_starts(drives, records, share=0.5)
+    chosen = [i for i, s in enumerate(starts) if s is not None]
+    assert chosen == [2, 5, 6, 7]
+    tau = vehicle_parameters(records)[0]["gnss_delay_s"]["value"]
+    assert sorted(starts[i] for i in chosen) == [round(tau - STRADDLE_S, 4)] * 2 + [round(tau + STRADDLE_S, 4)] * 2
+    assert second_pass_starts(drives, records, share=0.01).count(None) == 6  # at least two drives
+    assert second_pass_starts(drives, records) == second_pass_starts(drives, records, share=1.0)
+
+
+def test_after_a_partial_second_pass_latency_and_stiffness_come_from_its_drives_alone():
+    rows = [_row(i, gnss_delay_s=(0.30, 0.01), wheel_scale=(1.010, 1e-3),
+                 cornering_stiffness_front_n_per_rad=(120e3, 5e3)) for i in range(4)]  # first pass
+    for i in (0, 1):
+        rows[i] = {**_row(i, gnss_delay_s=(0.20 + 0.02 * i, 0.01), wheel_scale=(1.012, 1e-3),
+                          cornering_stiffness_front_n_per_rad=(90e3, 5e3)), "start_latency_s": 0.2 + 0.06 * i}
+    p, _ = vehicle_parameters(rows)
+    assert p["gnss_delay_s"]["value"] == pytest.approx(0.21) and p["gnss_delay_s"]["drives"] == 2
+    assert p["cornering_stiffness_front_n_per_rad"]["drives"] == 2
+    assert p["wheel_scale"]["drives"] == 4 and p["wheel_scale"]["value"] == pytest.approx(1.011)
+    first_only = [{**r, "start_latency_s": math.nan} for r in rows]
+    assert vehicle_parameters(first_only)[0]["gnss_delay_s"]["drives"] == 4
+
+
+def test_a_partial_second_pass_replays_only_its_drives(fleet, serial, tmp_path):
+    from ecu_daemon.fleet.calibrate import second_pass_starts
+
+    out = tmp_path / "part"
+    shutil.copytree(serial[0] / "results", out / "results")  # the first pass is stored already
+    assert cli_main(["fleet", "run", str(fleet), "--out", str(out), "--jobs", "1", "--no-report", "--no-progress",
+                     "--passes", "2", "--second-pass-share", "0.5"]) == 0
+    starts = second_pass_starts(load_drives(str(fleet)), serial[1], share=0.5)
+    rows = read_drives(out)
+    assert sum(s is not None for s in starts) >= 2
+    for r, s in zip(rows, starts):
+        assert (r["start_latency_s"] == s) if s is not None else math.isnan(r["start_latency_s"])
+    assert cli_main(["fleet", "run", str(fleet), "--out", str(out), "--second-pass-share", "0"]) == 2

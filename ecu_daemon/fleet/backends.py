@@ -16,7 +16,7 @@ import uuid
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
-from .job import run_drive
+from .job import run_drive, warm
 from .manifest import Drive
 
 RETRIES = 2  # a worker lost mid-drive (OOM, preemption): Dask reruns the task on another one
@@ -54,9 +54,16 @@ def longest_first(drives: list[Drive]) -> list[int]:
     return sorted(range(len(drives)), key=lambda i: (-sizes[i], i))
 
 
+def pool_executor(workers: int) -> ProcessPoolExecutor:
+    """Worker processes that start with the replay imported (:func:`~ecu_daemon.fleet.job.warm`):
+    forked ones inherit this process's imports, spawned ones import in their initializer."""
+    warm()
+    return ProcessPoolExecutor(max_workers=workers, initializer=warm)
+
+
 def _pool(drives, store_dir, jobs, done) -> list[dict]:
     out: list = [None] * len(drives)
-    with ProcessPoolExecutor(max_workers=min(jobs, len(drives))) as pool:
+    with pool_executor(min(jobs, len(drives))) as pool:
         futures = {pool.submit(run_drive, drives[i], store_dir): i for i in longest_first(drives)}
         for fut in as_completed(futures):
             i = futures[fut]

@@ -97,9 +97,14 @@ def vehicle_parameters(rows: list[dict]) -> tuple[dict[str, dict], dict[int, lis
     the parameters in which that drive is an outlier. The cornering stiffnesses are combined at
     the vehicle's latency (:func:`at_latency`)."""
     good = [i for i, r in enumerate(rows) if r.get("status") == "ok"]
+    # after a second pass on some of the drives (second_pass_starts' share), the latency and the
+    # stiffness come from those drives alone: the others still carry the first pass's pull
+    second = [i for i in good if math.isfinite(_num(rows[i].get("start_latency_s")))]
+    all_good = good
     params: dict[str, dict] = {}
     flagged: dict[int, list[str]] = {}
     for name in PARAMS:
+        good = second if second and name in LATENCY_BOUND else all_good
         v = np.array([_num(rows[i].get(name)) for i in good])
         s = np.array([_num(rows[i].get(f"{name}_std")) for i in good])
         slopes = None
@@ -174,11 +179,33 @@ def _with_spread(p: dict) -> dict:
 STRADDLE_S = 0.03
 
 
-def second_pass_starts(drives: list, records: list[dict]) -> list[float | None]:
+#: the parameters a second pass is for: they lean on the latency a drive started from
+LATENCY_BOUND = ("gnss_delay_s", "cornering_stiffness_front_n_per_rad", "cornering_stiffness_rear_n_per_rad")
+
+
+def information_shares(rows: list[dict]) -> np.ndarray:
+    """Per drive, its share of its vehicle's information (1 / std^2) summed over
+    :data:`LATENCY_BOUND`: scale-free, so a parameter with large numbers does not rank alone."""
+    score = np.zeros(len(rows))
+    for name in LATENCY_BOUND:
+        s = np.array([_num(r.get(f"{name}_std")) if r.get("status") == "ok" else math.nan for r in rows])
+        ok = np.isfinite(s) & (s > 0)
+        w = np.zeros(len(rows))
+        w[ok] = 1.0 / s[ok] ** 2
+        if w.sum() > 0:
+            score += w / w.sum()
+    return score
+
+
+def second_pass_starts(drives: list, records: list[dict], share: float = 1.0) -> list[float | None]:
     """Per drive (``records[i]`` is ``drives[i]``'s first-pass record) the latency its second pass
     starts from: its vehicle's combined latency STRADDLE_S above for half of its drives and below
     for the other half (by a hash of the drive's name: balanced, and not tied to their order);
-    None where the vehicle has no latency.
+    None where the vehicle has no latency. ``share`` < 1: only that share of each vehicle's drives
+    (at least 2), those that told the first pass most about the latency and the stiffness
+    (:func:`information_shares`), straddled the same way; None for the rest, whose stored
+    first-pass record stands and whose latency and stiffness the vehicle then leaves out
+    (:func:`vehicle_parameters`).
 
     Why: the latency estimator leaves its start only when the data reject it (a likelihood-ratio
     test), so a drive's estimate stops at the edge of the latencies its data still accept, on the
@@ -199,6 +226,10 @@ def second_pass_starts(drives: list, records: list[dict]) -> list[float | None]:
         tau = vehicle_parameters([records[i] for i in idx])[0]["gnss_delay_s"]["value"]
         if not math.isfinite(tau):
             continue
+        if share < 1.0:
+            keep = min(len(idx), max(2, math.ceil(share * len(idx))))
+            score = information_shares([records[i] for i in idx])
+            idx = [idx[j] for j in np.argsort(-score, kind="stable")[:keep]]
         order = sorted(idx, key=lambda i: (hashlib.sha256(drives[i].drive.encode()).hexdigest(), i))
         for j, i in enumerate(order):
             starts[i] = round(max(tau + (STRADDLE_S if j % 2 == 0 else -STRADDLE_S), 0.0), 4)

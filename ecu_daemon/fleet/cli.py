@@ -1,6 +1,6 @@
 """``ecu-daemon fleet run | calibrate | simulate``.
 
-    ecu-daemon fleet run INPUT --out DIR [--jobs N | --scheduler ADDRESS] [--passes 2] [--no-report]
+    ecu-daemon fleet run INPUT --out DIR [--jobs N | --scheduler ADDRESS] [--passes 2 [--second-pass-share F]] [--no-report]
     ecu-daemon fleet calibrate --out DIR --vehicle V [--state FILE] > overrides.toml
     ecu-daemon fleet simulate --out DIR [--vehicles 20] [--drives 20] [--duration S] [--seed N]
 
@@ -33,6 +33,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="2: replay every drive again starting from its vehicle's first-pass GNSS latency (above for"
                    " half of the drives, below for the rest); the calibration's latency and stiffness then do not"
                    " lean on the config's latency prior (twice the work)")
+    r.add_argument("--second-pass-share", type=float, default=1.0, metavar="F",
+                   help="with --passes 2: replay again only this share of each vehicle's drives (at least 2), the"
+                   " most informative on latency and stiffness; the vehicle's latency and stiffness then come from"
+                   " them alone (default 1: all)")
     r.add_argument("--no-report", action="store_true", help="tables only, no Markdown/PNG report")
     r.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
     c = sub.add_parser("calibrate", help="print a vehicle's config override (TOML) from a fleet run")
@@ -54,9 +58,10 @@ def main(args: argparse.Namespace) -> int:
 
 
 def run_fleet(source: str, out: str | Path, jobs: int | None = None, scheduler: str | None = None,
-              report: bool = True, progress: bool = False, passes: int = 1) -> list[dict]:
+              report: bool = True, progress: bool = False, passes: int = 1, second_share: float = 1.0) -> list[dict]:
     """The whole run; returns the drive records (with the run-dependent ``cached``/``wall_s``) of
-    the last pass (``passes`` 2: see :func:`~ecu_daemon.fleet.calibrate.second_pass_starts`)."""
+    the last pass (``passes`` 2: see :func:`~ecu_daemon.fleet.calibrate.second_pass_starts`, with
+    ``second_share``; a drive it leaves out is its stored first-pass record, no work)."""
     import dataclasses
 
     from .backends import run_all
@@ -75,11 +80,11 @@ def run_fleet(source: str, out: str | Path, jobs: int | None = None, scheduler: 
         replayed_s += _replayed_s(records)
         for _ in range(passes - 1):
             first = records
-            drives = [dataclasses.replace(d, start_latency_s=s) for d, s in zip(drives, second_pass_starts(drives, first))]
+            drives = [dataclasses.replace(d, start_latency_s=s) for d, s in zip(drives, second_pass_starts(drives, first, second_share))]
             records = run_all(drives, str((out / RESULTS).resolve()), jobs=jobs, scheduler=scheduler, on_done=bar.done)
             replayed_s += _replayed_s(records)
             for r, f in zip(records, first):  # the work of both passes counts
-                for t in ("wall_s", "cpu_s"):
+                for t in ("wall_s", "cpu_s", "replay_s"):
                     r[t] = (r.get(t) or 0.0) + (f.get(t) or 0.0)
                 r["cached"] = bool(r.get("cached")) and bool(f.get("cached"))
     wall = time.perf_counter() - started
@@ -105,8 +110,11 @@ def _replayed_s(records: list[dict]) -> float:
 def _run(args) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise UserError(f"--jobs must be >= 1, got {args.jobs}")
+    if not 0.0 < args.second_pass_share <= 1.0:
+        raise UserError(f"--second-pass-share must be in (0, 1], got {args.second_pass_share}")
     records = run_fleet(args.input, args.out, jobs=args.jobs, scheduler=args.scheduler,
-                        report=not args.no_report, progress=not args.no_progress, passes=args.passes)
+                        report=not args.no_report, progress=not args.no_progress, passes=args.passes,
+                        second_share=args.second_pass_share)
     for r in records:
         if r["status"] != "ok":
             log.warning("drive %s/%s failed: %s", r["vehicle"], r["drive"], r["error"])

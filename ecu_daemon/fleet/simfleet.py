@@ -5,7 +5,7 @@ ky1), steering offset and yaw-rate bias, drawn from a seeded generator; each of 
 of the simulator's scenarios with its own seed and heading. The vehicle's ``config.toml`` is the
 *nominal* car (nominal stiffness, a 0.3 s latency prior): what a fleet's calibration starts from.
 Written as the fleet input tree: ``OUT/<vehicle>/config.toml``, ``OUT/<vehicle>/vehicle.json``
-(the true parameters) and ``OUT/<vehicle>/<drive>/{drive.log, drive_gnss.log, truth.csv}``.
+(the true parameters, with the wheel scale a rolling wheel shows: :func:`free_rolling_wheel_scale`) and ``OUT/<vehicle>/<drive>/{drive.log, drive_gnss.log, truth.csv}``.
 """
 from __future__ import annotations
 
@@ -35,6 +35,20 @@ def vehicle_truth(index: int, seed: int) -> dict:
             "cr_factor": round(float(rng.uniform(0.8, 1.25)), 3),
             "steering_offset_rad": round(math.radians(float(rng.uniform(-3.0, 3.0))), 5),
             "yaw_rate_bias_radps": round(math.radians(float(rng.uniform(-0.8, 0.8))), 5)}
+
+
+def free_rolling_wheel_scale(wheel_scale: float, vehicle) -> float:
+    """The wheel scale the fused (non-driven) wheels show while rolling: ground speed over
+    reported speed. The simulator's ``wheel_scale`` is the radius error alone, but a free-rolling
+    wheel carries its rolling-resistance torque ``f_rr Fz R`` with a braking slip ``kappa = -f_rr /
+    kx1`` (-0.067 % with 0.012 and 18), so it reads ``v (1 + kappa) / wheel_scale``: the estimator
+    learns ``wheel_scale / (1 + kappa)`` (+0.067 %), and that is the factor the daemon needs to turn
+    these wheels' readings into ground speed; braking adds more slip, but the wheel fusion
+    de-weights it. A car driving all four wheels has no free-rolling pair: NaN."""
+    tyre = {"front": vehicle.tyre_rear, "rear": vehicle.tyre_front}.get(vehicle.driven_axle)
+    if tyre is None:
+        return math.nan
+    return wheel_scale / (1.0 - vehicle.rolling_resistance / tyre.kx1)
 
 
 def drive_scenario(truth: dict, vehicle: int, drive: int, seed: int, duration_s: float | None):
@@ -72,7 +86,8 @@ def write_fleet(out_dir: str | Path, vehicles: int, drives: int, seed: int = 1, 
         truth = vehicle_truth(v, seed)
         sc = drive_scenario(truth, v, 0, seed, duration_s)
         cf, cr = sc.vehicle.axle_cornering_stiffness()
-        truth.update(cornering_stiffness_front_n_per_rad=cf, cornering_stiffness_rear_n_per_rad=cr)
+        truth.update(cornering_stiffness_front_n_per_rad=cf, cornering_stiffness_rear_n_per_rad=cr,
+                     wheel_scale_free_rolling=round(free_rolling_wheel_scale(truth["wheel_scale"], sc.vehicle), 6))
         (out / name).mkdir(parents=True, exist_ok=True)
         (out / name / "config.toml").write_text(to_toml(writer.portable_config(vehicle_config(nominal))),
                                                 encoding="utf-8")
