@@ -870,6 +870,8 @@ class Estimator:
             self.last_gnss_speed = speed
             if not self.fdi.isolated & ACCEL_X:
                 self.road.fuse_vertical(g.vel_d_mps, speed, fus.sigma(g))
+                # an altitude (NMEA GGA): grade from the climb over the distance travelled
+                self.road.fuse_altitude(g, speed, h.X[h.slot(h.last), VX] > 0)
 
     def _on_heading(self, g: GnssHeadingSample, k: int) -> None:
         """Fuse a dual-antenna heading received just before step k, at its time of validity (the
