@@ -92,6 +92,10 @@ class GnssSample:
     ground_speed_mps: float = float("nan")  # only when course_known is False
     source: int = 0  # index of the receiver in the config's receiver list
     vel_d_mps: float = float("nan")  # antenna velocity down (UBX NAV-PVT / NAV-VELNED velD; NMEA has none)
+    #: antenna altitude above mean sea level (NMEA GGA / GNS) and the UTC seconds of the epoch it
+    #: belongs to: the GGA of an epoch follows its RMC, so it is usually the previous epoch's
+    alt_m: float = float("nan")
+    alt_time_utc_s: float = float("nan")
 
     @property
     def speed_mps(self) -> float:

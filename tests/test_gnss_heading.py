@@ -40,6 +40,21 @@ def test_relposned_gives_heading_accuracy_baseline_and_carrier_solution():
     assert s.valid and s.carr_soln == 1
 
 
+def test_relposned_is_dated_by_the_nav_pvt_of_its_epoch():
+    """A NAV-RELPOSNED shares its epoch's iTOW with the NAV-PVT before it: that NAV-PVT's UTC is
+    its time of validity, so the estimator fuses both at one step (not 4 ms apart by receive time)."""
+    utc = 1717228800.2
+    f = encode.utc_fields(utc)
+    pvt = encode.nav_pvt(**f, lat_deg=48.1, lon_deg=11.5, vel_n_mps=10.0, vel_e_mps=0.0)
+    same = encode.nav_relposned(itow_ms=f["itow_ms"], heading_deg=90.0, baseline_m=1.2)
+    other = encode.nav_relposned(itow_ms=f["itow_ms"] + 200, heading_deg=90.0, baseline_m=1.2)
+    v, h1, h2 = _feed(GnssStreamParser(), (1.0, pvt), (1.004, same), (1.2, other))
+    assert h1.fix_time_utc_s == v.fix_time_utc_s == pytest.approx(utc, abs=1e-6)
+    assert math.isnan(h2.fix_time_utc_s)  # its own epoch's NAV-PVT was not seen: undated
+    (alone,) = _feed(GnssStreamParser(), (1.0, same))
+    assert math.isnan(alone.fix_time_utc_s)
+
+
 @pytest.mark.parametrize("flag", ["fix_ok", "rel_pos_valid", "heading_valid"])
 def test_relposned_is_invalid_when_any_receiver_flag_says_so(flag):
     frame = encode.nav_relposned(itow_ms=0, heading_deg=10.0, baseline_m=1.0, **{flag: False})

@@ -171,8 +171,19 @@ def test_graded_and_banked_lane_change_grade_within_half_a_degree_bank_honestly_
 
 
 def test_nmea_grade_is_not_flagged_valid_on_the_offset_prior_alone(tmp_path):
+    """A receiver whose GGA carries no altitude: nothing measures the grade but the offset's prior."""
     r, _ = _replayed(tmp_path, SCENARIOS["dlc_dry"], name="road_nmea", grade_rad=math.atan(0.08),
-                     gnss_protocol="nmea")
+                     gnss_protocol="nmea", gnss_nmea_altitude=False)
     assert r["grade"]["fraction_valid"] == 0.0
     assert r["grade"]["rms"] < 1.0 * DEG  # the 0.1 m/s^2 offset: 0.6 deg
     assert np.isfinite(r["grade"]["rms"])
+
+
+def test_nmea_gga_altitude_over_the_distance_travelled_gives_the_grade(tmp_path):
+    """grade +8 % with NMEA: GGA altitudes (0.1 m steps, a wandering receiver height error)
+    differenced over the distance travelled measure the grade, which also teaches the offset."""
+    r, summary = _replayed(tmp_path, SCENARIOS["dlc_dry"], name="road_nmea_alt", grade_rad=math.atan(0.08),
+                           gnss_protocol="nmea")
+    assert r["grade"]["rms"] < 0.4 * DEG and r["grade"]["validity"]["valid_fraction_above_5mps"] > 0.8
+    assert r["grade"]["validity"]["coverage_3sigma"] >= 0.99
+    assert summary["learned"]["accel_x_offset_mps2"] == pytest.approx(0.1, abs=0.05)  # the sim's ax bias

@@ -264,12 +264,14 @@ def write_revs_gnss(path: Path, d: dict, truth: dict, protocol: str, lever_x: fl
             if t_rx[i] > t[-1]:
                 break
             utc = round((tv[i] + UTC_OFFSET_S) * 1000.0) / 1000.0
-            n += _write_fix(w, protocol, t_rx[i], utc, lat[i], lon[i], 50.0, vn[i], ve[i])
+            # the Revs data has no altitude: NMEA sends none (a made-up constant would say "flat")
+            n += _write_fix(w, protocol, t_rx[i], utc, lat[i], lon[i], 50.0 if protocol == "ubx" else None,
+                            vn[i], ve[i])
     return n
 
 
 def _write_fix(w: GnssLogWriter, protocol: str, t_rx: float, utc: float, lat: float, lon: float,
-               alt: float, vn: float, ve: float) -> int:
+               alt: float | None, vn: float, ve: float) -> int:
     """One receiver epoch into the capture log; returns the number of messages written."""
     if protocol == "ubx":
         frame = encode.nav_pvt(**encode.utc_fields(utc), fix_type=3, fix_ok=True, num_sv=14,

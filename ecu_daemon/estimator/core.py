@@ -37,7 +37,7 @@ from . import backend, kalman
 from . import estimate as est_mod
 from .estimate import Estimate
 from .fault_detection import ACCEL_X, ACCEL_Y, LAT_WINDOW_S, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector
-from .fusion.gnss_heading import REALIGN_REJECTS, GnssHeadingFusion
+from .fusion.gnss_heading import REALIGN_REJECTS, STAGGER_S, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import SingleTrackFusion, std_keys as stiffness_std_keys
@@ -69,6 +69,7 @@ SIDESLIP_STD_VALID = math.radians(2.0) / 3.0  # 3 sigma inside the 2 deg a valid
 HEADING_STD_VALID = math.radians(1.5)  # 3 sigma inside the 5 deg a valid heading promises
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
+SAME_EPOCH_S = 5e-4  # a heading and a velocity fix dated within this are of the same receiver epoch
 # while an IMU signal is isolated its substitute is coarse: process noise for what it drives
 ISO_ACCEL_NOISE = 2.0  # m/s^2/sqrt(Hz)
 ISO_YAW_RATE_NOISE = 0.02  # rad/s/sqrt(Hz)
@@ -144,6 +145,9 @@ class Estimator:
         self.latency = self.latencies[0]
         # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
         self.considers = [LatencyConsider(self.hist.n) for _ in receivers]
+        # per receiver: the UTC epoch of its last velocity fix and the step it was fused at; a
+        # dual-antenna heading of the same epoch (UBX RELPOSNED: NAV-PVT's iTOW) takes that step
+        self.fix_steps: dict[int, tuple[float, int]] = {}
         self.augmented = False  # the primary receiver's last velocity fix had its latency error as a state
         self._velocity_latencies = [lat for lat, v in zip(self.latencies, self.uses_velocity) if v]
         # each velocity receiver's latency also from its speed against the integrated accelerometer
@@ -762,7 +766,7 @@ class Estimator:
         st = self.single_track
         return Estimate(
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
-            r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self.latency.delay_s, x[KW],
+            r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
@@ -771,6 +775,12 @@ class Estimator:
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, *self.gnss_counts(), *self._road(imu_ok, iso))
+
+    def _published_delay(self) -> float:
+        """The primary receiver's latency: ``latency.py``'s, plus the filter's estimate of its
+        error while that is a state (a fresh dual-antenna heading: course against baseline heading
+        times the yaw rate measures it, ``latency_consider.py``), which is the better informed."""
+        return self.latency.delay_s + (self.considers[0].d if self.augmented else 0.0)
 
     def _road(self, imu_ok: bool, iso: int) -> tuple:
         """The road / roll fields of an Estimate: values, stds and validity (road.py)."""
@@ -829,6 +839,7 @@ class Estimator:
         speed = g.speed_mps  # NaN course: speed only (GnssSample.course_known)
         delay = lat.delay_s if self.delay_compensation else 0.0
         s, late = h.clamp_step(round((g.t - delay) / self.dt))
+        self.fix_steps[g.source] = (g.fix_time_utc_s, s)
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
@@ -885,6 +896,8 @@ class Estimator:
             self.last_gnss_speed = speed
             if not self.fdi.isolated & ACCEL_X:
                 self.road.fuse_vertical(g.vel_d_mps, speed, fus.sigma(g))
+                # an altitude (NMEA GGA): grade from the climb over the distance travelled
+                self.road.fuse_altitude(g, speed, h.X[h.slot(h.last), VX] > 0)
 
     def _on_heading(self, g: GnssHeadingSample, k: int) -> None:
         """Fuse a dual-antenna heading received just before step k, at its time of validity (the
@@ -902,7 +915,13 @@ class Estimator:
         if self.yaw_integral is not None and g.source < len(self.uses_velocity) and not self.uses_velocity[g.source]:
             self.yaw_integral.pair(g.source, k, fus.vehicle_heading(g), lat)
         delay = lat.delay_s if self.delay_compensation else 0.0
-        s, _ = h.clamp_step(round((g.t - delay) / self.dt))
+        same = self.fix_steps.get(g.source)
+        if same is not None and abs(g.fix_time_utc_s - same[0]) < SAME_EPOCH_S:  # NaN: not dated
+            s, _ = h.clamp_step(same[1])  # the velocity fix of its epoch: the same time of validity
+            stagger = 0.0
+        else:  # received a few ms after its epoch's velocity: its own receive time
+            s, _ = h.clamp_step(round((g.t - delay) / self.dt))
+            stagger = STAGGER_S
         if self.road.baselines and not self.fdi.isolated & ACCEL_Y:  # the baseline's tilt: road.py
             self.road.fuse_elevation(s, g)
         std = lat.std_s
@@ -910,7 +929,7 @@ class Estimator:
             self.realignments += 1
             self.aligned = False
         if self.aligned:
-            if not fus.fuse(h, s, g, std, self._consider(rx, lat)):
+            if not fus.fuse(h, s, g, std, self._consider(rx, lat), stagger):
                 return
         else:
             fus.align(h, s, g, std, self.model.Qd[PSI, PSI])

@@ -9,7 +9,9 @@ offsets, so two 2-state Kalman filters do it here and the 8-state filter stays a
 * grade ``[grade, o_x]``: the main filter's ``b_ax`` (its variance inflated for the correlation of
   successive values), and the GNSS vertical velocity (UBX velD): at speed
   ``tan(grade) = -v_down / v_horizontal`` measures grade directly and so makes ``o_x`` observable.
-  NMEA has no vertical velocity: grade then rests on the offset's prior. Nor, in effect, does a
+  NMEA has no vertical velocity; its GGA altitude differenced over the distance travelled measures
+  the grade instead (``altitude_grade.py``, its own noise model and gate); without an altitude grade
+  rests on the offset's prior. Nor, in effect, does a
   capture whose velD is exactly 0: that is what encoders write when they have no vertical velocity
   (our own real-data tools do), while a real receiver's noise makes an exact 0 mm/s rare at speed;
   such fixes are skipped and counted, never taken as "flat".
@@ -50,6 +52,7 @@ import math
 import numpy as np
 
 from . import kalman
+from .altitude_grade import ALT_GATE_SIGMA, AltitudeGrade
 
 G = 9.80665
 UPDATE_EVERY = 17  # main-filter steps between updates from its bias states (~0.1 s)
@@ -201,6 +204,9 @@ class RoadAttitude:
         self.bank = _Channel(*prior("accel_y_offset_mps2"))
         self.vertical_fused = 0
         self.vertical_zero = 0  # exact-0 velD fixes skipped (see module doc)
+        self.altitude = AltitudeGrade(ANGLE_WALK)
+        self.altitude_fused = 0
+        self.altitude_rejected = 0
         self.roll = 0.0
         self.roll_std = math.pi
         self.fy_lp = math.nan
@@ -243,6 +249,21 @@ class RoadAttitude:
         if self.grade.update(z - self.grade.x[0], np.array([1.0, 0.0]), R):
             self.vertical_fused += 1
             return True
+        return False
+
+    def fuse_altitude(self, g, speed: float, forward: bool) -> bool:
+        """A fused fix (``GnssSample``): its speed extends the distance travelled, its altitude
+        (NMEA GGA, at its own epoch) closes a segment whose climb measures the grade."""
+        alt = self.altitude
+        alt.speed(g.fix_time_utc_s, speed, forward)
+        m = alt.measure(g.alt_m, g.alt_time_utc_s)
+        if m is None:
+            return False
+        z, R = m
+        if self.grade.update(z - self.grade.x[0], np.array([1.0, 0.0]), R, ALT_GATE_SIGMA):
+            self.altitude_fused += 1
+            return True
+        self.altitude_rejected += 1
         return False
 
     def set_roll(self, ay_m: float, g_ay: float, var_gay: float, ay_doubt: float = 0.0) -> None:

@@ -22,7 +22,11 @@ stream sends VTG). A stream without RMC is served from VTG, which carries no tim
 waits for the next timed sentence (GGA, GNS, GLL, ZDA, GST) and takes its epoch, unless that
 sentence comes more than ``_VTG_EPOCH_GAP_S`` of receive time later (then the VTG ended the
 previous epoch). The date comes from RMC or ZDA. GGA/GNS and GST contribute fix quality,
-satellites and horizontal accuracy from the same or the previous epoch (at most 1.5 s older).
+satellites and horizontal accuracy from the same or the previous epoch (at most 1.5 s older),
+and the altitude with the time of its own epoch (GGA usually follows the RMC, so a sample carries the
+previous epoch's height; the estimator differences heights at their own times, see
+``estimator/altitude_grade.py``). An empty altitude, or one without a GNSS fix (quality 0, 6 dead
+reckoning, 7 manual, 8 simulator), is NaN.
 
 Heading sentences (dual-antenna receivers: HDT, THS) are not part of an epoch: each gives one
 GnssHeadingSample at once (they carry no time; HDT no validity either, so an empty heading field is
@@ -64,6 +68,9 @@ _AUX_MAX_AGE_MS = 1500
 #: FAA mode indicators that mean a usable GNSS solution (A autonomous, D differential, P precise,
 #: R RTK fixed, F RTK float). E is dead reckoning; N no fix; M manual and S simulator are not fixes.
 _GNSS_MODES = frozenset("ADPRF")
+#: GGA qualities whose altitude is measured: GNSS, DGNSS, PPS, RTK fixed / float (not 0 none,
+#: 6 dead reckoning, 7 manual, 8 simulator)
+_ALT_QUALITIES = frozenset({1, 2, 3, 4, 5})
 _TIME = re.compile(r"^(\d\d)(\d\d)(\d\d)(\.\d+)?$")
 _DM = re.compile(r"^(\d{1,3})(\d\d(?:\.\d*)?)$")
 
@@ -251,7 +258,7 @@ class NmeaEpochAssembler:
         self._vtg: _Vtg | None = None  # VTG of an RMC-less stream, waiting for its epoch's time
         self._vtg_tod_before: int | None = None  # time of the last timed sentence before that VTG
         self._done_tod: int | None = None  # epoch whose sample was emitted
-        self._gga: tuple[int, int, int] | None = None  # tod_ms, quality, num_sv (GGA or GNS)
+        self._gga: tuple[int, int, int, float] | None = None  # tod_ms, quality, num_sv, altitude m (GGA or GNS)
         self._gst: tuple[int, float] | None = None  # tod_ms, horizontal 1-sigma m
         self._date: tuple[int, int] | None = None  # (days since 1970, tod_ms) of the last RMC/ZDA date
         self._last_tod: int | None = None
@@ -329,11 +336,12 @@ class NmeaEpochAssembler:
             self._vtg = None  # the pause before this sentence was the epoch boundary
             self._emit(None, vtg, before, out)
         if kind == "GGA":
-            self._aux_fix(tod, _int_field(msg, 5, "quality"), _int_field(msg, 6, "satellites"))
+            self._aux_fix(tod, _int_field(msg, 5, "quality"), _int_field(msg, 6, "satellites"),
+                          self._altitude(msg, 8))
         elif kind == "GNS":
             mode = _field(msg, 5)
             qual = (1 if any(m in _GNSS_MODES for m in mode) else 6 if "E" in mode else 0) if mode else None
-            self._aux_fix(tod, qual, _int_field(msg, 6, "satellites"))
+            self._aux_fix(tod, qual, _int_field(msg, 6, "satellites"), self._altitude(msg, 8))
         elif kind == "ZDA":
             day = _optional(self.field_errors, self._zda_day, msg)
             if tod is not None and day is not None:
@@ -362,10 +370,24 @@ class NmeaEpochAssembler:
         except ValueError:
             raise NmeaError(f"ZDA date is not dd,mm,yyyy: {d!r},{m!r},{y!r} (date dropped)") from None
 
-    def _aux_fix(self, tod: int | None, qual: int | None, nsv: int | None) -> None:
+    def _altitude(self, msg, i: int) -> float:
+        """Altitude above MSL (field i, metres); NaN when empty or not a number (dropped, reported)."""
+        raw = _field(msg, i)
+        if raw == "":
+            return math.nan
+        try:
+            alt = float(raw)
+        except ValueError:
+            alt = math.nan
+        if not (math.isfinite(alt) and -1000.0 < alt < 20000.0):
+            self.field_errors.append(f"{msg.sentence_type} altitude is not a height in m: {raw!r} (altitude dropped)")
+            return math.nan
+        return alt
+
+    def _aux_fix(self, tod: int | None, qual: int | None, nsv: int | None, alt: float = math.nan) -> None:
         # several talkers may send GGA (GPGGA + GLGGA): the first of the epoch wins
         if tod is not None and qual is not None and (self._gga is None or self._gga[0] != tod):
-            self._gga = (tod, qual, nsv or 0)
+            self._gga = (tod, qual, nsv or 0, alt if qual in _ALT_QUALITIES else math.nan)
 
     def _new_time(self, tod: int | None) -> None:
         if tod is not None:
@@ -426,4 +448,5 @@ class NmeaEpochAssembler:
             lon_deg=rmc.lon if rmc is not None else math.nan,
             h_acc_m=gst[1] if gst else math.nan,
             course_known=course is not None or speed is None, ground_speed_mps=ground,
+            alt_m=gga[3] if gga else math.nan, alt_time_utc_s=self._utc(gga[0]) if gga else math.nan,
         )

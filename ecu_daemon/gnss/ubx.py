@@ -104,6 +104,7 @@ class UbxDecoder:
         self._leap_s: int | None = None  # GPS - UTC from NAV-TIMEGPS, when it says it is valid
         self._legacy_itow: int | None = None  # epoch of the last NAV-SOL / NAV-VELNED sample
         self._held: GnssSample | None = None  # NAV-SOL sample waiting to see whether NAV-PVT follows
+        self._pvt_epoch: tuple[int, float] | None = None  # iTOW and UTC of the last NAV-PVT
 
     @staticmethod
     def supported(cls_id: tuple[int, int]) -> bool:
@@ -130,7 +131,9 @@ class UbxDecoder:
                 raise UbxError(f"NAV-PVT payload is {len(frame) - 8} bytes, expected {_NAV_PVT_LEN}")
             self.seen_nav_pvt = True
             msg = self._parse(frame)
-            return out + [self._nav_pvt(t, msg)]  # a held NAV-SOL of the same receiver is dropped
+            pvt = self._nav_pvt(t, msg)
+            self._pvt_epoch = (msg.iTOW, pvt.fix_time_utc_s)
+            return out + [pvt]  # a held NAV-SOL of the same receiver is dropped
         if held is not None:
             out.append(held)
         if cls_id == NAV_RELPOSNED:
@@ -139,7 +142,10 @@ class UbxDecoder:
             if len(frame) != 8 + _NAV_RELPOSNED_LEN:
                 raise UbxError(f"NAV-RELPOSNED payload is {len(frame) - 8} bytes, expected {_NAV_RELPOSNED_LEN}"
                                " (version 1, with heading)")
-            return out + [self._nav_relposned(t, self._parse(frame))]
+            m = self._parse(frame)
+            # the NAV-PVT of the same epoch (same iTOW) dates the heading: same time of validity
+            ep = self._pvt_epoch
+            return out + [self._nav_relposned(t, m, ep[1] if ep is not None and ep[0] == m.iTOW else math.nan)]
         if self.seen_nav_pvt or not self.supported(cls_id):
             return out  # the others are only used by receivers without NAV-PVT
         msg = self._parse(frame)
@@ -193,17 +199,17 @@ class UbxDecoder:
         )
 
     @staticmethod
-    def _nav_relposned(t: float, m) -> GnssHeadingSample:
+    def _nav_relposned(t: float, m, fix_time_utc_s: float = math.nan) -> GnssHeadingSample:
         """Moving-base heading: valid only when the receiver says the fix, the relative position
         and its heading are all valid (a float carrier solution stays valid; its accHeading says
-        what it is worth)."""
+        what it is worth). ``fix_time_utc_s``: the epoch of the NAV-PVT with the same iTOW."""
         valid = bool(m.gnssFixOK and m.relPosValid and m.relPosHeadingValid)
         vec = not m.relPosNormalized  # a normalised vector has no lengths (nor a usable accD)
         return GnssHeadingSample(
             t=t, heading_rad=math.radians(m.relPosHeading) % (2.0 * math.pi),
             heading_acc_rad=math.radians(m.accHeading),
             baseline_m=m.relPosLength / 100.0 if vec else math.nan,
-            valid=valid, carr_soln=int(m.carrSoln), protocol="ubx",
+            valid=valid, carr_soln=int(m.carrSoln), protocol="ubx", fix_time_utc_s=fix_time_utc_s,
             down_m=m.relPosD / 100.0 if vec else math.nan,
             horizontal_m=math.hypot(m.relPosN, m.relPosE) / 100.0 if vec else math.nan,
             down_acc_m=m.accD / 1000.0 if vec else math.nan,

@@ -28,9 +28,10 @@ timestamp (as comma's panda does). The value in a frame is the truth at its *sen
 
 GNSS: epochs on the UTC grid of ``1/rate_hz``; each reports the *antenna* velocity (lever arm;
 vertical too, on a graded or banked road, in UBX velD) with white noise, and reaches the host ``latency_s`` (+ jitter) after its time of validity.
-UBX: one NAV-PVT per epoch. NMEA: RMC, VTG, GGA per epoch, each sentence a few ms after the
-previous one (serial transmission). A dual-antenna receiver (moving base + rover, ``dual_antenna``)
-adds the baseline's heading to every epoch (UBX NAV-RELPOSNED after the NAV-PVT, NMEA THS): the
+UBX: one NAV-PVT per epoch (its height the constant ``height_m``: velD carries the climb). NMEA:
+RMC, VTG, GGA per epoch, each sentence a few ms after the previous one (serial transmission); the
+GGA's altitude is the antenna's true height along the graded road plus a Gauss-Markov error.
+A dual-antenna receiver (moving base + rover, ``dual_antenna``) adds the baseline's heading to every epoch (UBX NAV-RELPOSNED after the NAV-PVT, NMEA THS): the
 vehicle's heading plus the mounting offset plus white noise that shrinks with the baseline length
 (carrier-phase heading: ~0.2 deg at 1 m); RELPOSNED also carries the rover's height against the
 base (relPosD: the baseline tilted by grade, bank and body roll, plus ``down_noise_m``).
@@ -209,6 +210,10 @@ class GnssParams:
     #: about twice the horizontal (0.2 deg at 1 m is 3.5 mm across the baseline)
     down_noise_m: float = 0.007
     fuse_elevation: bool = False  # the config fuses the baseline's elevation (bank / grade)
+    #: 1-sigma of the receiver's height error (NMEA GGA altitude), a Gauss-Markov process with
+    #: ``pos_tau_s`` like the horizontal one: receivers' vertical error is about 1.5x their horizontal
+    alt_noise_m: float = 1.2
+    nmea_altitude: bool = True  # False: a receiver whose GGA altitude field is empty
 
 
 def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
@@ -298,6 +303,20 @@ class GnssEpoch:
     heading_deg: float = math.nan  # baseline heading (dual antenna), clockwise from north
     vel_d: float = 0.0  # antenna velocity down (UBX velD)
     down_m: float = 0.0  # rover antenna below the base (dual antenna, NED down: relPosD)
+    alt_m: float = math.nan  # antenna height above the start's height_m, with the receiver's error (NMEA GGA)
+
+
+def antenna_height(truth: TruthArrays, lever_arm_m: tuple, tv: np.ndarray) -> np.ndarray:
+    """The antenna's true height (m) above where the drive started, at times ``tv``: its up
+    velocity (grade along x, bank along y, as velD's) integrated over the truth's steps."""
+    lx, ly = lever_arm_m
+    sg, sb = math.sin(truth.road.grade_rad), math.sin(truth.road.bank_rad)
+    cg = math.cos(truth.road.grade_rad)
+    r = truth.col("r")
+    up = (truth.col("vx") - r * ly) * sg + (truth.col("vy") + r * lx) * sb * cg
+    t = truth.t
+    h = np.concatenate(([0.0], np.cumsum(0.5 * (up[1:] + up[:-1]) * np.diff(t))))
+    return np.interp(tv, t, h)
 
 
 def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator) -> list[GnssEpoch]:
@@ -339,6 +358,18 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     sg, sb = math.sin(truth.road.grade_rad), math.sin(truth.road.bank_rad)
     vd_true = -((vx - r * ly) * sg + (vy + r * lx) * sb * cg)
     vd = vd_true + 1.5 * params.vel_noise_mps * np.random.default_rng([int(k0), n, 4]).standard_normal(n)
+    # height: the true climb plus a Gauss-Markov error (sigma alt_noise_m, pos_tau_s) from its own
+    # stream (the drive's seed, spawned without drawing), so every other draw stays as it was
+    # (GGA rounds it to 0.1 m)
+    ss = getattr(rng.bit_generator, "seed_seq", None)
+    rng_h = np.random.default_rng(np.random.SeedSequence(ss.entropy if ss is not None else 0,
+                                                         spawn_key=(int(k0), n, 8)))
+    he = np.zeros(n)
+    he[0] = rng_h.standard_normal() * params.alt_noise_m
+    wh = rng_h.standard_normal(n) * params.alt_noise_m * math.sqrt(1 - a * a)
+    for i in range(1, n):
+        he[i] = a * he[i - 1] + wh[i]
+    alt = antenna_height(truth, params.lever_arm_m, tv) + he
     head = np.full(n, math.nan)
     down = np.zeros(n)
     if params.dual_antenna:
@@ -377,7 +408,8 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
             break
         if sent[i]:
             out.append(GnssEpoch(float(tv[i]), float(t_rx[i]), float(vn[i]), float(ve[i]), float(lat[i]),
-                                 float(lon[i]), bool(good[i]), float(head[i]), float(vd[i]), float(down[i])))
+                                 float(lon[i]), bool(good[i]), float(head[i]), float(vd[i]), float(down[i]),
+                                 float(alt[i])))
     return out
 
 
@@ -406,7 +438,8 @@ def encode_epoch(ep: GnssEpoch, params: GnssParams) -> list[tuple[float, bytes]]
             encode.nmea_rmc(utc=utc, lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, speed_mps=speed, course_deg=course),
             encode.nmea_vtg(speed_mps=speed, course_deg=course),
             encode.nmea_gga(utc=utc, lat_deg=ep.lat_deg, lon_deg=ep.lon_deg, num_sv=params.num_sv,
-                            alt_m=params.height_m),
+                            alt_m=(params.height_m + (ep.alt_m if math.isfinite(ep.alt_m) else 0.0)
+                                   if params.nmea_altitude else None)),
         ] + ([encode.nmea_ths(heading_deg=ep.heading_deg)] if math.isfinite(ep.heading_deg) else [])
         return [(ep.t_rx + i * params.nmea_stagger_s, (s + "\r\n").encode("ascii")) for i, s in enumerate(lines)]
     raise ValueError(f"unknown GNSS protocol {params.protocol!r} (ubx or nmea)")

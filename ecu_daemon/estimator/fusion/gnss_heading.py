@@ -100,16 +100,17 @@ class GnssHeadingFusion:
         return self.sigma(g) ** 2 + (r * delay_std_s) ** 2
 
     def fuse(self, hist: StepHistory, s: int, g: GnssHeadingSample, delay_std_s: float,
-             consider: LatencyConsider | None = None) -> bool:
+             consider: LatencyConsider | None = None, stagger_s: float = STAGGER_S) -> bool:
         """Scalar heading update at stored step s (Joseph form, through ``kalman.late_update`` as
         the velocity's); False (counted) when gated out, or when the corrected covariance would
         not be positive definite (``StepHistory.correct`` refuses it). With ``consider`` (the
         receiver's latency error, shared with its velocity) the heading reads ``psi + r d``
         (d psi / dt = -r) instead of carrying ``(r std)^2`` of white noise
-        (``latency_consider.py``); only the stagger of its time stamp stays noise."""
+        (``latency_consider.py``); only the stagger of its time stamp stays noise (``stagger_s``:
+        0 when the heading is dated by its epoch's velocity fix, UBX RELPOSNED's iTOW)."""
         i = hist.slot(s)
         y = wrap_pi(self.vehicle_heading(g) - hist.X[i, PSI])
-        self._R[0, 0] = self.variance(hist, s, g, STAGGER_S if consider is not None else delay_std_s)
+        self._R[0, 0] = self.variance(hist, s, g, stagger_s if consider is not None else delay_std_s)
         self._y[0] = y
         if consider is None:
             nis = kalman.late_update(hist.P[i], self._H, self._R, self._y, self._dx, self._M)
