@@ -93,8 +93,9 @@ def _zero_byte_powers(n: int) -> list[int]:
 
 _RTCM_MAX = 6 + 1023
 _X8K = _zero_byte_powers(_RTCM_MAX)
-#: a claimed frame longer than this is checked through the prefix sums of the whole buffer
-_LONG = 64
+#: a claimed frame longer than this is checked through the prefix sums of the whole buffer; up to
+#: it directly (NAV-PVT's 96 checked bytes: building the prefix sums per frame cost ~25 us)
+_LONG = 128
 
 
 class _RangeChecks:
