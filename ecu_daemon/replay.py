@@ -250,9 +250,7 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
 
         def write_frames(steps):
             if record is None:  # the batch pipeline: (frame id, payload) pairs
-                for st in steps:
-                    if st.frames:
-                        can_out.write_payloads(st.estimate.t, st.frames)
+                can_out.write_steps([(st.estimate.t, st.frames) for st in steps if st.frames])
                 return
             for st in steps:
                 for msg in st.frames:
