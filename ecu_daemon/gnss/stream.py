@@ -441,8 +441,11 @@ class GnssStreamParser:
 def sum_stats(parsers) -> dict:
     """GNSS parser counters summed over parsers (a dict: its values), e.g. every port of every
     capture, or the daemon's receivers."""
+    ps = list(parsers.values() if isinstance(parsers, dict) else parsers)
+    if len(ps) == 1:  # the usual case, read with every EST_DIAG update
+        return dict(ps[0].stats)
     total: dict = {}
-    for p in (parsers.values() if isinstance(parsers, dict) else parsers):
+    for p in ps:
         for k, v in p.stats.items():
             total[k] = total.get(k, 0) + v
     return total
