@@ -19,7 +19,7 @@ setup(ext_modules=[Extension(
     sources=["ecu_daemon/_frames.c"],
     extra_compile_args=["-O2", "-ffp-contract=off"],
     optional=True,
-), Extension(  # candump -L logs read in one pass (ecu_daemon/can_arrays.py falls back to canlog's reader)
+), Extension(  # candump -L logs read in one pass, output lines written in one (can_arrays.py, canlog.py fall back to Python)
     "ecu_daemon._candump",
     sources=["ecu_daemon/_candump.c"],
     extra_compile_args=["-O2", "-ffp-contract=off"],

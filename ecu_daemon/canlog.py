@@ -36,6 +36,11 @@ from typing import Iterator
 
 import can
 
+try:
+    from ._candump import lines as _candump_lines  # setup.py builds it; optional
+except ImportError:
+    _candump_lines = None
+
 log = logging.getLogger(__name__)
 
 CAN_ERR_FLAG = 0x20000000
@@ -392,9 +397,25 @@ class CandumpWriter:
         writes for the same frames as ``can.Message`` s (an output encoder's frames)."""
         if self._f is None:
             raise ValueError("CandumpWriter is closed")
-        head = f"({t:.6f}) {self.channel} "
-        self._f.write("".join([f"{head}{fid:03X}#{bytes(data).hex().upper()}\n" for fid, data in frames]))
+        self._f.write(self._lines_reference(self.channel, t, frames))
         self.frames += len(frames)
+
+    @staticmethod
+    def _lines_reference(channel: str, t: float, frames: list) -> str:
+        head = f"({t:.6f}) {channel} "
+        return "".join([f"{head}{fid:03X}#{bytes(data).hex().upper()}\n" for fid, data in frames])
+
+    def write_steps(self, steps: list) -> None:
+        """:meth:`write_payloads` for ``[(t, frames), ...]`` at once, formatted in C where built
+        (``_candump.lines``; it hands anything but float times, 11-bit ids and byte payloads back
+        to the Python formatting)."""
+        if self._f is None:
+            raise ValueError("CandumpWriter is closed")
+        text = NotImplemented if _candump_lines is None else _candump_lines(self.channel, steps)
+        if text is NotImplemented:
+            text = "".join([self._lines_reference(self.channel, t, frames) for t, frames in steps])
+        self._f.write(text)
+        self.frames += sum(len(frames) for _, frames in steps)
 
     def write_frame(self, t: float, arbitration_id: int, data: bytes, is_extended: bool = False,
                     is_error_frame: bool = False) -> None:
@@ -460,6 +481,11 @@ class PythonCanWriter:
         """:meth:`CandumpWriter.write_payloads`, through ``can.Message`` s."""
         for fid, data in frames:
             self.write(can.Message(timestamp=t, arbitration_id=fid, is_extended_id=False, data=data, check=False))
+
+    def write_steps(self, steps: list) -> None:
+        """:meth:`CandumpWriter.write_steps`, through ``can.Message`` s."""
+        for t, frames in steps:
+            self.write_payloads(t, frames)
 
     def close(self) -> None:
         if self._w is not None:

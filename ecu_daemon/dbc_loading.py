@@ -12,9 +12,13 @@
 """
 from __future__ import annotations
 
+import hashlib
 import logging
+import pickle
 import re
+from collections import OrderedDict
 from pathlib import Path
+from typing import NamedTuple
 
 import cantools
 import cantools.database
@@ -84,12 +88,11 @@ class DbcText:
         return text[:m.start()] + f"line {n}{m.group(2) or ''} of {p.name}" + text[m.end():]
 
 
-def _opendbc_dialect(text: str, what: str, path: Path) -> str:
-    """Read two things opendbc's own parser accepts and cantools does not, with one line each."""
+def _opendbc_dialect(text: str) -> tuple[str, int, set[int]]:
+    """Read two things opendbc's own parser accepts and cantools does not: the text cantools
+    gets, the count of signal-less signal comments and the 29-bit ids given as plain numbers
+    (each said in one line by :func:`_say_dialect`)."""
     text, n = _SIGNAL_COMMENT_WITHOUT_SIGNAL.subn(r"\1BO_\2", text)
-    if n:
-        log.info("%s: %s has %d 'CM_ SG_ <id> \"...\"' comment(s) without a signal name; read as message"
-                 " comments", what, path, n)
     extended: set[int] = set()
 
     def mark(m: re.Match) -> str:
@@ -99,11 +102,32 @@ def _opendbc_dialect(text: str, what: str, path: Path) -> str:
             fid |= _DBC_EXTENDED
         return f"{m.group(1)}{fid}"
 
-    text = _MESSAGE_ID.sub(mark, text)
+    return _MESSAGE_ID.sub(mark, text), n, extended
+
+
+def _say_dialect(what: str, path: Path, n: int, extended: set[int]) -> None:
+    if n:
+        log.info("%s: %s has %d 'CM_ SG_ <id> \"...\"' comment(s) without a signal name; read as message"
+                 " comments", what, path, n)
     if extended:
         log.info("%s: %s gives %s as plain numbers above 0x7FF; read as 29-bit ids, as opendbc does", what,
                  path, ", ".join(f"0x{f:X}" for f in sorted(extended)))
-    return text
+
+
+class _Parsed(NamedTuple):
+    blob: bytes | None  # the database pickled (None: it does not pickle, not cached)
+    comments: int
+    extended: set[int]
+    strict_error: str | None  # why strict loading failed (loaded with strict=False)
+
+
+#: parsed DBCs by the SHA-256 of their text (IMPORTs resolved) and the strictness asked for,
+#: most recent last: a fleet replays hundreds of drives of a few vehicles in one process, and
+#: parsing took ~20 ms of each drive's start-up (unpickling a copy: ~1.5 ms). A changed file
+#: (or one of its imports) has another hash, so it is parsed again; every caller gets its own
+#: copy (nothing parsed is shared).
+_CACHE: OrderedDict[tuple[bytes, bool], _Parsed] = OrderedDict()
+CACHE_SIZE = 32
 
 
 def load_dbc(path: Path, what: str = "[can] dbc", allow_non_strict: bool = True):
@@ -111,26 +135,57 @@ def load_dbc(path: Path, what: str = "[can] dbc", allow_non_strict: bool = True)
 
     IMPORT lines are resolved (see module doc). Falls back to non-strict loading with ONE info
     line when allowed. Any failure to read or parse becomes a :class:`ConfigError` naming the file.
+    A text parsed before in this process is not parsed again (:data:`_CACHE`); the lines said
+    about it are said again.
     """
     path = Path(path)
     dbc = DbcText(path, what)
     if dbc.imported:
         log.info("%s: %s imports %s (opendbc IMPORT lines); loaded them with it", what, path,
                  ", ".join(p.name for p in dbc.imported))
-    text = _opendbc_dialect(dbc.text, what, path)
+    key = (hashlib.sha256(dbc.text.encode("utf-8", "surrogatepass")).digest(), allow_non_strict)
+    hit = _CACHE.get(key)
+    if hit is not None:
+        _CACHE.move_to_end(key)
+        _say(what, path, hit)
+        return pickle.loads(hit.blob)
+    db, parsed = _parse(dbc, what, path, allow_non_strict)
+    if parsed.blob is not None:
+        _CACHE[key] = parsed
+        while len(_CACHE) > CACHE_SIZE:
+            _CACHE.popitem(last=False)
+    _say(what, path, parsed)
+    return db
+
+
+def _say(what: str, path: Path, parsed: _Parsed) -> None:
+    _say_dialect(what, path, parsed.comments, parsed.extended)
+    if parsed.strict_error is not None:
+        log.info("%s: %s fails cantools' strict checks (%s); loaded it with strict=False",
+                 what, path, parsed.strict_error)
+
+
+def _parse(dbc: DbcText, what: str, path: Path, allow_non_strict: bool):
+    text, comments, extended = _opendbc_dialect(dbc.text)
 
     def load(strict: bool):
         return cantools.database.load_string(text, database_format="dbc", strict=strict)
 
+    strict_error = None
     try:
-        return load(True)
-    except Exception as strict_error:  # cantools raises several types for a file it rejects
+        db = load(True)
+    except Exception as e:  # cantools raises several types for a file it rejects
         if not allow_non_strict:
-            raise ConfigError(f"{what}: {path} is not a valid DBC: {dbc.explain(strict_error)}") from None
+            _say_dialect(what, path, comments, extended)
+            raise ConfigError(f"{what}: {path} is not a valid DBC: {dbc.explain(e)}") from None
+        strict_error = str(e)
         try:
             db = load(False)
-        except Exception as e:
-            raise ConfigError(f"{what}: {path} is not a valid DBC: {dbc.explain(e)}") from None
-        log.info("%s: %s fails cantools' strict checks (%s); loaded it with strict=False",
-                 what, path, strict_error)
-        return db
+        except Exception as e2:
+            _say_dialect(what, path, comments, extended)
+            raise ConfigError(f"{what}: {path} is not a valid DBC: {dbc.explain(e2)}") from None
+    try:
+        blob = pickle.dumps(db, protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception:  # a database that does not pickle is just not cached
+        blob = None
+    return db, _Parsed(blob, comments, extended, strict_error)

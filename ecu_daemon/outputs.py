@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 from pathlib import Path
 
 import can
@@ -160,7 +161,7 @@ def _diag_source(name: str):
     """EST_DIAG signal -> (getter(Diagnostics), mode), or None if unknown."""
     if name in _DIAG_FIELDS:
         attr, mode = _DIAG_FIELDS[name]
-        return (lambda d, a=attr: getattr(d, a)), mode
+        return operator.attrgetter(attr), mode
     for prefix, input_name in _DIAG_INPUT_PREFIX.items():
         if name.startswith(prefix + "_") and name[len(prefix) + 1:] in _DIAG_INPUT_SUFFIX:
             attr, mode = _DIAG_INPUT_SUFFIX[name[len(prefix) + 1:]]

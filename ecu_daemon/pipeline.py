@@ -174,6 +174,7 @@ class Pipeline:
         self.stale_mask: dict = {}
         self.gnss_last = None
         self.error_frames = 0
+        self.gnss_samples = 0  # GNSS samples (velocity and heading) handed to the estimator
         self.last_k: int | None = None  # last step run
         self.late_items = 0
         self.earliest_late_t = math.inf
@@ -312,13 +313,19 @@ class Pipeline:
             self._take(Item(t, 1, seq, gnss_source(receiver), (receiver, port, payload)))
             advance(step_of(t, dt) - 1)
 
+        inf = math.inf
+        # advance() runs steps only from est.k on (any step before an initialised estimator):
+        # the frames of a step after its first one need no call (the decoder's cursor, which
+        # only the steps' diagnostics read, is set when one runs)
+        next_k = -inf if est.k is None else est.k
         for j in range(n):
             t = times[j]
             while tg < t:  # GNSS items stamped before this frame (CAN first at equal times)
                 dec.cursor = j
                 take_gnss(*gnss[gi])
                 gi += 1
-                tg = gnss[gi][0] if gi < len(gnss) else math.inf
+                tg = gnss[gi][0] if gi < len(gnss) else inf
+                next_k = -inf if est.k is None else est.k
             s = samples[j]
             if s is not None:
                 if s is DIRTY:
@@ -329,8 +336,11 @@ class Pipeline:
                         on_sample(x)
             elif errs[j]:
                 self.error_frames += 1
-            dec.cursor = j + 1
-            advance(before[j])
+            b = before[j]
+            if b >= next_k:
+                dec.cursor = j + 1
+                advance(b)
+                next_k = -inf if est.k is None else est.k
             if progress is not None and not j & 1023:
                 progress(j, t)
         dec.cursor = n
@@ -388,6 +398,7 @@ class Pipeline:
                 self._gnss_sample(s)
 
     def _gnss_sample(self, s) -> None:
+        self.gnss_samples += 1
         self.gnss_rx_t[s.source] = s.t
         if type(s) is GnssSample:  # the velocity solution: what the diagnostics describe
             self.gnss_last = s

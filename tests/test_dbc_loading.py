@@ -82,3 +82,65 @@ def test_every_command_loads_through_the_same_function_and_says_the_same(tmp_pat
     with caplog.at_level(logging.INFO, logger="ecu_daemon.dbc_loading"):
         SignalDecoder(config_mod.load(ROOT / "examples" / "toyota_rav4.toml"))  # what `run` builds
     assert [r.getMessage() for r in caplog.records if "strict=False" in r.getMessage()] == lines
+
+
+# ------------------------------------------------------------------------------------ the parse cache
+
+def _describe(db) -> list:
+    """Everything the decoder, encoder and simulator read of a database, comparable."""
+    return [(m.name, m.frame_id, m.is_extended_frame, m.length, m.cycle_time, m.comment,
+             [(s.name, s.start, s.length, s.byte_order, s.is_signed, s.is_float, s.scale, s.offset,
+               s.minimum, s.maximum, s.unit, s.choices and {int(k): str(v) for k, v in s.choices.items()},
+               s.receivers, s.comment) for s in m.signals],
+             dict(m.dbc.attributes) and sorted((k, a.value) for k, a in m.dbc.attributes.items()))
+            for m in db.messages]
+
+
+@pytest.mark.parametrize("dbc", [CIVIC, ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_outputs.dbc",
+                                 ROOT / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc"])
+def test_a_cached_dbc_is_a_fresh_copy_of_what_parsing_gives(dbc, monkeypatch):
+    from ecu_daemon import dbc_loading
+
+    monkeypatch.setattr(dbc_loading, "_CACHE", type(dbc_loading._CACHE)())
+    parses = []
+    real = cantools.database.load_string
+    monkeypatch.setattr(cantools.database, "load_string", lambda *a, **k: (parses.append(1), real(*a, **k))[1])
+    first = load_dbc(dbc)
+    n = len(parses)
+    second, third = load_dbc(dbc), load_dbc(dbc)
+    assert len(parses) == n  # not parsed again
+    assert _describe(first) == _describe(second) == _describe(third) and len(first.messages) >= 5
+    assert second is not third and second.messages[0] is not third.messages[0]
+    m = second.messages[0]
+    data = bytes(range(m.length))
+    assert second.decode_message(m.frame_id, data) == first.decode_message(m.frame_id, data)
+    second.messages[0].signals[0].scale = 12345.0  # a caller changing its copy changes no one else's
+    assert load_dbc(dbc).messages[0].signals[0].scale == first.messages[0].signals[0].scale
+
+
+def test_a_changed_dbc_or_import_is_parsed_again(tmp_path):
+    (tmp_path / "_a.dbc").write_text('BO_ 101 A: 1 XXX\n SG_ Y : 0|8@1+ (1,0) [0|255] "" XXX\n')
+    car = tmp_path / "car.dbc"
+    car.write_text('CM_ "IMPORT _a.dbc";\nVERSION ""\n\nBO_ 102 C: 1 XXX\n SG_ Z : 0|8@1+ (1,0) [0|255] "" XXX\n')
+    assert load_dbc(car).get_message_by_name("C").signals[0].scale == 1
+    car.write_text(car.read_text().replace("(1,0)", "(2,0)"))
+    assert load_dbc(car).get_message_by_name("C").signals[0].scale == 2
+    (tmp_path / "_a.dbc").write_text('BO_ 101 A: 1 XXX\n SG_ Y : 0|8@1+ (0.5,0) [0|255] "" XXX\n')
+    assert load_dbc(car).get_message_by_name("A").signals[0].scale == 0.5
+
+
+def test_a_cached_dbc_says_its_lines_again(caplog):
+    with caplog.at_level(logging.INFO, logger="ecu_daemon.dbc_loading"):
+        load_dbc(CIVIC, "[can] dbc")
+        first = [r.getMessage() for r in caplog.records]
+        caplog.clear()
+        load_dbc(CIVIC, "[x] other")
+        again = [r.getMessage() for r in caplog.records]
+    assert len(first) >= 2 and again == [m.replace("[can] dbc", "[x] other") for m in first]
+
+
+def test_an_invalid_dbc_is_refused_every_time(tmp_path):
+    (tmp_path / "bad.dbc").write_text('BO_ oops\n')
+    for _ in range(2):
+        with pytest.raises(ConfigError, match="is not a valid DBC"):
+            load_dbc(tmp_path / "bad.dbc")

@@ -68,3 +68,27 @@ def test_what_the_compiled_formatter_does_not_take_is_formatted_by_python():
         assert format_rows([base, row]) == format_row(base) + format_row(row)
     if estimate_csv._format_rows_compiled is not None:
         assert estimate_csv._format_rows_compiled(estimate_csv._KINDS, [(1.0, 2.0)]) is NotImplemented
+
+
+def test_repeated_column_values_reuse_their_text_only_for_the_same_bits():
+    """The formatter reuses a column's text when its bits repeat the row before: rows that
+    repeat, almost repeat (one ulp, -0.0 after 0.0, NaNs of other sign or payload, an int
+    after the equal float) and repeat after a different row."""
+    if estimate_csv._format_rows_compiled is None:
+        pytest.skip("the compiled CSV formatter is not built (pip install builds it)")
+    rng = random.Random(7)
+    nan2 = struct.unpack("<d", struct.pack("<Q", 0x7FF8000000000001))[0]
+    twins = [(0.0, -0.0), (math.nan, -math.nan), (math.nan, nan2), (1.0, math.nextafter(1.0, 2.0)),
+             (0.1, 0.1), (math.inf, -math.inf), (5.0, 5), (2.5e-7, 2.5e-7)]
+    rows = []
+    for _ in range(600):
+        a, b = rng.choice(twins)
+        cols = [n for n in ESTIMATE_FIELDS if n not in _INTS and rng.random() < 0.7]
+        r = _row(rng)._replace(**dict.fromkeys(cols, a))
+        pick = rng.random()
+        rows.append(r)
+        rows.append(r._replace(**dict.fromkeys(cols, b if pick < 0.5 else a)))
+        if pick > 0.8:
+            rows.append(r)  # the same row again after another
+    got = estimate_csv._format_rows_compiled(estimate_csv._KINDS, rows)
+    assert got == "".join(ROW_FORMAT % tuple(r) for r in rows)

@@ -16,9 +16,12 @@ run back to back in the same invocation, each in its own process:
   and Q as ``KinematicModel``, plus the wheel-speed update with the derived h and H) on the drive's
   own inputs: the yardstick of issue 10 (the whole replay's cost per step no more than this);
 * fleet throughput (issue 12) from the replay's cost: drive-hours per hour on one core and on
-  ``os.cpu_count()`` cores, assuming no other load.
+  ``os.cpu_count()`` cores, assuming no other load;
+* the rest alone: the replay again with the estimator's ``advance_to`` played back from a
+  recorded run (same calls, same estimates), so its CPU time is everything but the estimator;
+  with ``--stages``, one replay's time split by stage (each stage's function wrapped and timed).
 
-    python3 tools/bench_replay.py [--duration 100] [--repeat 3] [--baseline /tmp/main_src] [--json]
+    python3 tools/bench_replay.py [--duration 100] [--repeat 3] [--baseline /tmp/main_src] [--stages] [--json]
 
 The machine is shared: the load average is printed with the results, and CPU time is printed next
 to wall time (a wall figure far above the CPU one means other processes had the CPU).
@@ -117,7 +120,102 @@ def _filterpy_step_us(cfg, samples, steps: int) -> float:
     return float(np.median(out)) / 1e3
 
 
-def worker(tree: str, drive: str, repeat: int) -> dict:
+#: stages of the replay timed one by one (``--stages``): (module, object, attribute, label); one
+#: missing in a tree (an older checkout) is left out of its split
+_STAGES = (
+    ("ecu_daemon.pipeline", "Pipeline", "__init__", "start-up: Pipeline() (DBCs, plans, estimator)"),
+    ("ecu_daemon.replay", None, "read_can_arrays", "read the CAN log into arrays"),
+    ("ecu_daemon.batch_decoder", "BatchDecoder", "prepare", "decode every frame (numpy, samples)"),
+    ("ecu_daemon.batch_decoder", "BatchDecoder", "take", "decode dirty frames one by one"),
+    ("ecu_daemon.gnss.stream", "GnssStreamParser", "feed", "GNSS parse"),
+    ("ecu_daemon.gnss.stream", "GnssStreamParser", "finish", "GNSS parse"),
+    ("ecu_daemon.pipeline", "Pipeline", "_update_diagnostics", "EST_DIAG diagnostics + staleness"),
+    ("ecu_daemon.outputs", "OutputEncoder", "payloads", "encode output frames"),
+    ("ecu_daemon.replay", None, "format_rows", "CSV rows"),
+    ("ecu_daemon.canlog", "CandumpWriter", "write_payloads", "candump lines"),
+    ("ecu_daemon.canlog", "CandumpWriter", "write_steps", "candump lines"),
+)
+
+
+def _play_back_estimator(run) -> tuple[float, int]:
+    """CPU seconds of ``run()`` with ``Estimator.advance_to`` played back from a first, recorded
+    run (the same calls return the same estimates): the replay's cost without the estimator,
+    measured directly rather than as a difference of two noisy totals."""
+    from ecu_daemon.estimator import core
+
+    real = core.Estimator.advance_to
+    record: list = []
+
+    def recording(self, t):
+        out = real(self, t)
+        record.append((self.k, out))
+        return out
+
+    def playback(self, t):
+        k, out = next(it)
+        self.queue.clear()
+        self.k = k
+        return out
+
+    try:
+        core.Estimator.advance_to = recording
+        steps = run()["steps"]
+        core.Estimator.advance_to = playback
+        it = iter(record)
+        gc.collect()
+        c0 = time.process_time()
+        run()
+        return time.process_time() - c0, steps
+    finally:
+        core.Estimator.advance_to = real
+
+
+def _stage_split(run) -> dict:
+    """CPU seconds per stage of one ``run()`` (each stage's function wrapped; the estimator's
+    ``advance_to`` too): the wrappers cost ~0.3 us a call, so the split is a guide, the totals
+    above are the numbers."""
+    import functools
+    import importlib
+
+    acc: dict[str, float] = {}
+    undo = []
+    pc = time.process_time
+
+    def wrap(owner, attr, label):
+        f = owner.__dict__[attr] if isinstance(owner, type) else getattr(owner, attr)
+
+        @functools.wraps(f)
+        def timed(*a, **k):
+            t0 = pc()
+            try:
+                return f(*a, **k)
+            finally:
+                acc[label] = acc.get(label, 0.0) + pc() - t0
+
+        setattr(owner, attr, timed)
+        undo.append((owner, attr, f))
+
+    from ecu_daemon.estimator import core
+
+    wrap(core.Estimator, "advance_to", "estimator (advance_to)")
+    for mod, cls, attr, label in _STAGES:
+        owner = importlib.import_module(mod)
+        owner = getattr(owner, cls, None) if cls else owner
+        if owner is not None and (attr in owner.__dict__ if isinstance(owner, type) else hasattr(owner, attr)):
+            wrap(owner, attr, label)
+    try:
+        gc.collect()
+        c0 = pc()
+        r = run()
+        total = pc() - c0
+    finally:
+        for owner, attr, f in reversed(undo):
+            setattr(owner, attr, f)
+    acc["everything else (step loop, publish, emit, ...)"] = total - sum(acc.values())
+    return {"steps": r["steps"], "total_s": total, "stages_s": acc}
+
+
+def worker(tree: str, drive: str, repeat: int, stages: bool = False) -> dict:
     sys.path.insert(0, tree)
     import ecu_daemon
     from ecu_daemon import config as config_mod
@@ -147,6 +245,11 @@ def worker(tree: str, drive: str, repeat: int) -> dict:
                 if best is None or wall < best["wall_s"]:
                     best = {"wall_s": wall, "cpu_s": cpu, "steps": s["steps"], "drive_s": s["duration_s"]}
             r[label] = best
+        full = lambda: run_replay(cfg, can_path, gnss_path, out_csv=out_csv, out_can=out_can)  # noqa: E731
+        rest = [_play_back_estimator(full) for _ in range(repeat)]
+        r["rest_played_back"] = {"cpu_s": min(c for c, _ in rest), "steps": rest[0][1]}
+        if stages:
+            r["stages"] = _stage_split(full)
     # the estimator alone, on pre-decoded samples, handed over item by item as the replay does
     dec = SignalDecoder(cfg)
     events = []
@@ -181,9 +284,9 @@ def worker(tree: str, drive: str, repeat: int) -> dict:
 
 # ------------------------------------------------------------------------------------------------
 
-def _run_worker(tree: str, drive: Path, repeat: int) -> dict:
-    out = subprocess.run([sys.executable, __file__, "--worker", tree, "--drive", str(drive), "--repeat", str(repeat)],
-                         capture_output=True, text=True)
+def _run_worker(tree: str, drive: Path, repeat: int, stages: bool) -> dict:
+    out = subprocess.run([sys.executable, __file__, "--worker", tree, "--drive", str(drive), "--repeat", str(repeat)]
+                         + (["--stages"] if stages else []), capture_output=True, text=True)
     if out.returncode != 0:
         sys.exit(f"worker for {tree} failed:\n{out.stderr}")
     return json.loads(out.stdout)
@@ -202,6 +305,7 @@ def _summary(r: dict) -> dict:
             "estimator_us_per_step_wall": est_per["wall_s"], "estimator_us_per_step_cpu": est_per["cpu_s"],
             "rest_us_per_step_wall": per["wall_s"] - est_per["wall_s"],
             "rest_us_per_step_cpu": per["cpu_s"] - est_per["cpu_s"],
+            "rest_played_back_us_per_step_cpu": 1e6 * r["rest_played_back"]["cpu_s"] / r["rest_played_back"]["steps"],
             "filterpy_step_us": fp, "replay_over_filterpy": per["wall_s"] / fp,
             "drive_hours_per_hour_1_core": full["drive_s"] / full["cpu_s"],
             "drive_hours_per_hour_all_cores": (os.cpu_count() or 1) * full["drive_s"] / full["cpu_s"]}
@@ -214,11 +318,12 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=3, help="timed runs per measurement, best reported (default 3)")
     ap.add_argument("--baseline", metavar="DIR", help="another checkout to measure back to back (e.g. main)")
     ap.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    ap.add_argument("--stages", action="store_true", help="also time each stage of one replay (CPU, per step)")
     ap.add_argument("--worker", metavar="TREE", help=argparse.SUPPRESS)
     ap.add_argument("--drive", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
-        json.dump(worker(args.worker, args.drive, args.repeat), sys.stdout)
+        json.dump(worker(args.worker, args.drive, args.repeat, args.stages), sys.stdout)
         return 0
     load0 = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="bench_replay_drive_") as tmp:
@@ -229,7 +334,7 @@ def main() -> int:
         sc = SCENARIOS[args.scenario].with_(duration_s=args.duration)
         write_all(tmp, simulate(sc, vehicle_config(sc)))
         trees = [("this checkout", str(ROOT))] + ([("baseline", args.baseline)] if args.baseline else [])
-        results = {name: _run_worker(tree, Path(tmp), args.repeat) for name, tree in trees}
+        results = {name: _run_worker(tree, Path(tmp), args.repeat, args.stages) for name, tree in trees}
     load1 = os.getloadavg()
     summary = {name: _summary(r) for name, r in results.items()}
     if args.json:
@@ -249,6 +354,7 @@ def main() -> int:
             ("  estimator alone per step, us (CPU)", "estimator_us_per_step_cpu", ".1f"),
             ("  the rest (read, decode, encode, write), us (wall)", "rest_us_per_step_wall", ".1f"),
             ("  the rest, us (CPU)", "rest_us_per_step_cpu", ".1f"),
+            ("  the rest measured alone (estimator played back), us (CPU)", "rest_played_back_us_per_step_cpu", ".1f"),
             ("bare FilterPy EKF step (predict + wheel update), us", "filterpy_step_us", ".1f"),
             ("whole replay step / FilterPy step", "replay_over_filterpy", ".2f"),
             ("drive-hours per hour, 1 core (CPU time)", "drive_hours_per_hour_1_core", ".0f"),
@@ -256,6 +362,13 @@ def main() -> int:
     print(f"{'':55s}" + "".join(f"{n:>16s}" for n in names))
     for label, key, fmt in rows:
         print(f"{label:55s}" + "".join(f"{format(summary[n][key], fmt):>16s}" for n in names))
+    if args.stages:
+        print("\nstage split of one replay --out-csv --out-can, CPU us per step (wrapped calls: a guide)")
+        labels = list(dict.fromkeys(k for n in names for k in results[n]["stages"]["stages_s"]))
+        for label in labels:
+            print(f"  {label:53s}" + "".join(
+                f"{1e6 * results[n]['stages']['stages_s'].get(label, math.nan) / results[n]['stages']['steps']:16.2f}"
+                for n in names))
     return 0
 
 

@@ -2,7 +2,9 @@
 NAV-RELPOSNED (dual-antenna heading: a u-blox F9P moving-base rover).
 
 Framing and checksum checks happen in ``stream.py``; this module gets whole, checksum-verified
-frames and turns the velocity messages into SI samples. pyubx2 decodes the payload.
+frames and turns the velocity messages into SI samples. pyubx2 decodes the payload, except
+NAV-PVT's (the message every epoch of a modern receiver sends): one ``struct`` unpack with
+pyubx2's scalings, held equal to the library by the tests.
 
 NAV-PVT is the velocity source whenever a receiver sends it. Older receivers (u-blox 4-7, the
 timing series) send NAV-SOL: an ECEF velocity, turned into north/east at the ECEF position
@@ -23,15 +25,17 @@ from __future__ import annotations
 
 import calendar
 import math
+import struct
+from itertools import accumulate
 
 from pynmeagps import ecef2llh
 from pyubx2 import GET, VALNONE, UBXReader
 from pyubx2.ubxhelpers import calc_checksum
-from pyubx2.ubxtypes_core import UBX_CLASSES
+from pyubx2.ubxtypes_core import E1_N5, E1_N7, SCALROUND, UBX_CLASSES
 
 from ..samples import GnssHeadingSample, GnssSample
 
-__all__ = ["UBX_SYNC", "UBX_MAX_PAYLOAD", "UBX_CLASS_BYTES", "ubx_checksum", "UbxError",
+__all__ = ["UBX_SYNC", "UBX_MAX_PAYLOAD", "UBX_CLASS_BYTES", "ubx_checksum", "UbxError", "nav_pvt_sample",
            "UbxDecoder", "NAV_PVT", "NAV_VELNED", "NAV_SOL", "HNR_PVT", "NAV_RELPOSNED"]
 
 UBX_SYNC = b"\xb5\x62"
@@ -62,8 +66,21 @@ class UbxError(ValueError):
 
 
 def ubx_checksum(body: bytes | bytearray | memoryview) -> bytes:
-    """8-bit Fletcher checksum over class, id, length and payload (pyubx2's implementation)."""
+    """8-bit Fletcher checksum over class, id, length and payload: pyubx2's ``calc_checksum``
+    (tests/test_ubx_fast.py holds them equal) in C-level sums instead of a Python loop per byte
+    (CK_A is the byte sum, CK_B the sum of its running sums)."""
+    return bytes((sum(body) & 0xFF, sum(accumulate(body)) & 0xFF))
+
+
+def ubx_checksum_reference(body: bytes | bytearray | memoryview) -> bytes:
+    """pyubx2's own checksum: the reference of :func:`ubx_checksum`."""
     return calc_checksum(bytes(body))
+
+
+#: NAV-PVT fields the sample needs, by offset in the 92-byte payload (u-blox interface
+#: description): year, month, day, hour, min, sec, valid, nano, fixType, flags, numSV, lon, lat,
+#: hAcc, velN, velE, velD, sAcc, headAcc, flags3
+_NAV_PVT_FIELDS = struct.Struct("<4xHBBBBBB4xiBBxBii8xI4xiii8xII2xH")
 
 
 def _leap_from_table(gps_posix: float) -> int:
@@ -82,12 +99,48 @@ def _ecef_to_ne(vx: float, vy: float, vz: float, lat_deg: float, lon_deg: float)
 
 def _utc_seconds(msg) -> float:
     """POSIX seconds of the NAV-PVT epoch, or NaN when the receiver says date/time are not valid."""
-    if not (msg.validDate and msg.validTime):
+    return _utc_of(msg.validDate and msg.validTime, msg.year, msg.month, msg.day, msg.hour, msg.min,
+                   msg.second, msg.nano)
+
+
+def _utc_of(valid, year, month, day, hour, minute, second, nano) -> float:
+    if not valid:
         return math.nan
     try:
-        return calendar.timegm((msg.year, msg.month, msg.day, msg.hour, msg.min, msg.second)) + msg.nano * 1e-9
+        return calendar.timegm((year, month, day, hour, minute, second)) + nano * 1e-9
     except (ValueError, OverflowError):
         return math.nan
+
+
+def nav_pvt_sample(t: float, frame: bytes) -> GnssSample:
+    """The sample of a whole NAV-PVT frame (92-byte payload), read with one ``struct`` unpack.
+
+    Why not pyubx2 here: it builds an attribute per field of every message (~120 us per NAV-PVT,
+    a replay's biggest GNSS cost). The fields, scalings (pyubx2's own constants and rounding) and
+    bit positions are the library's; ``tests/test_ubx_fast.py`` holds this equal to
+    :meth:`UbxDecoder.nav_pvt_reference` on every capture and on random payloads. Any 92 bytes
+    are a NAV-PVT for both (no field is variable), so nothing is left to the library here; other
+    lengths never come (``UbxDecoder`` calls them malformed first).
+    """
+    (year, month, day, hour, minute, second, valid, nano, fix_type, flags, num_sv, lon, lat, h_acc,
+     vel_n, vel_e, vel_d, s_acc, head_acc, flags3) = _NAV_PVT_FIELDS.unpack_from(frame, 6)
+    llh_ok = not flags3 & 1
+    return GnssSample(
+        t=t,
+        vel_n_mps=vel_n / 1000,
+        vel_e_mps=vel_e / 1000,
+        vel_d_mps=vel_d / 1000,
+        speed_acc_mps=s_acc / 1000,
+        fix_type=fix_type,
+        fix_ok=bool(flags & 1),
+        num_sv=num_sv,
+        protocol="ubx",
+        fix_time_utc_s=_utc_of(valid & 1 and valid & 2, year, month, day, hour, minute, second, nano),
+        head_acc_rad=math.radians(round(head_acc * E1_N5, SCALROUND)),
+        lat_deg=float(round(lat * E1_N7, SCALROUND)) if llh_ok else math.nan,
+        lon_deg=float(round(lon * E1_N7, SCALROUND)) if llh_ok else math.nan,
+        h_acc_m=h_acc / 1000,
+    )
 
 
 class UbxDecoder:
@@ -130,9 +183,8 @@ class UbxDecoder:
             if len(frame) != 8 + _NAV_PVT_LEN:
                 raise UbxError(f"NAV-PVT payload is {len(frame) - 8} bytes, expected {_NAV_PVT_LEN}")
             self.seen_nav_pvt = True
-            msg = self._parse(frame)
-            pvt = self._nav_pvt(t, msg)
-            self._pvt_epoch = (msg.iTOW, pvt.fix_time_utc_s)
+            pvt = nav_pvt_sample(t, frame)
+            self._pvt_epoch = (struct.unpack_from("<I", frame, 6)[0], pvt.fix_time_utc_s)  # payload's iTOW
             return out + [pvt]  # a held NAV-SOL of the same receiver is dropped
         if held is not None:
             out.append(held)
@@ -177,6 +229,11 @@ class UbxDecoder:
             return UBXReader.parse(frame, msgmode=GET, validate=VALNONE)
         except Exception as exc:  # pyubx2 raises several exception types for bad content
             raise UbxError(f"pyubx2 cannot decode {frame[2]:02X} {frame[3]:02X}: {exc}") from None
+
+    @classmethod
+    def nav_pvt_reference(cls, t: float, frame: bytes) -> GnssSample:
+        """The NAV-PVT sample decoded by pyubx2: the reference of :func:`nav_pvt_sample`."""
+        return cls._nav_pvt(t, cls._parse(frame))
 
     @staticmethod
     def _nav_pvt(t: float, m) -> GnssSample:

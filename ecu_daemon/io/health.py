@@ -69,8 +69,7 @@ def build_diagnostics(t: float, *, decoder, gnss_stats: dict | None, gnss_last: 
     estimator's ``RoadAttitude`` (baseline elevations, roll gyro), ``roll_rate_t`` the time of the
     last roll-rate sample, ``baseline_configured`` a receiver has a baseline in the config; with
     them the per-source status codes of ``estimator/source_status.py``."""
-    d = Diagnostics()
-    d.inputs = decoder.input_diagnostics(t)
+    d = Diagnostics(inputs=decoder.input_diagnostics(t))  # not the default's inputs, replaced at once
     for name, src in d.sources.items():
         src.isolated = bool(status & SOURCE_BITS[name])
         src.events = (isolation_events or {}).get(name, 0)
