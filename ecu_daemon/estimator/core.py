@@ -397,6 +397,10 @@ class Estimator:
                         0.02 if "accel_y_gain" in L else 0.05])
         h.P[i] = np.diag(std ** 2)
         h.A[i] = np.eye(NX)
+        # the heading will come from GNSS courses of the turn the car is in now: their latency error
+        # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
+        # mid-corner would otherwise publish a heading std without it for its first seconds)
+        self.turn_lp = abs(r_m - x[BR])
         self.initialized = True
         self.aligned = False
 
@@ -990,6 +994,8 @@ class Estimator:
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var
         h.P[idx] = P
+        # the heading is now this course's, with its latency error r x (latency error) at that turn
+        self.turn_lp = max(self.turn_lp, abs(r))
         self.aligned = True
         for f in self.receivers:
             f.consecutive_rejects = 0
