@@ -506,7 +506,7 @@ class Estimator:
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
-        if (self.standstill.detect(wheels_max) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
+        if (self.standstill.detect(wheels_max, ax, P[BAX, BAX]) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
                 and fdi.standstill_plausible(vx, self._fresh_gnss_speed(t))):
             status |= est_mod.STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
