@@ -479,7 +479,7 @@ class Estimator:
         if iso:
             self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
-            self._widen_unverified(P, x[VX], fdi.yaw_disagreement)
+            self._widen_unverified(P, x[VX], fdi.yaw_disagreement + fdi.yaw_catch_up / self.dt)
         if fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
             self._widen_lateral(P, fdi.lat_excess)
         elif fdi.lat_unexplained > self.lat_drift_tol and not iso & ACCEL_Y:
@@ -513,7 +513,7 @@ class Estimator:
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS:
-                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
+                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A, fdi.wheel_z_excess_var):
                     self.wheel_reject_t = math.inf
                 elif self._wheels_diverged(t):
                     self._reset(k)

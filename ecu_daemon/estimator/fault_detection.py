@@ -76,6 +76,7 @@ SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "acce
 # --- each wheel against the others (fl, fr, rl, rr)
 WHEEL_TOL_MPS = 0.5  # + WHEEL_TOL_REL * speed: driven-wheel slip stays out of the median
 WHEEL_TOL_REL = 0.03
+WHEEL_PAIR_SIGMA2 = 9.0  # (3 sigma)^2: a pair's half-difference within it is the configured noise
 
 # --- longitudinal: wheel speed change vs integrated ax over LON_WINDOW_S
 LON_WINDOW_S = 0.15
@@ -198,6 +199,10 @@ class FaultDetector:
         self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
         self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
         self.wheel_z = math.nan  # the wheel speed to fuse, isolated wheels replaced
+        #: m^2/s^2: what the fused wheels' disagreement among themselves says wheel_z may be off,
+        #: beyond their configured noise (one wheel off by e moves a pair's mean by e / 2)
+        self.wheel_z_excess_var = 0.0
+        self._wheel_r2 = 0.0
         n = max(2, int(round(LON_WINDOW_S / dt)))
         self._ring_v = [math.nan] * n  # wheel speed (scaled) per step
         self._ring_a = [0.0] * n  # cumulative integral of ax per step
@@ -245,6 +250,10 @@ class FaultDetector:
         #: (new bias - old, its variance) at the step an isolated gyro's steady offset becomes its bias
         self.bias_relearn: tuple[float, float] | None = None
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
+        #: rad, at the first step the gyro is suspect: what it integrated against the wheels over the
+        #: fast test's lag before (the drift began before the test could fail), else 0
+        self.yaw_catch_up = 0.0
+        self._gyro_suspect = False
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
@@ -282,6 +291,7 @@ class FaultDetector:
             x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
         self._k = k
+        self._wheel_r2 = wheel_r2
         fl, fr, rl, rr = wheels
         if wheels_ok:
             r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
@@ -372,7 +382,15 @@ class FaultDetector:
                 mask |= 1 << j
         self.wheel_mask = mask
         if not mask:
+            # a wheel too noisy for the vote's tolerance (set wide for slip) is not out yet, but its
+            # pair disagrees: beyond 3 sigma of the configured noise, the excess is wheel_z's error
+            if len(fused) == 4:
+                dev = 0.25 * (srt[3] - srt[0])
+            else:
+                dev = 0.5 * (cv[fused[0]] - cv[fused[1]])
+            self.wheel_z_excess_var = max(0.0, dev * dev - WHEEL_PAIR_SIGMA2 * 0.5 * self._wheel_r2)
             return w
+        self.wheel_z_excess_var = 0.0
         out = list(w)
         for j in fused:
             if mask & 1 << j:
@@ -495,6 +513,7 @@ class FaultDetector:
     def _yaw(self, k: int, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
              x: list, rdot: float) -> None:
         if not imu_ok:
+            self.yaw_catch_up = 0.0
             return
         a_slow = self._a_slow
         a_yaw = self._a_yaw
@@ -589,6 +608,10 @@ class FaultDetector:
         gyro_suspect = w_fail or (a_fail and not have_w)
         self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
+        # the fast test fails a filter lag after the fault began: the heading drifted unseen meanwhile
+        self.yaw_catch_up = (abs(ring[k % len(ring)] - ring[(k - self._repair_lag) % len(ring)])
+                             if gyro_suspect and not self._gyro_suspect and have_w else 0.0)
+        self._gyro_suspect = gyro_suspect
         # the two witnesses against each other: with the gyro isolated, the wheels' yaw rate (its
         # substitute) is vouched for by ay only while this holds
         self.witnesses_agree = (a_witness and have_w
