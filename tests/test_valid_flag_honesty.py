@@ -99,3 +99,24 @@ def test_noisy_rear_wheel_before_its_isolation_keeps_vx_within_3_sigma(tmp_path)
     err, std, valid = _fault_window(tmp_path, "fault_wheel_speed_rl_noisy", "velocity", "vx_mps", "vx_mps", False)
     assert valid.all()
     assert np.all(np.abs(err) <= 3.0 * std), (np.abs(err) - 3 * std).max()
+
+
+def test_scaled_gyro_is_isolated_in_the_corners_and_only_during_its_fault(tmp_path):
+    """A gyro reading 1.3 times the truth disagrees with the wheels' yaw rate and ay / vx by 0.3 r,
+    inside the level tests' tolerances (they grow with |r|): it was never isolated, and the heading
+    was valid 2.4 deg off. Both witnesses' disagreement grows with the yaw rate (a slope of 0.3,
+    against a few % from track, radius or roll): it is isolated in the corners of its fault, and
+    never outside it."""
+    name = "fault_yaw_rate_scaled"
+    row = run_case({c.name: c for c in SUITE}[name], tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    truth = np.genfromtxt(tmp_path / name / "truth.csv", delimiter=",", names=True)
+    est = np.genfromtxt(tmp_path / name / "estimate.csv", delimiter=",", names=True)
+    t = est["t"] - truth["t"][0]
+    iso = (est["status"].astype(int) & (1 << 9)) > 0  # STATUS_YAW_RATE_ISOLATED
+    assert iso[(t >= 22.0) & (t <= 27.0)].any()
+    assert not iso[(t < 22.0) | (t > 28.0)].any()
+    ref = np.interp(est["t"], truth["t"], np.unwrap(truth["heading_rad"]))
+    err = np.degrees(np.abs((est["heading_rad"] - ref + math.pi) % (2 * math.pi) - math.pi))
+    valid = est["heading_valid"] > 0.5
+    assert err[valid].max() < 1.5

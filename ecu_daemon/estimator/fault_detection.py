@@ -91,6 +91,8 @@ YAW_TAU_S = 0.1  # fast test: large faults, wide tolerance
 YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
 YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
 YAW_SLOW_TOL_REL = 0.12
+SCALE_TOL = 0.15  # slope of (gyro - witness) against the yaw rate: a scale error (x1.3: 0.3)
+SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to tell scale from offset
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
@@ -254,6 +256,7 @@ class FaultDetector:
         #: fast test's lag before (the drift began before the test could fail), else 0
         self.yaw_catch_up = 0.0
         self._gyro_suspect = False
+        self._scale = [0.0] * 7  # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a (scale test)
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
@@ -561,6 +564,9 @@ class FaultDetector:
             d = r_g - (ay - self.lr_m * rdot) / vx
             e_a = self.e_a = e_a + a_yaw * (d - e_a)
             e_as = self.e_as = e_as + a_slow * (d - e_as)
+        # onset only: an isolated gyro returns by the level tests (a scaled one is right while r ~ 0,
+        # and is out again within ON_STEPS of the next corner, the slope still in memory)
+        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d)
         ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
@@ -568,6 +574,8 @@ class FaultDetector:
         w_fail = have_w and (abs(e_w) > tol_w or abs(e_ws) > slow)
         a_fail = have_a and (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
                              or abs(e_as) > slow + wide)
+        if scale_fail:  # both witnesses: the gyro's disagreement grows with its own rate
+            w_fail = a_fail = True
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
                 and not abs(r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
         self._r_prev = r_m
@@ -628,6 +636,8 @@ class FaultDetector:
                 self._relearn = [0.0] * 6
             elif self._relearn[0] * self.dt >= RELEARN_S:
                 self._relearn_bias()
+        elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
+            self._scale = [0.0] * 7
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
@@ -638,6 +648,26 @@ class FaultDetector:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    def _scale_test(self, r_w: float, d_w: float, d_a: float) -> bool:
+        """A scaled gyro (x1.3) disagrees by 0.3 r: inside the level tests' tolerances, which grow
+        with |r| for track, radius and transient errors, but a slope of the disagreement against
+        the yaw rate (weighted over YAW_SLOW_TAU_S) that neither witness has: the wheels' track and
+        radius errors and ay's roll gravity give a few %. Both must show it, alike. The rate is
+        the wheels', low-passed: the gyro's own noise against itself would read as a slope."""
+        r_g = r_w
+        m = self._scale
+        a = self._a_slow
+        for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a)):
+            m[j] += a * (v - m[j])
+        w = m[0]
+        mr = m[1] / w
+        var_r = m[2] / w - mr * mr
+        if not var_r > SCALE_MIN_SPREAD * SCALE_MIN_SPREAD:
+            return False
+        s_w = (m[4] / w - mr * m[3] / w) / var_r
+        s_a = (m[6] / w - mr * m[5] / w) / var_r
+        return (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
 
     def _plan_heading_repair(self, k: int) -> None:
         """The gyro is isolated at step k: the heading it integrated since the disagreement began
