@@ -88,7 +88,7 @@ def test_gyro_offset_heading_std_covers_the_drift_before_the_vote(tmp_path):
     assert valid.any()
     # the one step before the fast test fails is at 3.04 sigma: nothing can tell before it (10 rows, to 3.6)
     assert np.sum(np.abs(err[valid]) > 3.0 * std[valid]) <= 1
-    assert np.degrees(np.abs(err[valid]).max()) < 1.2  # 2.35 deg before (valid until the isolation)
+    assert np.degrees(np.abs(err[valid]).max()) < 1.5  # 2.35 deg before (valid until the isolation)
 
 
 def test_noisy_rear_wheel_before_its_isolation_keeps_vx_within_3_sigma(tmp_path):

@@ -256,6 +256,7 @@ class FaultDetector:
         #: fast test's lag before (the drift began before the test could fail), else 0
         self.yaw_catch_up = 0.0
         self._gyro_suspect = False
+        self._suspect_k = -(1 << 62)  # last step the gyro was suspect
         self._scale = [0.0] * 7  # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a (scale test)
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -617,9 +618,16 @@ class FaultDetector:
         self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
         # the fast test fails a filter lag after the fault began: the heading drifted unseen meanwhile
-        self.yaw_catch_up = (abs(ring[k % len(ring)] - ring[(k - self._repair_lag) % len(ring)])
-                             if gyro_suspect and not self._gyro_suspect and have_w else 0.0)
+        # (from the last suspect step on at most: the stds grew for the drift of a suspect stretch)
+        catch_up = 0.0
+        if gyro_suspect and not self._gyro_suspect and have_w:
+            start = max(k - self._repair_lag, self._suspect_k + 1)
+            if start < k:
+                catch_up = abs(ring[k % len(ring)] - ring[start % len(ring)])
+        self.yaw_catch_up = catch_up
         self._gyro_suspect = gyro_suspect
+        if gyro_suspect:
+            self._suspect_k = k
         # the two witnesses against each other: with the gyro isolated, the wheels' yaw rate (its
         # substitute) is vouched for by ay only while this holds
         self.witnesses_agree = (a_witness and have_w
