@@ -266,4 +266,3 @@ def test_diverged_heading_realigns_when_gnss_and_wheels_agree():
     # valid and wrong only until the first GNSS fix after the jump (0.2 s at 5 Hz) is rejected
     assert np.all(err[valid & (t > 120.21)] < 5.0)
     assert valid[-1] and err[-1] < 1.0
-
