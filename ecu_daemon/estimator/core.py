@@ -404,6 +404,10 @@ class Estimator:
                         0.02 if "accel_y_gain" in L else 0.05])
         h.P[i] = np.diag(std ** 2)
         h.A[i] = np.eye(NX)
+        # the heading will come from GNSS courses of the turn the car is in now: their latency error
+        # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
+        # mid-corner would otherwise publish a heading std without it for its first seconds)
+        self.turn_lp = abs(r_m - x[BR])
         self.initialized = True
         self.aligned = False
 
@@ -482,7 +486,7 @@ class Estimator:
         if iso:
             self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
-            self._widen_unverified(P, x[VX], fdi.yaw_disagreement)
+            self._widen_unverified(P, x[VX], fdi.yaw_disagreement + fdi.yaw_catch_up / self.dt)
         if fdi.lat_excess > 0.0 and not iso & ACCEL_Y:
             self._widen_lateral(P, fdi.lat_excess)
         elif fdi.lat_unexplained > self.lat_drift_tol and not iso & ACCEL_Y:
@@ -509,14 +513,14 @@ class Estimator:
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
-        if (self.standstill.detect(wheels_max) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
+        if (self.standstill.detect(wheels_max, ax, P[BAX, BAX]) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
                 and fdi.standstill_plausible(vx, self._fresh_gnss_speed(t))):
             status |= est_mod.STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS:
-                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A):
+                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A, fdi.wheel_z_excess_var):
                     self.wheel_reject_t = math.inf
                 elif self._wheels_diverged(t):
                     self._reset(k)
@@ -1024,6 +1028,8 @@ class Estimator:
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var
         h.P[idx] = P
+        # the heading is now this course's, with its latency error r x (latency error) at that turn
+        self.turn_lp = max(self.turn_lp, abs(r))
         self.aligned = True
         for f in self.receivers:
             f.consecutive_rejects = 0

@@ -76,6 +76,7 @@ SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "acce
 # --- each wheel against the others (fl, fr, rl, rr)
 WHEEL_TOL_MPS = 0.5  # + WHEEL_TOL_REL * speed: driven-wheel slip stays out of the median
 WHEEL_TOL_REL = 0.03
+WHEEL_PAIR_SIGMA2 = 9.0  # (3 sigma)^2: a pair's half-difference within it is the configured noise
 
 # --- longitudinal: wheel speed change vs integrated ax over LON_WINDOW_S
 LON_WINDOW_S = 0.15
@@ -90,6 +91,8 @@ YAW_TAU_S = 0.1  # fast test: large faults, wide tolerance
 YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
 YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
 YAW_SLOW_TOL_REL = 0.12
+SCALE_TOL = 0.15  # slope of (gyro - witness) against the yaw rate: a scale error (x1.3: 0.3)
+SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to tell scale from offset
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
@@ -198,6 +201,10 @@ class FaultDetector:
         self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
         self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
         self.wheel_z = math.nan  # the wheel speed to fuse, isolated wheels replaced
+        #: m^2/s^2: what the fused wheels' disagreement among themselves says wheel_z may be off,
+        #: beyond their configured noise (one wheel off by e moves a pair's mean by e / 2)
+        self.wheel_z_excess_var = 0.0
+        self._wheel_r2 = 0.0
         n = max(2, int(round(LON_WINDOW_S / dt)))
         self._ring_v = [math.nan] * n  # wheel speed (scaled) per step
         self._ring_a = [0.0] * n  # cumulative integral of ax per step
@@ -245,6 +252,12 @@ class FaultDetector:
         #: (new bias - old, its variance) at the step an isolated gyro's steady offset becomes its bias
         self.bias_relearn: tuple[float, float] | None = None
         self.yaw_disagreement = 0.0  # rad/s, gyro vs witness while suspect (0 otherwise)
+        #: rad, at the first step the gyro is suspect: what it integrated against the wheels over the
+        #: fast test's lag before (the drift began before the test could fail), else 0
+        self.yaw_catch_up = 0.0
+        self._gyro_suspect = False
+        self._suspect_k = -(1 << 62)  # last step the gyro was suspect
+        self._scale = [0.0] * 7  # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a (scale test)
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self.wheels_vouch_gyro = False  # the wheels' yaw rate passes the gyro (ay's substitute r vx)
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -283,6 +296,7 @@ class FaultDetector:
             x = x.tolist()  # Python floats: every check below is scalar arithmetic
         kw = x[KW]
         self._k = k
+        self._wheel_r2 = wheel_r2
         fl, fr, rl, rr = wheels
         if wheels_ok:
             r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
@@ -373,7 +387,15 @@ class FaultDetector:
                 mask |= 1 << j
         self.wheel_mask = mask
         if not mask:
+            # a wheel too noisy for the vote's tolerance (set wide for slip) is not out yet, but its
+            # pair disagrees: beyond 3 sigma of the configured noise, the excess is wheel_z's error
+            if len(fused) == 4:
+                dev = 0.25 * (srt[3] - srt[0])
+            else:
+                dev = 0.5 * (cv[fused[0]] - cv[fused[1]])
+            self.wheel_z_excess_var = max(0.0, dev * dev - WHEEL_PAIR_SIGMA2 * 0.5 * self._wheel_r2)
             return w
+        self.wheel_z_excess_var = 0.0
         out = list(w)
         for j in fused:
             if mask & 1 << j:
@@ -496,6 +518,7 @@ class FaultDetector:
     def _yaw(self, k: int, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
              x: list, rdot: float) -> None:
         if not imu_ok:
+            self.yaw_catch_up = 0.0
             return
         a_slow = self._a_slow
         a_yaw = self._a_yaw
@@ -543,6 +566,9 @@ class FaultDetector:
             d = r_g - (ay - self.lr_m * rdot) / vx
             e_a = self.e_a = e_a + a_yaw * (d - e_a)
             e_as = self.e_as = e_as + a_slow * (d - e_as)
+        # onset only: an isolated gyro returns by the level tests (a scaled one is right while r ~ 0,
+        # and is out again within ON_STEPS of the next corner, the slope still in memory)
+        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d)
         ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
@@ -550,6 +576,8 @@ class FaultDetector:
         w_fail = have_w and (abs(e_w) > tol_w or abs(e_ws) > slow)
         a_fail = have_a and (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
                              or abs(e_as) > slow + wide)
+        if scale_fail:  # both witnesses: the gyro's disagreement grows with its own rate
+            w_fail = a_fail = True
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS
                 and not abs(r_wheels - self._rw_prev) > 0.5 * GYRO_JUMP_RADPS)
         self._r_prev = r_m
@@ -591,6 +619,17 @@ class FaultDetector:
         gyro_suspect = w_fail or (a_fail and not have_w)
         self.yaw_disagreement = ((abs(e_w) if have_w else abs(e_a) if have_a else 0.0)
                                  if gyro_suspect else 0.0)
+        # the fast test fails a filter lag after the fault began: the heading drifted unseen meanwhile
+        # (from the last suspect step on at most: the stds grew for the drift of a suspect stretch)
+        catch_up = 0.0
+        if gyro_suspect and not self._gyro_suspect and have_w:
+            start = max(k - self._repair_lag, self._suspect_k + 1)
+            if start < k:
+                catch_up = abs(ring[k % len(ring)] - ring[start % len(ring)])
+        self.yaw_catch_up = catch_up
+        self._gyro_suspect = gyro_suspect
+        if gyro_suspect:
+            self._suspect_k = k
         # the two witnesses against each other: with the gyro isolated, the wheels' yaw rate (its
         # substitute) is vouched for by ay only while this holds
         self.witnesses_agree = (a_witness and have_w
@@ -607,6 +646,8 @@ class FaultDetector:
                 self._relearn = [0.0] * 6
             elif self._relearn[0] * self.dt >= RELEARN_S:
                 self._relearn_bias()
+        elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
+            self._scale = [0.0] * 7
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
@@ -617,6 +658,26 @@ class FaultDetector:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
+
+    def _scale_test(self, r_w: float, d_w: float, d_a: float) -> bool:
+        """A scaled gyro (x1.3) disagrees by 0.3 r: inside the level tests' tolerances, which grow
+        with |r| for track, radius and transient errors, but a slope of the disagreement against
+        the yaw rate (weighted over YAW_SLOW_TAU_S) that neither witness has: the wheels' track and
+        radius errors and ay's roll gravity give a few %. Both must show it, alike. The rate is
+        the wheels', low-passed: the gyro's own noise against itself would read as a slope."""
+        r_g = r_w
+        m = self._scale
+        a = self._a_slow
+        for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a)):
+            m[j] += a * (v - m[j])
+        w = m[0]
+        mr = m[1] / w
+        var_r = m[2] / w - mr * mr
+        if not var_r > SCALE_MIN_SPREAD * SCALE_MIN_SPREAD:
+            return False
+        s_w = (m[4] / w - mr * m[3] / w) / var_r
+        s_a = (m[6] / w - mr * m[5] / w) / var_r
+        return (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
 
     def _plan_heading_repair(self, k: int) -> None:
         """The gyro is isolated at step k: the heading it integrated since the disagreement began

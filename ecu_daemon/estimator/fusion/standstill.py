@@ -12,6 +12,7 @@ from ..kinematic import BAX, BAY, BR, VX, VY
 
 STANDSTILL_SPEED = 0.05  # m/s, every wheel below this
 STANDSTILL_HOLD_S = 0.3
+ACCEL_GATE = 6.0  # sigma: the accelerometer-bias update's gate at rest; beyond it the car accelerates
 
 
 class StandstillFusion:
@@ -22,8 +23,12 @@ class StandstillFusion:
         # held CAN samples repeat over several 6 ms steps: noise of 0.05 m/s^2, inflated for that
         self.accel_R = 0.05 ** 2 * 4.0
 
-    def detect(self, wheels_max: float) -> bool:
-        if wheels_max < STANDSTILL_SPEED:
+    def detect(self, wheels_max: float, ax: float = 0.0, bax_var: float = 0.0) -> bool:
+        """Every wheel below a crawl, and the accelerometer (``ax`` less its bias state, of
+        variance ``bax_var``) inside the gate of the bias update at rest: wheel sensors see no
+        pulses below ~0.15 m/s, so a car moving off reads 0 on every wheel for the first tens of
+        ms while ax already reads its acceleration (pinning vx at 0 then was 0.13 m/s off)."""
+        if wheels_max < STANDSTILL_SPEED and ax * ax <= ACCEL_GATE * ACCEL_GATE * (bax_var + self.accel_R):
             self.count += 1
         else:
             self.count = 0
@@ -33,5 +38,5 @@ class StandstillFusion:
         for i in (VX, VY):
             kalman.index_update(x, P, -x[i], i, 1e-4, 0.0, A)
         kalman.index_update(x, P, r_m - x[BR], BR, self.gyro_R, 6.0, A)
-        kalman.index_update(x, P, ax_m - x[BAX], BAX, self.accel_R, 6.0, A)
+        kalman.index_update(x, P, ax_m - x[BAX], BAX, self.accel_R, ACCEL_GATE, A)
         kalman.index_update(x, P, ay_m - x[BAY], BAY, self.accel_R, 6.0, A)

@@ -48,13 +48,15 @@ class WheelSpeedFusion:
         a = abs(ax) if self.use_all else max(-ax, 0.0)
         return SLIP_PER_MPS2 * a * abs(vx)
 
-    def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float, A=None) -> bool:
+    def fuse(self, x: np.ndarray, P: np.ndarray, z: float, delta: float, r: float, ax: float, A=None,
+             excess_var: float = 0.0) -> bool:
+        """``excess_var``: what the fused wheels' disagreement says z may be off beyond the noise."""
         h = self.h
         c0, c1, c2, c3 = WHEEL_H_COLS
         args = (*x.tolist(), r, self.lf, self.frac, delta if self.frac else 0.0)
         (pred,) = gen.wheel_speed(*args)
         h[c0], h[c1], h[c2], h[c3] = gen.wheel_speed_H(*args)  # (h.put: 3x slower, every step)
-        R = self.noise2 + (0.02 * ax) ** 2 + (0.002 * pred) ** 2
+        R = self.noise2 + (0.02 * ax) ** 2 + (0.002 * pred) ** 2 + excess_var
         ok = kalman.scalar_update(x, P, z - pred, h, R, WHEEL_GATE_SIGMA, A)
         if ok:
             self.consecutive_rejects = 0
