@@ -266,3 +266,28 @@ def test_diverged_heading_realigns_when_gnss_and_wheels_agree():
     # valid and wrong only until the first GNSS fix after the jump (0.2 s at 5 Hz) is rejected
     assert np.all(err[valid & (t > 120.21)] < 5.0)
     assert valid[-1] and err[-1] < 1.0
+
+
+def test_flying_start_in_a_corner_counts_the_latency_heading_error_once(tmp_path):
+    """The suite's flying start at 50 m/s in a 6.6 deg/s corner: the heading aligned from a GNSS
+    course carries r x (latency error), which ``_estimate`` publishes on top of P (``turn_lp``).
+    With the same term also in P at alignment, the std was sqrt 2 times it for the first seconds
+    and the heading, right all along, became valid 7.8 s after the first fix instead of 0.3 s."""
+    from ecu_daemon.estimator.latency import PRIOR_STD_S
+    from ecu_daemon.suite import SUITE, run_case
+
+    row = run_case({c.name: c for c in SUITE}["flying_50_r400r_h300"], tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["heading_time_to_valid_after_fix_s"] <= 3.0, row["heading_time_to_valid_after_fix_s"]
+    # valid early and still right: within 3 sigma, and well within the issue's 5 deg
+    assert row["heading_coverage_3sigma"] >= 0.99
+    assert row["heading_worst_valid_deg"] < 1.0
+    est = read_csv(tmp_path / "flying_50_r400r_h300" / "estimate.csv",
+                   ("t", "heading_std_rad", "yaw_rate_radps"), "estimate")
+    aligned = est["heading_std_rad"] < math.radians(90.0)
+    # counted once, not dropped: the published std holds the turn's mean |r| x latency std (its
+    # prior) from the first aligned row on (the yaw rate weaves; the term follows its low-pass)
+    first = aligned & (est["t"] <= est["t"][aligned][0] + 3.0)
+    turn = np.mean(np.abs(est["yaw_rate_radps"][first])) * PRIOR_STD_S
+    assert turn > math.radians(0.9)  # the case does turn: the term matters
+    assert np.all(est["heading_std_rad"][first] >= turn)

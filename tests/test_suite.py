@@ -126,7 +126,7 @@ SUBSET = {
     # so every course is turned by up to 11.5 deg/s x 0.15 s = 1.7 deg alike, above the 1.5 deg a valid
     # heading allows, until the corner ends (the std published it only after seconds before)
     "restart_flying_30_r150": {"ttv-b": "sideslip valid 4.3 s after the first fix",
-                               "ttv-h": "heading valid 5.5 s after the first fix"},
+                               "ttv-h": "heading valid 5.4 s after the first fix"},
     # sideslip valid on 80 % above 5 m/s while its std was 3-10x its error (vy's own process noise now)
     "vw_mqb_sign_magnitude": {},
     # the three issue-7 faults below meet every target since fault detection (fault_detection.py)

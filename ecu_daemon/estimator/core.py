@@ -221,6 +221,10 @@ class Estimator:
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
+        # the (yaw rate x latency std)^2 a course alignment put into P, and P's heading variance then
+        # (``_estimate``: that part of P and the published latency term are one error, counted once)
+        self.align_lat_var = 0.0
+        self.align_psi_var = 0.0
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
@@ -408,6 +412,7 @@ class Estimator:
         # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
         # mid-corner would otherwise publish a heading std without it for its first seconds)
         self.turn_lp = abs(r_m - x[BR])
+        self.align_lat_var = 0.0
         self.initialized = True
         self.aligned = False
 
@@ -747,7 +752,13 @@ class Estimator:
         # with the latency error a state, what the filter still does not know of it (its variance)
         # turns the heading the same way on every fix, so it stays in the published std
         turn = self.turn_lp * (math.sqrt(self.considers[0].var) if self.augmented else self._latency_std())
-        psi_std = math.sqrt(sd[PSI] ** 2 + turn ** 2 + floor ** 2)
+        # After a course alignment P holds that course's latency error too (it must: later fixes
+        # and the model correct the heading by it), the same error as this term: published once,
+        # as the larger of the two. P's part shrinks as fixes shrink P (its share at alignment).
+        turn_var = turn * turn
+        if self.align_lat_var > 0.0:
+            turn_var = max(turn_var - self.align_lat_var * min(1.0, pd[PSI] / self.align_psi_var), 0.0)
+        psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
@@ -937,6 +948,7 @@ class Estimator:
                 return
         else:
             fus.align(h, s, g, std, self.model.Qd[PSI, PSI])
+            self.align_lat_var = 0.0  # a baseline heading has no latency error
             for cons in self.considers:
                 cons.zero_heading(h)
             self.aligned = True
@@ -1030,6 +1042,8 @@ class Estimator:
         h.P[idx] = P
         # the heading is now this course's, with its latency error r x (latency error) at that turn
         self.turn_lp = max(self.turn_lp, abs(r))
+        self.align_lat_var = (r * lat.std_s) ** 2
+        self.align_psi_var = float(var[-1])
         self.aligned = True
         for f in self.receivers:
             f.consecutive_rejects = 0
