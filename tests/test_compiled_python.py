@@ -21,10 +21,9 @@ DRIVE = r"""
 import sys
 from ecu_daemon import compiled_python
 from ecu_daemon.estimator import Estimator
-from ecu_daemon.gnss.stream import GnssStreamParser
-from ecu_daemon.signals import SignalDecoder
 from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 sys.path.insert(0, "tests")
+from drive_samples import decoded_events
 from fault_injection import fault_can
 print(sorted(set(compiled_python.compiled_modules().values())))
 from ecu_daemon.sim.scenario import T0
@@ -36,15 +35,7 @@ for name, fault in (("dlc_dry", None), ("dlc_dry", ("yaw_rate", 20.0, 25.0, lamb
     sim = simulate(sc, cfg)
     if fault:
         sim = fault_can(sim, (fault[0],), T0 + fault[1], T0 + fault[2], fault[3])
-    decoder = SignalDecoder(cfg)
-    events = []
-    for t, fid, data in sim.can_frames:
-        events.extend((t, 0, s) for s in decoder.decode(t, fid, data, fid in sim.extended_ids))
-    parser = GnssStreamParser(cfg.gnss.protocol)
-    for t, payload in sim.gnss_messages:
-        events.extend((s.t, 1, s) for s in parser.feed(t, payload))
-    events.extend((s.t, 1, s) for s in parser.finish())
-    events.sort(key=lambda e: (e[0], e[1]))
+    events = decoded_events(cfg, sim)
     est = Estimator(cfg)
     n = 0
     for t, kind, s in events:

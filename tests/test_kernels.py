@@ -13,9 +13,9 @@ from ecu_daemon.estimator.fusion import single_track as st
 from ecu_daemon.estimator.fusion import stiffness_regression as sr
 from ecu_daemon.estimator.history import AUX_AY, AUX_R, NAUX, StepHistory, positive_definite
 from ecu_daemon.estimator.kinematic import NX, KinematicModel
-from ecu_daemon.gnss.stream import GnssStreamParser
-from ecu_daemon.signals import SignalDecoder
 from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+from drive_samples import decoded_events
 
 RNG = np.random.default_rng(7)
 
@@ -340,17 +340,7 @@ def test_ring_window_kernels_agree(lo, hi, s):
 def drive_events():
     sc = SCENARIOS["dlc_dry"]
     cfg = vehicle_config(sc)
-    sim = simulate(sc, cfg)
-    decoder = SignalDecoder(cfg)
-    events = []
-    for t, fid, data in sim.can_frames:
-        events.extend((t, 0, s) for s in decoder.decode(t, fid, data, fid in sim.extended_ids))
-    parser = GnssStreamParser(cfg.gnss.protocol)
-    for t, payload in sim.gnss_messages:
-        events.extend((s.t, 1, s) for s in parser.feed(t, payload))
-    events.extend((s.t, 1, s) for s in parser.finish())
-    events.sort(key=lambda e: (e[0], e[1]))
-    return cfg, events
+    return cfg, decoded_events(cfg, simulate(sc, cfg))
 
 
 def run_drive(cfg, events):
