@@ -108,8 +108,10 @@ def _install(sim_drive: Path, work: Path) -> None:
     """Put the current wheel, units, config and test scaffolding into the root filesystem."""
     t = time.monotonic()
     wheels = work / "wheel"
+    # The wheel compiles the C and Cython modules in an isolated build env: ~2 min on an idle 2-core machine,
+    # over 5 min when the machine is loaded. The timeout only guards against a hang.
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(wheels), str(harness.REPO)],
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=1800)
     assert r.returncode == 0, r.stderr[-2000:]
     whl = next(wheels.glob("ecu_daemon-*.whl"))
     shutil.copy(whl, ROOTFS / "tmp" / whl.name)
