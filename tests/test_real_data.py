@@ -83,6 +83,29 @@ def test_revs_biases(revs):
     assert abs(r["gnss_delay"]["final_error"]) < 0.04
 
 
+
+@pytest.fixture(scope="module")
+def revs_outage(tmp_path_factory):
+    out = tmp_path_factory.mktemp("revs_outage")
+    result, summary = rd.run_revs(out, protocol="ubx", seed=1, duration_s=100.0, outage=(60.0, 30.0))
+    return out, result, summary
+
+
+def test_revs_gnss_outage_keeps_the_sideslip_promise(revs_outage):
+    """30 s without GNSS in the race car's corners (up to 1.2 g): only the single-track model holds
+    the sideslip. Its error there is real (measured, seed 1: rms 0.87 deg, 95 % within 2.0 deg,
+    max 2.4 deg; the whole 550 s drive with the outage at 300 s: max 2.3 deg, valid rows up to
+    1.6 deg off), so the flag must follow the std: measured 79 % valid, 100 % of them within
+    3 sigma, the worst 1.37 deg. A rule that narrowed the model's std in outages (a correlated-
+    error treatment trusting a learned law) breaks this first."""
+    _, r, summary = revs_outage
+    assert 340 <= summary["gnss_samples"] <= 350  # 100 s at 5 Hz, less the 150 fixes of the outage
+    m = r["outage"]
+    assert m["rows"] > 5000
+    assert m["err_max_deg"] > 1.0  # the model alone is wrong by this much somewhere: a real test
+    assert m["coverage_3sigma"] >= 0.99
+    assert m["worst_valid_deg"] < 2.0
+
 def test_rav4_yaw_rate_bias_and_wheel_scale(rav4):
     _, m, _ = rav4
     # measured: -0.413 deg/s final, wheel scale 1.0094 (README: 1/0.991 = 1.0091)

@@ -17,6 +17,7 @@ Why: the estimator must be judged on real vehicle motion through the same byte-l
 car gives it (DBC decode, protocol parse, receive timestamps), not on samples fed directly.
 
     python3 tools/real_data.py revs --out /tmp/revs [--protocol ubx|nmea] [--wrong-params] [--seed N]
+        [--gnss-outage START_S LENGTH_S]
     python3 tools/real_data.py rav4 --out /tmp/rav4 [--protocol ubx|nmea]
 """
 from __future__ import annotations
@@ -241,8 +242,11 @@ def write_revs_can(path: Path, cfg: config_mod.Config, d: dict, rng: np.random.G
 
 
 def write_revs_gnss(path: Path, d: dict, truth: dict, protocol: str, lever_x: float,
-                    rng: np.random.Generator, noise_mps: float = 0.05) -> int:
-    """5 Hz fixes on the UTC grid, antenna velocity + white noise, received 0.4 s (+-4 ms) later."""
+                    rng: np.random.Generator, noise_mps: float = 0.05,
+                    outage: tuple[float, float] | None = None) -> int:
+    """5 Hz fixes on the UTC grid, antenna velocity + white noise, received 0.4 s (+-4 ms) later.
+    ``outage``: (start, end) on the replay clock: fixes valid in it are not written (a tunnel);
+    the noise drawn is the same as without it, so the rest of the capture is byte-identical."""
     t = d["t"]
     period = 1.0 / GNSS_RATE_HZ
     tv = np.arange(math.ceil(round(t[0] / period, 9)), math.floor(round(t[-1] / period, 9)) + 1) * period
@@ -263,6 +267,8 @@ def write_revs_gnss(path: Path, d: dict, truth: dict, protocol: str, lever_x: fl
         for i in range(len(tv)):
             if t_rx[i] > t[-1]:
                 break
+            if outage is not None and outage[0] <= tv[i] < outage[1]:
+                continue
             utc = round((tv[i] + UTC_OFFSET_S) * 1000.0) / 1000.0
             # the Revs data has no altitude: NMEA sends none (a made-up constant would say "flat")
             n += _write_fix(w, protocol, t_rx[i], utc, lat[i], lon[i], 50.0 if protocol == "ubx" else None,
@@ -290,8 +296,10 @@ def _write_fix(w: GnssLogWriter, protocol: str, t_rx: float, utc: float, lat: fl
 
 
 def build_revs(out: Path, protocol: str = "ubx", wrong: bool = False, seed: int = 1,
-               duration_s: float | None = None, lever_x: float = 0.0) -> dict[str, Path]:
-    """Write drive.log, drive_gnss.log, truth.csv, config.toml (+ the DBC) into ``out``."""
+               duration_s: float | None = None, lever_x: float = 0.0,
+               outage: tuple[float, float] | None = None) -> dict[str, Path]:
+    """Write drive.log, drive_gnss.log, truth.csv, config.toml (+ the DBC) into ``out``;
+    ``outage``: a GNSS outage (start, end) on the replay clock (:func:`write_revs_gnss`)."""
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
     d = load_revs(duration_s)
@@ -299,7 +307,7 @@ def build_revs(out: Path, protocol: str = "ubx", wrong: bool = False, seed: int 
     enc_cfg = revs_config(False, lever_x)  # the sensors are the same whatever the config believes
     paths = {"can": out / "drive.log", "gnss": out / "drive_gnss.log", "truth": out / "truth.csv"}
     write_revs_can(paths["can"], enc_cfg, d, rng)
-    write_revs_gnss(paths["gnss"], d, truth, protocol, lever_x, rng)
+    write_revs_gnss(paths["gnss"], d, truth, protocol, lever_x, rng, outage=outage)
     write_truth(paths["truth"], truth)
     paths["config"] = _write_config(revs_config(wrong, lever_x), out)
     return paths
@@ -307,16 +315,62 @@ def build_revs(out: Path, protocol: str = "ubx", wrong: bool = False, seed: int 
 
 def run_revs(out: Path, protocol: str = "ubx", wrong: bool = False, seed: int = 1,
              duration_s: float | None = None, lever_x: float = 0.0, settle_s: float = 20.0,
-             plots: Path | None = None) -> tuple[dict, dict]:
-    """Build the Revs drive, replay it, evaluate; returns (evaluate result, replay summary)."""
-    paths = build_revs(out, protocol, wrong, seed, duration_s, lever_x)
+             plots: Path | None = None, outage: tuple[float, float] | None = None) -> tuple[dict, dict]:
+    """Build the Revs drive, replay it, evaluate; returns (evaluate result, replay summary).
+    ``outage``: (start, length) in s from the start of the drive: no GNSS fix valid in it, and
+    ``result["outage"]`` is :func:`outage_metrics` over it."""
+    window = None if outage is None else (T0 + outage[0], T0 + outage[0] + outage[1])
+    paths = build_revs(out, protocol, wrong, seed, duration_s, lever_x, window)
     cfg = config_mod.load(paths["config"])
     est = out / "estimate.csv"
     summary = run_replay(cfg, str(paths["can"]), str(paths["gnss"]), str(est))
     result = evaluate(paths["truth"], est, settle_s=settle_s)
+    if window is not None:
+        result["outage"] = outage_metrics(paths["truth"], est, *window)
     if plots is not None:
         plot(paths["truth"], est, plots)
     return result, summary
+
+
+#: an outage is scored until this long after its end (the fixes' latency, then the re-convergence)
+OUTAGE_AFTER_S = 5.0
+
+
+def outage_metrics(truth_csv: Path, est_csv: Path, start: float, end: float) -> dict:
+    """Sideslip in a GNSS outage (start..end, replay clock) and the OUTAGE_AFTER_S after it, on the
+    rows above 5 m/s: where the single-track model alone holds it, how wrong it is against the std
+    it publishes (error percentiles, std percentiles) and what its valid flag promised (valid
+    share, valid rows within 3 sigma, worst error while valid). Angles in degrees."""
+    truth = read_csv(truth_csv, ("t", "sideslip_rad", "vx_mps"), "truth CSV")
+    est = read_csv(est_csv, ("t", "sideslip_rad", "sideslip_std_rad", "sideslip_valid"), "estimate CSV")
+    te = est["t"]
+    keep = (te >= start) & (te < end + OUTAGE_AFTER_S)
+    te = te[keep]
+    err = np.degrees(est["sideslip_rad"][keep] - np.interp(te, truth["t"], truth["sideslip_rad"]))
+    std = np.degrees(est["sideslip_std_rad"][keep])
+    fast = np.interp(te, truth["t"], truth["vx_mps"]) > 5.0
+    err, std, valid = np.abs(err[fast]), std[fast], est["sideslip_valid"][keep][fast] > 0.5
+    if len(err) == 0:
+        return {"rows": 0}
+    out = {"rows": int(len(err)), "rms_deg": float(np.sqrt(np.mean(err ** 2))),
+           "err_p50_deg": float(np.percentile(err, 50)), "err_p95_deg": float(np.percentile(err, 95)),
+           "err_max_deg": float(err.max()), "std_p50_deg": float(np.percentile(std, 50)),
+           "std_p95_deg": float(np.percentile(std, 95)), "valid_fraction": float(valid.mean()),
+           "coverage_3sigma": math.nan, "worst_valid_deg": math.nan}
+    if valid.any():
+        out["coverage_3sigma"] = float(np.mean(err[valid] <= 3.0 * std[valid]))
+        out["worst_valid_deg"] = float(err[valid].max())
+    return out
+
+
+def format_outage(m: dict, start: float, length: float) -> str:
+    if not m.get("rows"):
+        return f"GNSS outage {start:g}+{length:g} s: no rows above 5 m/s"
+    return (f"GNSS outage {start:g}+{length:g} s (and {OUTAGE_AFTER_S:g} s after), sideslip on {m['rows']} rows"
+            f" above 5 m/s: rms {m['rms_deg']:.3f} deg, |error| p50 {m['err_p50_deg']:.2f} p95"
+            f" {m['err_p95_deg']:.2f} max {m['err_max_deg']:.2f}; std p50 {m['std_p50_deg']:.2f} p95"
+            f" {m['std_p95_deg']:.2f}; valid {m['valid_fraction']:.1%}, valid within 3 sigma"
+            f" {m['coverage_3sigma']:.1%}, worst valid {m['worst_valid_deg']:.2f} deg")
 
 
 # ------------------------------------------------------------------------------------ RAV4
@@ -418,6 +472,9 @@ def main(argv: list[str] | None = None) -> int:
     pr.add_argument("--lever-arm-x", type=float, default=0.0, help="GNSS antenna x from the CG (m)")
     pr.add_argument("--settle-s", type=float, default=20.0)
     pr.add_argument("--plots", type=Path, metavar="DIR")
+    pr.add_argument("--gnss-outage", type=float, nargs=2, metavar=("START_S", "LENGTH_S"),
+                    help="no GNSS fix from START_S for LENGTH_S (s from the start of the drive): the"
+                         " sideslip the model alone holds, scored over the outage and 5 s after")
     pa = sub.add_parser("rav4", help="real RAV4 candump + u-blox fixes -> replay -> checks")
     pa.add_argument("--out", required=True, type=Path)
     pa.add_argument("--protocol", choices=("ubx", "nmea"), default="ubx")
@@ -427,11 +484,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"real data not found at {SHARED}", file=sys.stderr)
         return 2
     if args.cmd == "revs":
+        outage = tuple(args.gnss_outage) if args.gnss_outage else None
         result, summary = run_revs(args.out, args.protocol, args.wrong_params, args.seed, args.duration_s,
-                                   args.lever_arm_x, args.settle_s, args.plots)
+                                   args.lever_arm_x, args.settle_s, args.plots, outage)
         print(f"replayed {summary['duration_s']:.1f} s ({summary['frames']} frames, {summary['gnss_samples']}"
               f" GNSS samples) in {summary['wall_s']:.1f} s")
         print(format_table(result))
+        if outage is not None:
+            print(format_outage(result["outage"], *outage))
     else:
         m, summary = run_rav4(args.out, args.protocol, args.settle_s)
         print(f"replayed {summary['duration_s']:.1f} s ({summary['frames']} frames, {summary['gnss_samples']}"
