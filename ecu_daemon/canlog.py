@@ -319,9 +319,14 @@ def _is_python_can(path: Path) -> bool:
 
 
 def _python_can_reader(path: Path):
-    """python-can's reader for ``path``; ASC with its start date applied (absolute times)."""
-    if path.suffix.lower() == ".asc":
+    """python-can's reader for ``path``; ASC with its start date applied (absolute times), also
+    gzipped (``.asc.gz``: python-can's LogReader would read it relative to the start and drop
+    the date, so a dated log looked undated and could not be lined up with the GNSS capture)."""
+    suffixes = [s.lower() for s in path.suffixes[-2:]]
+    if suffixes[-1:] == [".asc"]:
         return _ASCReader(str(path), relative_timestamp=False)
+    if suffixes == [".asc", ".gz"]:
+        return _ASCReader(gzip.open(path, mode="rt", encoding="ascii", errors="replace"), relative_timestamp=False)
     return can.LogReader(str(path))
 
 

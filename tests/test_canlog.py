@@ -246,6 +246,23 @@ def test_asc_keeps_its_start_date_and_says_when_it_has_none(tmp_path):
     assert [f[0] for f in r] == [0.0, 0.01, 0.02] and not r.absolute_time
 
 
+def test_gzipped_asc_keeps_its_start_date(tmp_path):
+    """``.asc.gz`` (python-can reads gzipped logs): the same absolute times as the ``.asc``, not
+    times from 0 that cannot be lined up with the GNSS capture."""
+    p = tmp_path / "x.asc"
+    w = can.ASCWriter(str(p))
+    for i in range(3):
+        w.on_message_received(can.Message(timestamp=1700000000.25 + i * 0.01, arbitration_id=0x100 + i,
+                                          is_extended_id=False, data=bytes([i])))
+    w.stop()
+    gz = tmp_path / "x.asc.gz"
+    gz.write_bytes(gzip.compress(p.read_bytes()))
+    r = read_can_log(gz)
+    assert list(r) == list(read_can_log(p)) and r.absolute_time
+    assert [f[0] for f in read_can_log(gz)] == [1700000000.25, 1700000000.26, 1700000000.27]
+    assert log_channels(gz) == log_channels(p)
+
+
 @pytest.mark.parametrize("suffix, reader", [(".asc", can.ASCReader), (".blf", can.BLFReader), (".log", None)])
 def test_open_can_writer_writes_what_the_extension_names(tmp_path, suffix, reader):
     p = tmp_path / f"out{suffix}"
