@@ -65,6 +65,49 @@ class CanLogError(ValueError):
     """A CAN log that cannot be read, with file (and line) in the message."""
 
 
+#: candump's screen output (``candump -ta can0 > x.txt``, what many captures are): ``(time)
+#: iface [RX|TX flag flag] ID [len] XX XX ...`` with ``[8]`` for classic CAN and ``[08]`` for
+#: CAN FD, ``remote request`` for a remote frame, ``'ascii'`` (``-a``) or ``ERRORFRAME ...``
+#: (``-e``) after the data. Only ``-ta`` stamps are absolute (``%010llu``: 10 digits); ``-td``
+#: / ``-tz`` (``%03llu``, relative), ``-tA`` (local date, no time zone) and no ``-t`` cannot be
+#: put on the GNSS capture's clock and are refused with the command that records a usable log.
+_SCREEN = re.compile(
+    r"[ \t]*(?:\((?P<ts>[^)]*)\)[ \t]+)?(?P<iface>\S+)[ \t]+(?:(?P<dir>[RT]X)[ \t]+(?P<brs>[-B])[ \t]+"
+    r"(?P<esi>[-E])[ \t]+)?(?P<id>[0-9A-Fa-f]{3}|[0-9A-Fa-f]{8})[ \t]+\[(?P<len>\d{1,2})\]"
+    r"(?P<rest>(?:[ \t]+\S.*)?)[ \t]*\r?\n?")
+_SCREEN_BYTE = re.compile(r"[0-9A-Fa-f]{2}")
+_SCREEN_FIX = ("record with 'candump -L' (or -l), or give its screen output with -ta (absolute times)")
+
+
+def _screen_line_as_log_line(line: str) -> str | None:
+    """The candump ``-L`` line for one line of candump's screen output (see ``_SCREEN``); None
+    when ``line`` is not screen output. Raises :class:`ValueError` (the reason) for screen
+    output that cannot be replayed: times that are not absolute, a length and data that differ."""
+    m = _SCREEN.fullmatch(line)
+    if m is None:
+        return None
+    ts = m["ts"]
+    if ts is None:
+        raise ValueError(f"candump screen output without times (no -t); {_SCREEN_FIX}")
+    if not re.fullmatch(r"\d{10,}\.\d{6}", ts):
+        kind = "local date and time without a time zone (-tA)" if "-" in ts else "relative times (-td/-tz)"
+        raise ValueError(f"candump screen output with {kind}; {_SCREEN_FIX}")
+    n, rest = int(m["len"]), m["rest"].strip()
+    fd = len(m["len"]) == 2  # candump prints a CAN FD length with two digits, classic with one
+    head = f"({ts}) {m['iface']} {m['id']}#"
+    if rest.startswith("remote request"):
+        return f"{head}R{n if 0 < n <= 8 else ''}"
+    words = rest.split()
+    data = list(itertools.takewhile(_SCREEN_BYTE.fullmatch, words[:n]))
+    tail = words[len(data):]
+    if len(data) != n or (tail and not tail[0].startswith(("'", "ERRORFRAME"))):
+        raise ValueError(f"candump screen output: [{m['len']}] but {len(data)} data bytes")
+    if fd:
+        flags = (1 if m["brs"] == "B" else 0) | (2 if m["esi"] == "E" else 0)
+        return f"{head}#{flags:X}{''.join(data)}"
+    return head + "".join(data)
+
+
 def _what_is_wrong(line: str) -> str:
     """Explain why a line did not match (only called for bad lines)."""
     parts = line.split()
@@ -173,7 +216,13 @@ class CanLogReader:
                     s = line.strip()
                     if not s or s.startswith("#"):
                         continue  # blank lines and comments, as canplayer ignores them
-                    raise self._error(lineno, line)
+                    try:
+                        screen = _screen_line_as_log_line(line)
+                    except ValueError as e:
+                        raise CanLogError(f"{self.path}:{lineno}: {e}: {s[:77]!r}") from None
+                    m = None if screen is None else match(screen)
+                    if m is None:
+                        raise self._error(lineno, line)
                 ts, iface, ident, rtr, rdlc, fd_flags, fd_data, data = m.groups()
                 seen[iface] = seen.get(iface, 0) + 1
                 if want is not None and iface != want:
@@ -270,9 +319,14 @@ def _is_python_can(path: Path) -> bool:
 
 
 def _python_can_reader(path: Path):
-    """python-can's reader for ``path``; ASC with its start date applied (absolute times)."""
-    if path.suffix.lower() == ".asc":
+    """python-can's reader for ``path``; ASC with its start date applied (absolute times), also
+    gzipped (``.asc.gz``: python-can's LogReader would read it relative to the start and drop
+    the date, so a dated log looked undated and could not be lined up with the GNSS capture)."""
+    suffixes = [s.lower() for s in path.suffixes[-2:]]
+    if suffixes[-1:] == [".asc"]:
         return _ASCReader(str(path), relative_timestamp=False)
+    if suffixes == [".asc", ".gz"]:
+        return _ASCReader(gzip.open(path, mode="rt", encoding="ascii", errors="replace"), relative_timestamp=False)
     return can.LogReader(str(path))
 
 

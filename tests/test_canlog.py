@@ -246,6 +246,23 @@ def test_asc_keeps_its_start_date_and_says_when_it_has_none(tmp_path):
     assert [f[0] for f in r] == [0.0, 0.01, 0.02] and not r.absolute_time
 
 
+def test_gzipped_asc_keeps_its_start_date(tmp_path):
+    """``.asc.gz`` (python-can reads gzipped logs): the same absolute times as the ``.asc``, not
+    times from 0 that cannot be lined up with the GNSS capture."""
+    p = tmp_path / "x.asc"
+    w = can.ASCWriter(str(p))
+    for i in range(3):
+        w.on_message_received(can.Message(timestamp=1700000000.25 + i * 0.01, arbitration_id=0x100 + i,
+                                          is_extended_id=False, data=bytes([i])))
+    w.stop()
+    gz = tmp_path / "x.asc.gz"
+    gz.write_bytes(gzip.compress(p.read_bytes()))
+    r = read_can_log(gz)
+    assert list(r) == list(read_can_log(p)) and r.absolute_time
+    assert [f[0] for f in read_can_log(gz)] == [1700000000.25, 1700000000.26, 1700000000.27]
+    assert log_channels(gz) == log_channels(p)
+
+
 @pytest.mark.parametrize("suffix, reader", [(".asc", can.ASCReader), (".blf", can.BLFReader), (".log", None)])
 def test_open_can_writer_writes_what_the_extension_names(tmp_path, suffix, reader):
     p = tmp_path / f"out{suffix}"
@@ -269,3 +286,72 @@ def test_asc_with_timestamps_relative_to_the_previous_event_is_refused(tmp_path)
                  "   0.010000 1  100             Rx   d 1 01\n   0.010000 1  101             Rx   d 1 02\n")
     with pytest.raises(CanLogError, match="delta.asc: 'timestamps relative'.*export the log with absolute"):
         list(read_can_log(p))
+
+
+def _as_screen_output(log_line: str) -> str:
+    """What ``candump -ta -x can0`` prints for the frame of one candump -L line (classic and FD,
+    the way can-utils' lib.c lays it out: 11-bit ids indented, lengths ``[8]`` / ``[08]``)."""
+    ts, iface, frame = log_line.split()
+    ident, _, data = frame.partition("#")
+    flags = "- -"
+    if data.startswith("#"):
+        f = int(data[1], 16)
+        flags = ("B" if f & 1 else "-") + " " + ("E" if f & 2 else "-")
+        data = data[2:]
+        length = f"[{len(data) // 2:02d}]"
+    else:
+        length = f"[{len(data) // 2}]"
+    ident = ident if len(ident) == 8 else "     " + ident
+    body = " ".join(data[i:i + 2] for i in range(0, len(data), 2))
+    sec, frac = ts.strip("()").split(".")
+    return f" ({int(sec):010d}.{frac})  {iface}  RX {flags}  {ident}   {length}  {body}"
+
+
+def test_candump_screen_output_with_absolute_times_reads_as_its_log_format(tmp_path):
+    """``candump -ta can0 > capture.txt`` is what many users have: read as the same frames as
+    ``candump -L``, with the -x direction/flag columns, -a's ASCII, remote and error frames."""
+    log_lines = (DATA / "rav4_bus0_candump_5s.log").read_text().splitlines()
+    screen = tmp_path / "rav4_ta.txt"
+    screen.write_text("\n".join(_as_screen_output(line) for line in log_lines) + "\n")
+    assert list(read_can_log(screen)) == list(read_can_log(DATA / "rav4_bus0_candump_5s.log"))
+    assert log_channels(screen) == {"can0": 4494}
+
+    p = write(tmp_path, "\n".join([
+        " (1700000000.000100)  can0  0AA   [2]  01 02                     '..'",
+        " (1700000000.000200)  can1  12345678   [4]  DE AD BE EF",
+        " (1700000000.000300)  can0  123   [4]  remote request",
+        " (1700000000.000400)  can0  TX B E  7FF  [12]  " + " ".join(["22"] * 12),
+        " (1700000000.000500)  can0  20000040   [8]  00 00 00 00 00 00 00 00   ERRORFRAME\r",
+        " (1700000000.000600)  can0  124   [0] ",
+    ]) + "\n", "mixed.txt")
+    r = read_can_log(p)
+    assert list(r) == [
+        (1700000000.0001, 0x0AA, False, False, b"\x01\x02"),
+        (1700000000.0002, 0x12345678, True, False, bytes.fromhex("DEADBEEF")),
+        (1700000000.0004, 0x7FF, False, False, b"\x22" * 12),
+        (1700000000.0005, 0x40, False, True, bytes(8)),
+        (1700000000.0006, 0x124, False, False, b""),
+    ]
+    assert r.remote_frames == 1
+    fd = [m for m in read_can_log(p, messages=True) if m.is_fd]
+    assert len(fd) == 1 and fd[0].bitrate_switch and fd[0].error_state_indicator
+
+
+@pytest.mark.parametrize("line, why", [
+    (" (000.000749)  can0  0B2   [8]  33 00 33 00 00 00 00 00", r"relative times \(-td/-tz\)"),
+    (" (1200.004166)  can0  0B2   [8]  33 00 33 00 00 00 00 00", r"relative times \(-td/-tz\)"),
+    (" (2026-12-03 06:50:15.123456)  can0  0B2   [8]  33 00", r"local date and time without a time zone"),
+    ("  can0  0B2   [8]  33 00 33 00 00 00 00 00", r"without times \(no -t\)"),
+    (" (1700000000.000749)  can0  0B2   [8]  33 00 33", r"\[8\] but 3 data bytes"),
+    (" (1700000000.000749)  can0  0B2   [2]  33 00 33", r"\[2\] but 2 data bytes"),
+])
+def test_candump_screen_output_that_cannot_be_replayed_is_one_line_with_the_fix(tmp_path, line, why):
+    """Screen output without absolute times cannot be put on the GNSS capture's clock: refused
+    at its first line, saying how to record a log that can (not 'unexpected text')."""
+    p = write(tmp_path, line + "\n", "screen.txt")
+    with pytest.raises(CanLogError, match=why) as e:
+        list(read_can_log(p))
+    msg = str(e.value)
+    assert msg.startswith(f"{p}:1: ") and "\n" not in msg
+    if "data bytes" not in why:
+        assert "candump -L" in msg

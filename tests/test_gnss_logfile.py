@@ -92,6 +92,24 @@ def test_reader_error_for_missing_file_and_non_ascii(tmp_path):
         list(read_gnss_log(path))
 
 
+def test_a_raw_receiver_stream_is_named_as_such_with_what_replay_needs(tmp_path):
+    """What a user saves from the receiver itself (``cat /dev/ttyACM0``, u-center's .ubx) has no
+    receive times: one line saying so and what a capture is, not "expected (seconds.micros)"."""
+    nmea = tmp_path / "drive.nmea"
+    nmea.write_bytes(b"$GNRMC,080000.00,A,4808.21919,N,01134.50110,E,0.165,328.32,010624,,,A,V*0D\r\n"
+                     b"$GNGGA,080000.00,4808.21919,N,01134.50110,E,1,14,0.90,520.6,M,0.0,M,,*73\r\n")
+    ubx = tmp_path / "drive.ubx"  # NAV-PVT frames as the receiver sends them
+    ubx.write_bytes(bytes.fromhex(
+        "B56201075C0050E29D20E80706010800000714000000000000000301000E5034E606AE1FB11C40EF070040EF0700B0040000"
+        "C409000048000000D3FFFFFF0C000000550000004BFAF4017800000056925300780000000000000000000000000000005336") * 3)
+    for path, what in ((nmea, "NMEA sentences"), (ubx, "UBX frames")):
+        with pytest.raises(GnssLogError) as e:
+            list(read_gnss_log(path))
+        msg = str(e.value)
+        assert msg.startswith(f"{path}:1: a raw receiver stream ({what} without receive times)")
+        assert "'(seconds.micros) PORT PAYLOAD'" in msg and "--record" in msg and "\n" not in msg
+
+
 def test_writer_keeps_fragments_and_binary_exact(tmp_path):
     path = tmp_path / "w.log"
     with GnssLogWriter(path, port="ttyUSB0") as w:

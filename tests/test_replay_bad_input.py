@@ -265,3 +265,22 @@ def test_a_gnss_log_that_never_gives_a_sample_is_exit_3(drive, tmp_path):
     assert rc == 3, err
     assert "not usable: gnss (0 of" in err[-1] and "checksum" in err[-1]
     assert not any("yaw_rate (" in line for line in err[-1:])
+
+
+def test_wheel_speeds_in_kmh_mapped_as_mps_end_with_a_warning_naming_the_mapping(drive, tmp_path):
+    """A DBC with wheel speeds in km/h (opendbc's Toyota, Honda...) mapped with scale 1: four wheels
+    3.6x too fast outvote the one receiver, GNSS is rejected all drive long and vx is wrong.
+    The replay still ends (exit 0: a receiver with poor accuracy does the same), but says so in one
+    line, naming the likely mapping error; the same drive with the right mapping says nothing."""
+    data = tomllib.loads((drive / "config.toml").read_text())
+    for name in ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr"):
+        assert data["inputs"][name]["scale"] == 1.0
+        data["inputs"][name].update(scale=3.6, max=500.0)
+    cfg = tmp_path / "kmh.toml"
+    cfg.write_text(tomli_w.dumps(data))
+    rc, err = replay(drive, "--log-level", "warning", config=cfg, gnss=drive / "drive_gnss.log")
+    assert rc == 0, err
+    (line,) = [ln for ln in err if "gnss:" in ln]
+    assert "rejected by the estimator" in line and "[inputs.wheel_speed_*] scale" in line and "3.6x" in line
+    rc, err = replay(drive, "--log-level", "warning", gnss=drive / "drive_gnss.log")
+    assert rc == 0 and not any("gnss:" in ln for ln in err), err

@@ -33,6 +33,14 @@ _HEX = re.compile(r"^[0-9A-Fa-f]+$")
 _CHECKSUM_TAIL = re.compile(rb"\*[0-9A-Fa-f]{2}$")
 
 
+#: What a receiver's own output saved as it came (``cat /dev/ttyACM0``, u-center's .ubx) lacks: the
+#: host receive time of each message, on the CAN log's clock, which lines GNSS up with CAN (and
+#: from which the latency is identified). Said instead of "expected (seconds.micros) ...".
+_RAW_STREAM = ("a raw receiver stream ({} without receive times), not a GNSS capture log: replay needs each"
+               " message's host receive time on the CAN log's clock, '(seconds.micros) PORT PAYLOAD'"
+               " per line, as 'ecu-daemon run --record DIR' writes it")
+
+
 class GnssLogError(ValueError):
     """A GNSS capture log that cannot be read; the message is ``file:line: what is wrong``."""
 
@@ -73,9 +81,13 @@ def _parse_line(path, lineno: int, raw: bytes) -> tuple[float, str, bytes] | Non
     try:
         text = line.decode("ascii")
     except UnicodeDecodeError:
+        if b"\xb5b" in line:
+            raise GnssLogError(f"{where}: {_RAW_STREAM.format('UBX frames')}") from None
         raise GnssLogError(f"{where}: line is not ASCII text") from None
     m = _LINE.match(text)
     if not m:
+        if stripped[:1] in (b"$", b"!"):
+            raise GnssLogError(f"{where}: {_RAW_STREAM.format('NMEA sentences')}")
         raise GnssLogError(f"{where}: expected '(seconds.micros) PORT PAYLOAD', got {text[:60]!r}")
     if not _TIME.match(m["t"]):
         raise GnssLogError(f"{where}: bad timestamp {m['t']!r} (expected seconds.micros)")
