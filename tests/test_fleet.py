@@ -241,7 +241,11 @@ def test_override_sets_only_well_known_config_parameters_and_loads(tmp_path):
     assert cfg.vehicle.cornering_stiffness_front_n_per_rad == 91500.0  # 2.5 kN/rad: 2.7 % of the value
     rear_default = config_mod.Config().vehicle.cornering_stiffness_rear_n_per_rad
     assert cfg.vehicle.cornering_stiffness_rear_n_per_rad == rear_default  # 30 kN/rad: not set
-    assert "4 of 5 drive(s) usable" in text and "# wheel_scale: 1.01 +- 0.0001" in text  # identical drives: one drive's std
+    # identical drives: their scatter (none) beside their stds' own degree of freedom, and the shared part
+    from ecu_daemon.fleet.calibrate import OWN_STD_DOF, SHARED
+
+    ws_std = math.hypot(1e-4 / 2 * math.sqrt(OWN_STD_DOF / (3 + OWN_STD_DOF)), SHARED["wheel_scale"])
+    assert "4 of 5 drive(s) usable" in text and f"# wheel_scale: 1.01 +- {ws_std:.3g}" in text
 
 
 def test_an_unreachable_scheduler_is_one_line(fleet, tmp_path, capsys):
@@ -350,21 +354,50 @@ def test_numeric_csv_reader_gives_read_csvs_columns_and_errors(tmp_path):
         job_mod.read_numeric_csv(str(backwards), ("t", "a"), "truth CSV")
 
 
-def test_wheel_scale_std_keeps_the_error_its_drives_share():
-    # 20 drives, each with its honest std of 0.05 %: a share common to all (0.045 %, the same car)
-    # and its own (0.02 %); the drives agree to 0.02 %, far better than their stds say
-    rng = np.random.default_rng(3)
-    truth, shared, own = 1.02, 0.00045, 0.0002
-    values = truth + shared + own * rng.standard_normal(20)
-    rows = [_row(i, wheel_scale=(x, math.hypot(shared, own))) for i, x in enumerate(values)]
+def _wheel_scale_z(drives: int, own: float, said: float, cars: int = 400, seed: int = 3) -> np.ndarray:
+    """z-scores of ``cars`` vehicles' combined wheel scale: each drive off by N(0, own) and saying
+    ``said``, the car's truth at SHARED's common error (the braking slip every drive leaves in)."""
+    from ecu_daemon.fleet.calibrate import SHARED
+
+    rng = np.random.default_rng(seed)
+    z = []
+    for _ in range(cars):
+        truth, common = 1.0 + 0.02 * rng.random(), SHARED["wheel_scale"] * rng.standard_normal()
+        values = truth + common + own * rng.standard_normal(drives)
+        p = vehicle_parameters([_row(i, wheel_scale=(x, said)) for i, x in enumerate(values)])[0]["wheel_scale"]
+        z.append((p["value"] - truth) / p["std"])
+    return np.array(z)
+
+
+def test_wheel_scale_std_follows_the_drives_scatter_when_their_stds_are_cautious():
+    # a filter's end-of-drive std carries its process noise: 20 x 20 simulated fleet, the drives
+    # scatter ~0.4x their stds; the combined std must follow the scatter (z of unit variance),
+    # not the stds (|z| <= 0.3 with them) nor read the deficit as a shared error (|z| <= 0.2)
+    z = _wheel_scale_z(drives=20, own=0.0002, said=0.0005)
+    assert 0.75 < float(np.mean(z ** 2)) < 1.3
+    assert float(np.mean(np.abs(z) > 3)) < 0.02
+    honest = _wheel_scale_z(drives=20, own=0.0005, said=0.0005)  # stds right: unchanged meaning
+    assert 0.75 < float(np.mean(honest ** 2)) < 1.3
+
+
+def test_wheel_scale_std_of_few_drives_does_not_collapse_when_they_agree_by_chance():
+    from ecu_daemon.fleet.calibrate import OWN_STD_DOF, SHARED
+
+    rows = [_row(i, wheel_scale=(1.02, 0.0005)) for i in range(2)]  # identical: scatter 0
     p = vehicle_parameters(rows)[0]["wheel_scale"]
-    independent = math.hypot(shared, own) / math.sqrt(20)  # what 1 / sqrt(sum w) said
-    assert abs(p["value"] - truth) / independent > 3
-    assert abs(p["value"] - truth) / p["std"] < 3  # honest: the shared part does not average down
-    assert p["std"] == pytest.approx(math.hypot(shared, own / math.sqrt(20)), rel=0.35)
+    independent = 0.0005 / math.sqrt(2)
+    assert p["std"] == pytest.approx(math.hypot(independent * math.sqrt(OWN_STD_DOF / (1 + OWN_STD_DOF)),
+                                                SHARED["wheel_scale"]))
+    assert p["std"] > 0.5 * independent
+    # honest stds, 3 drives: a scatter of 2 degrees of freedom is itself uncertain (Student's t:
+    # heavier tails than a Gaussian), the std's own degree of freedom keeps them near
+    few = _wheel_scale_z(drives=3, own=0.0005, said=0.0005)
+    assert float(np.mean(few ** 2)) < 1.4 and float(np.mean(np.abs(few) > 3)) < 0.03  # t, 3 dof: 5.8 %
 
 
 def test_wheel_scale_std_of_independent_drives_averages_down():
+    from ecu_daemon.fleet.calibrate import OWN_STD_DOF, SHARED
+
     rng = np.random.default_rng(4)
     s = np.full(20, 0.0005)
     values = 1.02 + s * rng.standard_normal(20)
@@ -372,7 +405,16 @@ def test_wheel_scale_std_of_independent_drives_averages_down():
     assert p["std"] < 2.0 * 0.0005 / math.sqrt(20)
     wide = 1.02 + 3 * s * rng.standard_normal(20)  # scattered 3x their stds: the std follows the scatter
     q = vehicle_parameters([_row(i, wheel_scale=(x, 0.0005)) for i, x in enumerate(wide)])[0]["wheel_scale"]
-    assert q["std"] == pytest.approx(np.std(wide, ddof=1) / math.sqrt(20), rel=1e-6)
+    r = (np.sum((wide - wide.mean()) ** 2) / 0.0005 ** 2 + OWN_STD_DOF) / (19 + OWN_STD_DOF)
+    assert q["std"] == pytest.approx(math.hypot(0.0005 * math.sqrt(r / 20), SHARED["wheel_scale"]), rel=1e-9)
+    assert q["std"] > 2.5 * 0.0005 / math.sqrt(20)
+
+
+def test_yaw_rate_bias_std_follows_the_drives_scatter_too():
+    rng = np.random.default_rng(6)
+    values = 0.01 + 2e-5 * rng.standard_normal(20)  # drives agree to 2e-5, each says 5e-5
+    p = vehicle_parameters([_row(i, yaw_rate_bias_radps=(x, 5e-5)) for i, x in enumerate(values)])[0]
+    assert p["yaw_rate_bias_radps"]["std"] < 0.6 * 5e-5 / math.sqrt(20)
 
 
 def test_drives_are_handed_out_longest_first(tmp_path):

@@ -3,7 +3,7 @@
 
     .venv/bin/python tools/bench_fleet.py [--work /tmp/bench_fleet] [--vehicles 20] [--drives 20]
                                           [--scaling-drives 12] [--skip-scaling] [--skip-full]
-                                          [--passes 2]
+                                          [--passes 2 [--second-pass-share F]] [--run NAME]
 
 1. ``fleet simulate`` writes the fleet (reused when ``WORK/fleet`` exists): per vehicle its own
    GNSS latency, wheel scale and cornering stiffness, each drive a 45-70 s manoeuvre.
@@ -41,6 +41,26 @@ from ecu_daemon.fleet.tables import read_drives  # noqa: E402
 
 TARGETS = {"gnss_delay_s": ("abs", 0.02), "wheel_scale": ("rel", 0.002),
            "cornering_stiffness_front_n_per_rad": ("rel", 0.10), "cornering_stiffness_rear_n_per_rad": ("rel", 0.10)}
+#: parameters without a target whose std is checked against the truth too (z-scores only)
+ALSO_Z = ("steering_offset_rad", "yaw_rate_bias_radps")
+
+
+def true_value(truth: dict, name: str) -> float:
+    """``vehicle.json``'s value of a parameter; the wheel scale as its rolling wheels show it
+    (simfleet.free_rolling_wheel_scale)."""
+    return truth["gnss_latency_s"] if name == "gnss_delay_s" else truth.get(f"{name}_free_rolling", truth[name])
+
+
+def z_summary(z: list[float]) -> str:
+    """Mean, mean square and largest |z| of finite z-scores (an honest std: mean square ~1)."""
+    import math
+
+    z = [x for x in z if math.isfinite(x)]
+    if not z:
+        return "no z"
+    ms = sum(x * x for x in z) / len(z)
+    return (f"z over {len(z)} vehicles: mean {sum(z) / len(z):+.2f}, mean square {ms:.2f}"
+            f" (rms {math.sqrt(ms):.2f}), max |z| {max(abs(x) for x in z):.1f}")
 
 
 def load() -> str:
@@ -95,7 +115,9 @@ def main() -> int:
     ap.add_argument("--scaling-drives", type=int, default=12)
     ap.add_argument("--skip-scaling", action="store_true")
     ap.add_argument("--passes", type=int, default=1, choices=(1, 2), help="fleet run --passes for the whole fleet")
-    ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/run)")
+    ap.add_argument("--second-pass-share", type=float, default=1.0, help="fleet run --second-pass-share (with --passes 2)")
+    ap.add_argument("--run", default="run", help="the whole fleet's output folder under WORK")
+    ap.add_argument("--skip-full", action="store_true", help="scaling only (calibration from an earlier WORK/RUN)")
     args = ap.parse_args()
     work = Path(args.work)
     fleet = work / "fleet"
@@ -121,16 +143,18 @@ def main() -> int:
                                     lambda: run_fleet(str(sub), out, scheduler=cl.scheduler_address, report=False))
             print(task_breakdown(ts.data, walls[n], n), flush=True)
         print(f"scaling 1 -> 2 workers: x{walls[1] / walls[2]:.2f}", flush=True)
-    out = work / "run"
+    out = work / args.run
     if not args.skip_full:
-        shutil.rmtree(out, ignore_errors=True)
-        timed(f"local pool ({os.cpu_count()} processes), whole fleet, {args.passes} pass(es)",
-              lambda: run_fleet(str(fleet), out, passes=args.passes), args.passes)
+        share = args.second_pass_share
+        timed(f"local pool ({os.cpu_count()} processes), whole fleet, {args.passes} pass(es), share {share:g}",
+              lambda: run_fleet(str(fleet), out, passes=args.passes, second_share=share), args.passes)
         t0 = time.perf_counter()
-        run_fleet(str(fleet), out, report=False, passes=args.passes)
+        run_fleet(str(fleet), out, report=False, passes=args.passes, second_share=share)
         print(f"rerun with every drive stored: {time.perf_counter() - t0:.1f} s", flush=True)
     rows = read_drives(out)
     hits = {k: 0 for k in TARGETS}
+    worst = {k: ("", 0.0) for k in TARGETS}
+    zs = {k: [] for k in (*TARGETS, *ALSO_Z)}
     radius_only = []
     vehicles = sorted({r["vehicle"] for r in rows})
     print(f"{'vehicle':8s} " + " ".join(f"{k[:34]:>36s}" for k in TARGETS))
@@ -141,20 +165,28 @@ def main() -> int:
         cells = []
         for k, (kind, tol) in TARGETS.items():
             # the wheel scale against what its rolling wheels show (simfleet.free_rolling_wheel_scale)
-            t = truth["gnss_latency_s"] if k == "gnss_delay_s" else truth.get(f"{k}_free_rolling", truth[k])
+            t = true_value(truth, k)
             if k == "wheel_scale":
                 radius_only.append(params[k]["value"] / truth[k] - 1.0)
             est = params[k]["value"]
             err = est - t if kind == "abs" else (est - t) / t
             hits[k] += abs(err) <= tol
+            if not abs(err) <= abs(worst[k][1]):
+                worst[k] = (v, err)
             z = (est - t) / params[k]["std"] if params[k]["std"] > 0 else float("nan")
+            zs[k].append(z)
             cells.append(f"{est:.5g} ({t:.5g}) {err:+.4f} z{z:+.1f}".rjust(36))
+        for k in ALSO_Z:
+            zs[k].append((params[k]["value"] - true_value(truth, k)) / params[k]["std"])
         print(f"{v:8s} " + " ".join(cells))
     if radius_only:
         print(f"wheel_scale against the radius error alone (vehicle.json wheel_scale, no rolling slip):"
               f" {min(radius_only):+.4%} .. {max(radius_only):+.4%}")
     for k, (kind, tol) in TARGETS.items():
-        print(f"{k}: {hits[k]} of {len(vehicles)} vehicles within {tol:g}{' (relative)' if kind == 'rel' else ' s'}")
+        print(f"{k}: {hits[k]} of {len(vehicles)} vehicles within {tol:g}{' (relative)' if kind == 'rel' else ' s'},"
+              f" worst {worst[k][0]} {worst[k][1]:+.4f}; {z_summary(zs[k])}")
+    for k in ALSO_Z:
+        print(f"{k}: {z_summary(zs[k])}")
     return 0
 
 
