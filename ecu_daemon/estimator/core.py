@@ -534,8 +534,11 @@ class Estimator:
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
+        # forwards (its fixes are observed only then) or standing (vx ~ 0 either side): a run kept
+        # through a reversal integrates ax, not d|v|/dt, below 1 m/s, and the first fix after it read
+        # as a 0.2 s latency error (reversing, once vy's std no longer broke the run off at every turn)
         self.speed_integral.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
-                                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y))
+                                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and x[VX] > -0.1)
         wheels = self.wheels
         self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
 
