@@ -210,9 +210,12 @@ class EstimatorSettings:
     gnss_gate_sigma: float = 5.0
     # process noise (continuous-time spectral densities)
     accel_noise_mps2: float = 0.5  # m/s^2/sqrt(Hz), drives vx: sensor noise + pitch / grade changes the ax bias state lags
-    # m/s^2/sqrt(Hz), drives vy: sensor noise + vibration (Revs residual: 1.5 m/s^2 white at 100 Hz = 0.15)
-    # + what the roll-gain and bias states leave of roll / bank (0.23 m/s^2 colored, ~0.1 over a 5 Hz fix interval)
-    lateral_accel_noise_mps2: float = 0.2
+    # m/s^2/sqrt(Hz), drives vy: the floor under the accelerometer's white noise, which the estimator
+    # measures from the signal itself and takes when larger (estimator/lateral_noise.py: Revs 0.07-0.10,
+    # the simulated sensor 0.005), plus what the roll-gain and bias states leave of roll / bank and what
+    # a low-pass in the sensor hides from that measurement. The coloured errors (IMU lever arm x yaw
+    # acceleration, yaw-rate scale x r vx) grow the vy std on their own (core.IMU_LEVER_STD_M, YAW_SCALE_STD).
+    lateral_accel_noise_mps2: float = 0.1
     yaw_rate_noise_radps: float = 0.0005
     yaw_rate_bias_walk: float = 2e-5
     accel_bias_walk: float = 1.5e-3

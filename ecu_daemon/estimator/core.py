@@ -48,6 +48,7 @@ from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider
+from .lateral_noise import LateralNoise
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
 
@@ -92,6 +93,17 @@ HEADING_FRESH_S = 2.0  # a dual-antenna heading this recent, not the course, set
 MAG_LEARN_SPEED = 5.0  # m/s: the GNSS course (so the filter's heading) is good enough to learn the offset from
 MAG_LEARN_STD = math.radians(1.0)  # ... and the filter's heading std is below this
 COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseline heading
+# Lateral-acceleration errors that are neither white (lateral_noise.py) nor a state (b_ay, g_ay):
+# each is a bias while it lasts, so vy's std grows linearly by it (not as a random walk).
+# The IMU is not at the CG: it reads x_imu * dr/dt more (and the CG moves with the load); where
+# it sits is known to about this (m). Zero in a steady corner, large in a lane change.
+IMU_LEVER_STD_M = 0.3
+# A yaw-rate scale error (sensor sensitivity, and the tilt of a banked road: the heading turns at
+# r / cos(bank)) turns the heading by scale x r. In a steady corner GNSS course cannot tell that
+# from sideslip, and the filter takes it into vy through the accelerometer states (a 6 % banked
+# circle: heading and sideslip 1.4 deg off together with a white vy noise of 0.05): vy may drift
+# by this fraction of r vx.
+YAW_SCALE_STD = 0.005
 
 
 # A receiver's latency error is a filter state (latency_consider.py) while its dual-antenna heading
@@ -234,6 +246,9 @@ class Estimator:
         # bank and roll set wide) must still not pass as a valid sideslip. Its std then grows by
         # the rest (the ay bias stays: that is for the faults beyond the tolerance).
         self.lat_drift_tol = es.lateral_accel_noise_mps2 / math.sqrt(LAT_WINDOW_S)
+        # vy's white noise: the accelerometer's own, measured, never below the configured one
+        self.lat_noise = LateralNoise(es.lateral_accel_noise_mps2)
+        self._vy_density = es.lateral_accel_noise_mps2
 
     # ----------------------------------------------------------------------------------------
     # public contract
@@ -357,6 +372,8 @@ class Estimator:
                 self.late_inputs += 1
             self.held[i] = v
             self.held_t[i] = t
+            if i == I_AY:
+                self.lat_noise.observe(t, v)
             if i <= I_RR_MAX:
                 self.wheel_new = True
             elif I_MX <= i < I_ROLL:
@@ -483,11 +500,18 @@ class Estimator:
         P = h.Pr[i]
         if predict:  # predict from the previous step
             x[:] = xp
+            density = self.lat_noise.density
+            if density != self._vy_density:
+                self._set_vy_noise(density)
             if imu_ok:
                 self.model.predict(x, Pp, P, r_m, ax_m, ay_m)
             else:  # hold: no rotation, no acceleration, covariance still grows
                 self.model.predict(x, Pp, P, x[BR], x[BAX], x[BAY])
             A[:] = self.model.F
+            if imu_ok:
+                # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
+                e = IMU_LEVER_STD_M * abs(self.rdot) + YAW_SCALE_STD * abs(self.r_lp * x[VX])
+                P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * self.dt) ** 2
         if iso:
             self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
@@ -510,8 +534,11 @@ class Estimator:
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
+        # forwards (its fixes are observed only then) or standing (vx ~ 0 either side): a run kept
+        # through a reversal integrates ax, not d|v|/dt, below 1 m/s, and the first fix after it read
+        # as a 0.2 s latency error (reversing, once vy's std no longer broke the run off at every turn)
         self.speed_integral.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
-                                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y))
+                                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and x[VX] > -0.1)
         wheels = self.wheels
         self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
 
@@ -650,6 +677,15 @@ class Estimator:
         dt = self.dt
         for j, rate in ((PSI, e), (VY, e * abs(vx))):
             P[j, j] = (math.sqrt(max(P[j, j], 0.0)) + rate * dt) ** 2
+
+    def _set_vy_noise(self, density: float) -> None:
+        """vy's process noise from the measured accelerometer noise density (lateral_noise.py);
+        the lateral cross-check's drift tolerance is that noise over its window."""
+        self._vy_density = density
+        q = density * density * self.dt
+        self.model.q[VY] = q
+        self.model.Qd[VY, VY] = q
+        self.lat_drift_tol = density / math.sqrt(LAT_WINDOW_S)
 
     def _widen_lateral(self, P: np.ndarray, e: float, bias: bool = True) -> None:
         """ay disagrees with r * vx and the model's vy by ``e`` (m/s^2) more than bank, roll and
