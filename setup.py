@@ -36,6 +36,14 @@ def _compiled_python() -> list:
         text = source.decode() + tail(source)
         if not copy.exists() or copy.read_text() != text:  # unchanged: cythonize keeps its C file
             copy.write_text(text)
+        # a .pxd beside the module (typed declarations augmenting it, ignored by plain Python)
+        # goes beside the copy too, where Cython looks for it
+        pxd, pxd_copy = (ROOT / rel).with_suffix(".pxd"), copy.with_suffix(".pxd")
+        if pxd.exists():
+            if not pxd_copy.exists() or pxd_copy.read_bytes() != pxd.read_bytes():
+                pxd_copy.write_bytes(pxd.read_bytes())
+        elif pxd_copy.exists():
+            pxd_copy.unlink()
         ext = Extension(rel[:-3].replace("/", "."), [str(copy)],
                         extra_compile_args=["-O2", "-ffp-contract=off"], optional=True)
         try:  # Python semantics throughout (no C types from annotations or inference): the .py's bits

@@ -1,0 +1,7 @@
+# Cython declarations augmenting road.py when setup.py compiles it (see fault_detection.pxd: why);
+# plain Python ignores this file. Instance attributes as object slots: same objects, same bits.
+cdef class RoadAttitude:
+    cdef dict __dict__
+    cdef public object _k, _lp, _ring, altitude, altitude_fused, altitude_rejected, bank, baselines, dt
+    cdef public object elevation_fused, elevation_rejected, fy_lp, grade, gyro, roll, roll_bias0
+    cdef public object roll_gyro_params, roll_std, vertical_fused, vertical_zero
