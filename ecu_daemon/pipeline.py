@@ -45,6 +45,7 @@ from .samples import INPUT_INDEX, GnssSample, InputSample
 from .signals import SignalDecoder
 from .step_grid import step_of, steps_of
 
+_new_tuple = tuple.__new__
 MAG_INDEX = INPUT_INDEX["mag_x"]
 ROLL_INDEX = INPUT_INDEX["roll_rate"]
 DIAG_S = 0.05  # diagnostics (and the input staleness behind the validity mask) every 50 ms of steps
@@ -429,7 +430,7 @@ class Pipeline:
         if mask:
             e = e._replace(status=e.status | STATUS_INPUT_STALE, **mask)
         frames = self._encode(k, e, self.diag) if send and self.encoder is not None else []
-        return Step(k, e, frames)
+        return _new_tuple(Step, (k, e, frames))  # = Step(k, e, frames) without its Python-level __new__
 
     def _update_diagnostics(self, e: Estimate) -> None:
         t = e.t
