@@ -382,18 +382,19 @@ class OutputEncoder:
         for p in self._plans if due is None else due[step_index % len(due)]:
             if due is None and step_index % p.period != p.phase:
                 continue
+            compiled = p.compiled  # (only estimate frames have one: the common case first)
+            if compiled is not None:
+                payload = _encode_compiled(compiled, est, p.counter)
+                if payload is not NotImplemented:  # else a value to check, log or leave to cantools
+                    p.counter = (p.counter + 1) & 0xF
+                    out.append((p.frame_id, payload))
+                    continue
             if p.pages:
                 if diag is None:
                     continue
                 page, values, fields, layout = p.pages[(step_index // p.period) % len(p.pages)]
                 self._fill(p.name, values, fields, diag, None, None)
             else:
-                if p.compiled is not None:
-                    payload = _encode_compiled(p.compiled, est, p.counter)
-                    if payload is not NotImplemented:  # else a value to check, log or leave to cantools
-                        p.counter = (p.counter + 1) & 0xF
-                        out.append((p.frame_id, payload))
-                        continue
                 values = p.values
                 layout = p.layout
                 ok = p.ok.copy()

@@ -241,3 +241,62 @@ def test_compiled_candump_parser_leaves_other_lines_to_the_reader(tmp_path, line
     log = tmp_path / "x.log"
     log.write_text(f"(0.500000) can0 0B0#0011\n{line}\n(2.000000) can0 0B0#0011\n")
     assert _parse_candump(str(log), None, 0.0) is None  # the reader reads it, or names the bad line
+
+
+@pytest.mark.parametrize("frozen_before, collecting", [(False, True), (False, False), (True, True)])
+def test_feed_log_leaves_the_garbage_collector_as_it_found_it(drive, tmp_path, frozen_before, collecting):
+    """feed_log makes the log's samples with the cyclic collector off and freezes the heap for the
+    step loop (pipeline._long_lived_heap): afterwards the collector is on or off as before, nothing
+    of the replay stays frozen, a heap frozen by the caller stays frozen, and an exception in an
+    emit does not leave the collector off or the heap frozen either."""
+    import gc
+
+    cfg = config_mod.load(drive / "config.toml")
+    args = (cfg, str(drive / "drive.log"), str(drive / "drive_gnss.log"))
+    gc.collect()
+    if frozen_before:
+        gc.freeze()
+    count = gc.get_freeze_count()
+
+    def unchanged(now):  # frozen objects still die by reference count: the count only shrinks
+        assert (0 < now <= count) if frozen_before else now == 0
+
+    if not collecting:
+        gc.disable()
+    try:
+        seen = []
+        real = Pipeline._publish
+
+        def spy(self, e, send):
+            if not seen:
+                seen.append((gc.isenabled(), gc.get_freeze_count()))
+            return real(self, e, send)
+
+        Pipeline._publish = spy
+        try:
+            run_replay(*args, out_csv=str(tmp_path / "a.csv"))
+        finally:
+            Pipeline._publish = real
+        assert gc.isenabled() is collecting
+        unchanged(gc.get_freeze_count())
+        # during the steps: collector as the caller had it, and the samples frozen (unless the
+        # caller had frozen a heap already: that one is left alone)
+        assert seen[0][0] is collecting
+        assert seen[0][1] > 0
+        if frozen_before:
+            unchanged(seen[0][1])
+
+        def failing(self, e, send):
+            raise RuntimeError("emit failed")
+
+        Pipeline._publish = failing
+        try:
+            with pytest.raises(RuntimeError, match="emit failed"):
+                run_replay(*args, out_csv=str(tmp_path / "b.csv"))
+        finally:
+            Pipeline._publish = real
+        assert gc.isenabled() is collecting
+        unchanged(gc.get_freeze_count())
+    finally:
+        gc.enable()
+        gc.unfreeze()
