@@ -119,3 +119,35 @@ def test_imu_config_is_refused_in_one_line_naming_the_key(table, message):
     with pytest.raises(ConfigError) as e:
         config_mod.from_dict({"imu": table})
     assert message in str(e.value) and "\n" not in str(e.value)
+
+
+def test_the_simulators_imu_reads_the_lever_arm_and_the_mounting_of_the_truth():
+    """A slalom's first seconds, noise and biases off: the simulated accelerometers are the truth's
+    CG specific force plus the lever arm (yaw acceleration x 0.6 m ahead dominates), turned 1.5 deg;
+    with the IMU at the CG (the default) they are the truth's own columns, as before."""
+    from ecu_daemon.sim.scenario import SCENARIOS
+    from ecu_daemon.sim.sensors import CanSensors, SensorParams
+    from ecu_daemon.sim.vehicle import Road, integrate
+    from ecu_daemon.sim.manoeuvres import Driver
+    from ecu_daemon.sim.scenario import T0
+
+    sc = SCENARIOS["slalom_dry"].with_(duration_s=24.0)
+    truth = integrate(sc.vehicle, Road(sc.mu), Driver(sc.build_manoeuvre(), sc.vehicle, sc.mu, T0), T0, sc.duration(),
+                      psi0=sc.heading0_rad)
+    quiet = dict(yaw_rate_bias_radps=0.0, accel_x_bias_mps2=0.0, accel_y_bias_mps2=0.0, yaw_rate_noise_radps=0.0,
+                 accel_noise_mps2=0.0)
+    t = truth.t[(truth.t > T0 + 20.5) & (truth.t < T0 + 23.5)]
+    at_cg = CanSensors(truth, SensorParams(**quiet), np.random.default_rng(0))
+    assert np.array_equal(at_cg.measure("accel_y", t), np.interp(t, truth.t, truth.col("acc_y")))
+    off = CanSensors(truth, SensorParams(imu_position_m=(0.6, 0.3, 0.0), imu_mounting_rpy_deg=(0.0, 0.0, 1.5),
+                                         **quiet), np.random.default_rng(0))
+    r = np.interp(t, truth.t, truth.col("r"))
+    rdot = np.interp(t, truth.t, np.gradient(truth.col("r"), truth.t))
+    ax = np.interp(t, truth.t, truth.col("acc_x")) - rdot * 0.3 - r * r * 0.6
+    ay = np.interp(t, truth.t, truth.col("acc_y")) + rdot * 0.6 - r * r * 0.3
+    a = math.radians(1.5)
+    lever_y = off.measure("accel_y", t)
+    # the body roll's rate (left out here) adds r p dx: a few cm/s^2 at most
+    assert lever_y == pytest.approx(-math.sin(a) * ax + math.cos(a) * ay, abs=0.05)
+    assert np.max(np.abs(rdot * 0.6)) > 0.3  # the lever arm matters in this slalom
+    assert off.measure("yaw_rate", t) == pytest.approx(r, abs=1e-12)  # turned about z: the yaw gyro is unchanged
