@@ -238,6 +238,17 @@ _MAG_TILT = ("accel", "level")
 
 
 @dataclass
+class ImuSettings:
+    """Where the IMU (yaw gyro, accelerometers) sits and how it is turned (``imu_mounting.py``).
+
+    The defaults, an IMU at the CG on the body axes, pass the samples unchanged.
+    """
+
+    position_m: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # from the CG: x forward, y left, z up
+    mounting_rpy_deg: list = field(default_factory=lambda: [0.0, 0.0, 0.0])  # sensor axes: roll, pitch, yaw (z-y-x)
+
+
+@dataclass
 class DaemonSettings:
     state_file: str = "/var/lib/ecu-daemon/state.json"
     log_level: str = "info"
@@ -251,6 +262,7 @@ class Config:
     vehicle: VehicleSettings = field(default_factory=VehicleSettings)
     inputs: dict = field(default_factory=_default_inputs)
     estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
+    imu: ImuSettings = field(default_factory=ImuSettings)
     daemon: DaemonSettings = field(default_factory=DaemonSettings)
     #: directory of the config file, for resolving relative paths (not part of the TOML)
     base_dir: Path | None = None
@@ -263,7 +275,7 @@ class Config:
 
 
 _SECTIONS = {"can": CanSettings, "gnss": GnssSettings, "vehicle": VehicleSettings,
-             "estimator": EstimatorSettings, "daemon": DaemonSettings}
+             "estimator": EstimatorSettings, "imu": ImuSettings, "daemon": DaemonSettings}
 
 
 def _did_you_mean(word: str, options) -> str:
@@ -364,6 +376,12 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("inputs", "timeout_s"): (0.0, 3600.0, "s"),
 }
 LEVER_ARM_MAX_M = 20.0
+#: an IMU further than this from the CG is not on the car's body (a typo, or millimetres)
+IMU_POSITION_MAX_M = 10.0
+#: mounting roll / pitch beyond this: the sensor's z axis is not the yaw axis any more (its yaw
+#: gyro reads cos(tilt) of the yaw rate plus the roll / pitch rates, which the bus does not carry);
+#: a sensor mounted upside down is a negative ``scale`` of its inputs instead
+IMU_TILT_MAX_DEG = 30.0
 MIN_STEERING_RATIO = 0.5
 MIN_ABS_SCALE = 1e-12
 
@@ -386,6 +404,7 @@ def _validate(cfg: Config) -> None:
         raise ConfigError(f"[estimator] mag_tilt must be {' or '.join(_MAG_TILT)}, got {cfg.estimator.mag_tilt!r}")
     if cfg.vehicle.driven_axle not in ("front", "rear", "all"):
         raise ConfigError(f"[vehicle] driven_axle must be front, rear or all, got {cfg.vehicle.driven_axle!r}")
+    _validate_imu(cfg.imu)
     g = cfg.gnss
     _validate_receiver("[gnss]", g)
     for n, rx in enumerate(g.receiver):
@@ -454,6 +473,21 @@ def _validate_receiver(where: str, rx) -> None:
     if not all(abs(a) <= LEVER_ARM_MAX_M for a in rx.lever_arm_m):
         raise ConfigError(f"{where} lever_arm_m = {arm!r} is out of range: allowed -{LEVER_ARM_MAX_M:g} to"
                           f" {LEVER_ARM_MAX_M:g} m each")
+
+
+def _validate_imu(imu: ImuSettings) -> None:
+    """[imu] position_m = [x, y, z] and mounting_rpy_deg = [roll, pitch, yaw], finite, in range."""
+    for key, limits, unit in (("position_m", (IMU_POSITION_MAX_M,) * 3, "m"),
+                              ("mounting_rpy_deg", (IMU_TILT_MAX_DEG, IMU_TILT_MAX_DEG, 180.0), "deg")):
+        v = getattr(imu, key)
+        what = "[x, y, z] in metres" if unit == "m" else "[roll, pitch, yaw] in degrees"
+        if len(v) != 3 or not all(isinstance(a, (int, float)) and not isinstance(a, bool) for a in v):
+            raise ConfigError(f"[imu] {key} must be {what}, got {v!r}")
+        v = [float(a) for a in v]
+        for a, lim, axis in zip(v, limits, ("x", "y", "z") if unit == "m" else ("roll", "pitch", "yaw")):
+            if not -lim <= a <= lim:  # also NaN
+                raise ConfigError(f"[imu] {key} {axis} = {a!r} is out of range: allowed -{lim:g} to {lim:g} {unit}")
+        setattr(imu, key, v)
 
 
 def _check_data_id(name: str, m: InputMapping) -> None:
@@ -532,7 +566,7 @@ def load(path: str | Path | None) -> Config:
 
 def to_dict(cfg: Config) -> dict:
     out: dict[str, Any] = {}
-    for key in ("can", "gnss", "vehicle", "estimator", "daemon"):
+    for key in ("can", "gnss", "vehicle", "estimator", "imu", "daemon"):
         out[key] = dataclasses.asdict(getattr(cfg, key))
     g = out["gnss"]
     if g["receiver"]:  # the per-receiver keys live in the receivers (as the file had them)

@@ -31,6 +31,7 @@ from collections import deque
 import numpy as np
 
 from ..config import Config
+from ..imu_mounting import ImuMount
 from ..samples import INPUT_INDEX, GnssHeadingSample, GnssSample, InputSample
 from ..step_grid import last_step_at, step_of
 from . import backend, kalman
@@ -208,6 +209,8 @@ class Estimator:
                 self.timeouts[INPUT_INDEX[name]] = m.timeout_s
         self.held = [math.nan] * len(INPUT_INDEX)
         self.held_t = [-math.inf] * len(INPUT_INDEX)
+        # [imu] off the CG / off the body axes: its samples converted as they enter (None: at the CG)
+        self.imu_mount = ImuMount.from_config(cfg.imu, I_YAW, I_AX, I_AY)
         self.queue: deque = deque()
         self.k: int | None = None
         # no sample for longer than every timeout: a gap, skipped instead of stepped through
@@ -276,6 +279,7 @@ class Estimator:
         gap = self.gap_s
         held = self.held
         held_t = self.held_t
+        imu = self.imu_mount
         while k <= k_end:
             tk = k * dt
             if (q[0].t if q else t) - tk > gap:
@@ -288,6 +292,8 @@ class Estimator:
                     ts, j, v = s
                     if ts < (k - 1) * dt - 1e-9 and self.initialized:
                         self.late_inputs += 1
+                    if imu is not None and I_YAW <= j <= I_AY:
+                        v = imu.convert(j, ts, v)
                     held[j] = v
                     held_t[j] = ts
                     if j <= I_RR_MAX:
@@ -370,6 +376,8 @@ class Estimator:
             t, i, v = s
             if t < (k - 1) * self.dt - 1e-9 and self.initialized:
                 self.late_inputs += 1
+            if self.imu_mount is not None and I_YAW <= i <= I_AY:
+                v = self.imu_mount.convert(i, t, v)
             self.held[i] = v
             self.held_t[i] = t
             if i == I_AY:

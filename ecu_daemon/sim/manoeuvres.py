@@ -348,6 +348,18 @@ def steady_circle(mu: float = 1.0, radius_m: float = 40.0, left: bool = True) ->
     return Manoeuvre("steady_circle", tuple(knots), phases, 70.0)
 
 
+def brake_turn(mu: float = 1.0, radius_m: float = 60.0) -> Manoeuvre:
+    """Braking in a left-hand circle (60 m): twice from 18 m/s (0.55 g) to 8 m/s at 5 m/s^2, each
+    time back up to speed in the circle (55 s): longitudinal and lateral acceleration together,
+    what an accelerometer turned about z mixes up."""
+    v, lo = (11.0, 6.0) if _low(mu) else (18.0, 8.0)
+    t_c = STANDSTILL_S + ACCEL_S + 3.0
+    knots = _start(v) + [(t_c + 6.0, v), (t_c + 8.0, lo), (t_c + 14.0, lo), (t_c + 20.0, v), (t_c + 24.0, v),
+                         (t_c + 26.0, lo), (t_c + 32.0, lo)]
+    phases = (Phase(t_c, Line()), Phase(1e9, Circle(radius_m, True)))
+    return Manoeuvre("brake_turn", tuple(knots), phases, 55.0)
+
+
 def demo() -> Manoeuvre:
     """About 65 s mixing a straight, a lane change, a slalom and a circle (for the live demo)."""
     v = 16.0
@@ -405,6 +417,7 @@ BUILDERS = {
     "slalom": slalom,
     "sine": sine_steer,
     "steady_circle": steady_circle,
+    "brake_turn": brake_turn,
     "demo": lambda mu=1.0: demo(),
     "flying": flying,
     "reversing": reversing,

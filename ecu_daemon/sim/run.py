@@ -135,6 +135,9 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
         cfg.inputs.update(magnetometer_inputs())  # on our chassis DBC's MAGNETOMETER message
     if scenario.sensors.roll_rate and "roll_rate" not in cfg.inputs:
         cfg.inputs.update(roll_rate_input())  # IMU_ROLL
+    if scenario.imu_in_config:
+        cfg.imu.position_m = [float(a) for a in scenario.sensors.imu_position_m]
+        cfg.imu.mounting_rpy_deg = [float(a) for a in scenario.sensors.imu_mounting_rpy_deg]
     g = cfg.gnss
     g.protocol = scenario.gnss.protocol
     g.lever_arm_m = [float(a) for a in scenario.gnss.lever_arm_m]

@@ -43,6 +43,9 @@ class Scenario:
     #: inertia, cf, cr), the simulated car does not
     config_errors: tuple = ()
     latency_prior_s: float | None = None  # the config's GNSS latency prior (None: the true latency)
+    #: the config states the IMU's position and mounting (``sensors.imu_*``); False: it says "at the
+    #: CG, on the body axes" whatever the car has (the wrong configuration a user will produce)
+    imu_in_config: bool = True
 
     def build_manoeuvre(self) -> Manoeuvre:
         return BUILDERS[self.manoeuvre](self.mu, **dict(self.params))
@@ -105,6 +108,8 @@ def _registry() -> dict[str, Scenario]:
     # short aliases that read naturally
     out["circle_bank"] = replace(out["circle_dry_bank"], name="circle_bank")
     out["straight_dry"] = replace(out["straight"], name="straight_dry")
+    out["brake_turn_dry"] = Scenario("brake_turn_dry", "brake_turn",
+                                     description="braking 18 -> 8 m/s at 5 m/s^2 twice in a 60 m left circle")
     out["demo"] = Scenario("demo", "demo", description="~65 s: straight, lane change, slalom, circle (dry, flat)")
     return out
 

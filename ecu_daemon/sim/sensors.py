@@ -9,6 +9,11 @@ Sensor errors (all configurable in :class:`SensorParams`):
 * yaw rate: ``r + bias + noise`` (the gyro sits at the CG; body roll is ignored for it).
 * accelerometers: specific force in the *rolled body* frame (so road bank, grade and body roll
   appear as gravity components) ``+ bias + noise``.
+* IMU position and mounting (optional, ``imu_position_m`` / ``imu_mounting_rpy_deg``): by default
+  the gyro and accelerometers sit at the CG on the body axes. Otherwise they report what a
+  body-fixed IMU there measures (``imu_mounting.sensor_readings``): the lever arm's
+  ``omega_dot x d + omega x (omega x d)`` from the truth's yaw and body-roll rates and their
+  derivatives, all rotated into the sensor's axes; bias and noise are the sensor's, added after.
 * wheel speeds: wheel spin times the radius the ABS believes, ``omega * R_true / wheel_scale``,
   so tyre slip and the radius error show up; below ``wheel_speed_min_mps`` the ABS reports 0
   (too few tooth edges), as real ones do.
@@ -44,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gnss import encode
+from ..imu_mounting import is_identity, sensor_readings
 from .vehicle import G, TruthArrays
 
 #: POSIX UTC = simulation time + this (sim t = 1200.0 s is 2024-06-01T08:00:00Z). An integer,
@@ -183,6 +189,10 @@ class SensorParams:
     roll_rate: bool = False  # a roll-rate gyro on CAN ([inputs.roll_rate])
     roll_rate_bias_radps: float = math.radians(0.3)
     roll_rate_noise_radps: float = math.radians(0.08)
+    #: the IMU (yaw gyro, accelerometers) from the CG (x forward, y left, z up) and its axes'
+    #: mounting [roll, pitch, yaw] (deg, z-y-x, ``imu_mounting.rotation``); zeros: at the CG
+    imu_position_m: tuple = (0.0, 0.0, 0.0)
+    imu_mounting_rpy_deg: tuple = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -250,6 +260,13 @@ class CanSensors:
             return v
         if name == "steering_wheel_angle":
             return sample(tr, "steer_sw", t) + p.steering_offset_rad + p.steering_noise_rad * noise
+        if name in ("yaw_rate", "accel_x", "accel_y") and not is_identity(p.imu_position_m, p.imu_mounting_rpy_deg):
+            f, w = self._imu(t)
+            if name == "yaw_rate":
+                return w[:, 2] + p.yaw_rate_bias_radps + p.yaw_rate_noise_radps * noise
+            if name == "accel_x":
+                return f[:, 0] + p.accel_x_bias_mps2 + p.accel_noise_mps2 * noise
+            return f[:, 1] + p.accel_y_bias_mps2 + p.accel_noise_mps2 * noise
         if name == "yaw_rate":
             return sample(tr, "r", t) + p.yaw_rate_bias_radps + p.yaw_rate_noise_radps * noise
         if name == "accel_x":
@@ -268,6 +285,25 @@ class CanSensors:
                 self._mag = (t.copy(), magnetometer(tr, p.magnetometer, t, self.rng, self.bank_rad, self.grade_rad))
             return self._mag[1][:, "xyz".index(name[-1])].copy()
         raise KeyError(f"unknown input {name!r}")
+
+    def _imu(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(specific force, angular rate) in the sensor's axes of the IMU at ``imu_position_m``,
+        mounted at ``imu_mounting_rpy_deg``, at times ``t``; each (n, 3), noise-free.
+
+        The CG's specific force in the rolled body frame (z from the wheel loads, rolled like
+        ``acc_y``), the body's angular rate ``(roll rate, 0, r)`` (pitch is not modelled) and its
+        derivative by ``np.gradient`` on the 1 kHz truth."""
+        tr = self.truth
+        roll = tr.col("roll")
+        fz = (tr.col("fz_fl") + tr.col("fz_fr") + tr.col("fz_rl") + tr.col("fz_rr")) / tr.params.mass_kg
+        acc_z = fz * np.cos(roll) - tr.col("fy") * np.sin(roll)
+        p_rate = np.gradient(roll, tr.t)
+        r = tr.col("r")
+        cols = (tr.col("acc_x"), tr.col("acc_y"), acc_z, p_rate, r, np.gradient(p_rate, tr.t), np.gradient(r, tr.t))
+        ax, ay, az, p, r, pdot, rdot = (np.interp(t, tr.t, c) for c in cols)
+        zero = np.zeros_like(t)
+        return sensor_readings(np.stack([ax, ay, az], axis=1), np.stack([p, zero, r], axis=1),
+                               np.stack([pdot, zero, rdot], axis=1), self.p.imu_position_m, self.p.imu_mounting_rpy_deg)
 
 
 def send_times(t_start: float, t_end: float, period_s: float, rng: np.random.Generator) -> np.ndarray:
