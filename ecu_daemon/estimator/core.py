@@ -46,6 +46,7 @@ from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
+from .input_consistency import LongitudinalScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider
@@ -87,6 +88,14 @@ GNSS_WHEEL_TOL_MPS = 1.0  # speed agreement: lever arm, sideslip and wheel slip 
 GNSS_WHEEL_TOL_REL = 0.05  # ... plus a wheel-scale error this large
 WHEEL_DIVERGED_S = 0.5  # wheel innovations rejected this long: the filter or the wheels are wrong
 GNSS_CHECK_FRESH_S = 2.0
+# A GNSS velocity glitch (multipath, a cycle slip, a receiver fault) lasts seconds; a receiver that
+# keeps reporting usable fixes the wheels (or the filter) contradict for longer than this is no
+# glitch: one of the two is wrong (wheel speeds in km/h mapped as m/s, a wrong wheel radius or
+# gear ratio, a wrong lever arm...) and nothing here can tell which, so velocity is not promised
+# while the conflict lasts (STATUS_GNSS_ISOLATED says GNSS is the one out, VELOCITY_VALID 0 that
+# the wheels are not vouched for either). Twice the longest glitch the suite's faults inject (5 s)
+# and below the 10 s in which a wrong speed would spoil a minute's heading.
+GNSS_CONFLICT_S = 8.0
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
@@ -232,6 +241,10 @@ class Estimator:
         self.gnss_agrees = True
         self.gnss_checked_t = -math.inf
         self.wheel_reject_t = math.inf  # time of the first of the current run of wheel rejections
+        # first and latest time of the current run of usable GNSS fixes rejected as inconsistent
+        self.gnss_conflict_t = math.inf
+        self.gnss_conflict_last_t = -math.inf
+        self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
@@ -493,6 +506,8 @@ class Estimator:
                        float(Pp[VX, VX]), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
         wheel_z = fdi.wheel_z
+        self.lon_scale.step(k, wheel_z * xpl[KW] if wheels_ok else math.nan,
+                            ax_m - xpl[BAX] if imu_ok else math.nan)
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None
@@ -724,6 +739,12 @@ class Estimator:
         gnss_recent = t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
         return self.gnss_agrees or not gnss_recent
 
+    def _gnss_conflict(self, t: float) -> bool:
+        """GNSS has been rejected as inconsistent for longer than a glitch lasts, and still is
+        (its fixes keep coming): see ``GNSS_CONFLICT_S``."""
+        return (t - self.gnss_conflict_t > GNSS_CONFLICT_S
+                and t - self.gnss_conflict_last_t <= GNSS_CHECK_FRESH_S)
+
     def _invalid(self, t: float) -> Estimate:
         """No filter yet (or just reset): finite, neutral values, every validity bit false.
 
@@ -810,7 +831,8 @@ class Estimator:
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
-                     and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X)
+                     and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
+                     and not self._gnss_conflict(t) and not self.lon_scale.failing)
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
@@ -906,6 +928,9 @@ class Estimator:
             s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,
             abs(speed - h.X[js, VX]) <= max(tol, 5.0 * math.sqrt(max(h.P[js][VX, VX], 0.0))))
         if verdict is False or self.fdi.gnss_isolated:  # never fused, never learned from
+            t_k = k * self.dt
+            self.gnss_conflict_t = min(self.gnss_conflict_t, t_k)
+            self.gnss_conflict_last_t = t_k
             fus.rejected += 1
             fus.last_reason = "inconsistent with the wheels / IMU"
             self.last_gnss_rejected = True
@@ -951,6 +976,7 @@ class Estimator:
                     self.single_track.take_drive_estimate(self.stiffness.model_parameters())
         self.last_gnss_rejected = not ok
         if ok:
+            self.gnss_conflict_t = math.inf
             self.last_gnss_fused_t = k * self.dt
             self.last_gnss_speed = speed
             if not self.fdi.isolated & ACCEL_X:
