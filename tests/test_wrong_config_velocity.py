@@ -123,3 +123,15 @@ def test_check_forgets_after_hold_and_gaps_restart_the_integral():
     a2 = a2.copy()
     a2[400:450] = math.nan  # the accelerometer's frames missing for 0.3 s
     assert not _run(chk2, v2, a2).any()
+
+
+def test_reset_clears_the_verdict_and_the_window():
+    chk = LongitudinalScaleCheck(DT)
+    v, a = _series(3.6)
+    failing = _run(chk, v[:1000], a[:1000])
+    assert failing[-1]
+    chk.reset()
+    assert not chk.failing
+    # consistent signals after the reset: no verdict from the old window's samples
+    v2, a2 = _series(1.0)
+    assert not np.array([chk.step(1000 + k, vk, ak) for k, (vk, ak) in enumerate(zip(v2, a2))]).any()

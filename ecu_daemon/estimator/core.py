@@ -506,8 +506,11 @@ class Estimator:
                        float(Pp[VX, VX]), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
         wheel_z = fdi.wheel_z
-        self.lon_scale.step(k, wheel_z * xpl[KW] if wheels_ok else math.nan,
-                            ax_m - xpl[BAX] if imu_ok else math.nan)
+        if iso & (WHEELS | ACCEL_X):  # a sensor fault the fault detector has isolated
+            self.lon_scale.reset()
+        else:
+            self.lon_scale.step(k, wheel_z * xpl[KW] if wheels_ok else math.nan,
+                                ax_m - xpl[BAX] if imu_ok else math.nan)
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None

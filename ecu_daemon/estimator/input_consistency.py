@@ -16,7 +16,9 @@ agree within what physics allows:
 A window beyond that cannot be a tyre or a sensor's noise: one of the two is mis-scaled or
 mis-signed, and nothing in the window says which (GNSS may be the arbiter, but the wheels have
 already outvoted it), so velocity is not promised while windows fail and ``LON2_HOLD_S`` after
-the last. Nothing is fused differently: this check only withholds the promise.
+the last. Nothing is fused differently: this check only withholds the promise. While the fault
+detector has isolated the wheels or ax it has found the culprit (a sensor fault, not a mapping
+error) and the filter no longer fuses it: the check stands aside and starts afresh after.
 """
 from __future__ import annotations
 
@@ -47,6 +49,15 @@ class LongitudinalScaleCheck:
         self.failing = False
         self.residual = 0.0  # m/s, the last window's wheel change minus ax's integral
         self.failures = 0  # windows that failed, over the drive
+
+    def reset(self) -> None:
+        """The fault detector has isolated the wheels or ax (it knows which is wrong and the filter
+        no longer fuses it): its verdict stands, and this check starts afresh when both return."""
+        self._ring_v = [math.nan] * self._n
+        self._ring_a = [math.nan] * self._n
+        self._cum_a = 0.0
+        self._last_fail_k = -(1 << 62)
+        self.failing = False
 
     def step(self, k: int, v_wheels: float, ax: float) -> bool:
         """One estimator step: ``v_wheels`` the fused wheel speed (scaled; NaN: none), ``ax`` the
