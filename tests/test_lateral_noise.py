@@ -46,3 +46,35 @@ def test_noise_that_appears_raises_the_density_and_gaps_restart_the_chain():
     _feed(ln, 2.0 * rng.standard_normal(1000), t0=120.0)
     assert ln.density > 0.1
     assert ln.density == pytest.approx(0.2, rel=0.35)  # EMA over 10 s still catching up
+
+
+def test_the_estimator_measures_its_accelerometer_through_its_step_loop():
+    """The samples reach the measurement on the estimator's own path (``advance_to``, which applies
+    input samples inline): a noisy lateral accelerometer raises vy's process noise above the floor,
+    a quiet one leaves it at the configured value."""
+    import random
+
+    from ecu_daemon import config
+    from ecu_daemon.estimator import Estimator
+    from ecu_daemon.estimator.kinematic import VY
+    from ecu_daemon.samples import INPUT_INDEX, InputSample
+
+    def drive(sigma):
+        est = Estimator(config.load(None))
+        floor = est.lat_noise.floor
+        rng = random.Random(1)
+        for j in range(1500):  # 15 s at 100 Hz, straight at 15 m/s
+            t = 1000.0 + 0.01 * j
+            for name in INPUT_INDEX:
+                v = 15.0 if name.startswith("wheel") else 0.0
+                if name == "accel_y":
+                    v = rng.gauss(0.0, sigma)
+                est.push_input(InputSample(t, INPUT_INDEX[name], v))
+            est.advance_to(t - 1e-9)
+        return est, floor
+
+    quiet, floor = drive(0.005)
+    assert quiet.lat_noise.density == floor
+    noisy, floor = drive(3.0)  # 0.3 m/s^2/sqrt(Hz): three times the default floor
+    assert noisy.lat_noise.density == pytest.approx(0.3, rel=0.3)
+    assert noisy.model.Qd[VY, VY] == pytest.approx(noisy.lat_noise.density ** 2 * noisy.dt)

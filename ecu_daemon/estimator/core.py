@@ -301,7 +301,7 @@ class Estimator:
                 continue
             while q and step_of(q[0].t, dt) <= k:
                 s = q.popleft()
-                if type(s) is InputSample:  # _apply's first branch, inline: ~5 per step
+                if type(s) is InputSample:  # ~5 per step: inline, the only place inputs enter held
                     ts, j, v = s
                     if ts < (k - 1) * dt - 1e-9 and self.initialized:
                         self.late_inputs += 1
@@ -311,6 +311,8 @@ class Estimator:
                     held_t[j] = ts
                     if j <= I_RR_MAX:
                         self.wheel_new = True
+                    elif j == I_AY:
+                        self.lat_noise.observe(ts, v)
                     elif I_MX <= j < I_ROLL:
                         self.mag_new = True
                 else:
@@ -385,21 +387,9 @@ class Estimator:
         return out
 
     def _apply(self, s, k: int) -> None:
-        if type(s) is InputSample:
-            t, i, v = s
-            if t < (k - 1) * self.dt - 1e-9 and self.initialized:
-                self.late_inputs += 1
-            if self.imu_mount is not None and I_YAW <= i <= I_AY:
-                v = self.imu_mount.convert(i, t, v)
-            self.held[i] = v
-            self.held_t[i] = t
-            if i == I_AY:
-                self.lat_noise.observe(t, v)
-            if i <= I_RR_MAX:
-                self.wheel_new = True
-            elif I_MX <= i < I_ROLL:
-                self.mag_new = True
-        elif isinstance(s, GnssSample):
+        """A GNSS sample at step k. Input samples (~5 per step) are applied inline in
+        ``advance_to``, the one place they enter ``held``."""
+        if isinstance(s, GnssSample):
             self._on_gnss(s, k)
         elif type(s) is GnssHeadingSample:
             self._on_heading(s, k)
