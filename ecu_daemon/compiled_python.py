@@ -29,6 +29,7 @@ MODULES = (
     "ecu_daemon/estimator/road.py",
     "ecu_daemon/estimator/latency.py",
     "ecu_daemon/estimator/latency_consider.py",
+    "ecu_daemon/estimator/steering_offset.py",
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",

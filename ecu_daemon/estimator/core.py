@@ -53,6 +53,7 @@ from .latency_consider import LatencyConsider
 from .lateral_noise import LateralNoise
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
+from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
                                                    "wheel_speed_rl", "wheel_speed_rr"))
@@ -209,7 +210,10 @@ class Estimator:
              for rx in receivers], self.hist.n,
             (es.yaw_rate_noise_radps, es.yaw_rate_bias_walk) if "roll_rate" in cfg.inputs else None)
         self.steer_ratio = veh.steering_ratio
-        self.steer_offset = float(learned.get("steering_offset_rad", 0.0))
+        self.steer_learner = SteeringOffset(dt, veh.steering_ratio,
+                                            veh.cg_to_front_axle_m + veh.cg_to_rear_axle_m,
+                                            learned.get("steering_offset_rad"))
+        self.steer_offset = self.steer_learner.offset
         self._learned0 = learned
         # input timeouts (s): configured, else generous defaults for 50-100 Hz CAN signals
         self.timeouts = [0.25] * len(INPUT_INDEX)
@@ -344,8 +348,8 @@ class Estimator:
     def learned_std(self) -> dict:
         """1-sigma of the learned values, from what already carries it: the filter covariance
         (biases, wheel scale), the RLS covariance (cornering compliances kappa = m / C) and the
-        latency estimator; empty before initialisation. The steering offset is a plain running
-        mean with no uncertainty, so it has none here."""
+        latency estimator and the steering offset's own (steering_offset.py: its scatter over the
+        independent samples behind it); empty before initialisation."""
         if not self.initialized:
             return {}
         P = self.hist.P[self.hist.slot(self.hist.last)]
@@ -355,7 +359,8 @@ class Estimator:
                 "kappa_r": float(math.sqrt(self.single_track.rear.P[0, 0])),
                 "kappa_f": float(math.sqrt(self.single_track.front.P[0, 0])),
                 **self.stiffness.learned_std(),
-                "gnss_delay_s": float(self.latency.std_s)}
+                "gnss_delay_s": float(self.latency.std_s),
+                "steering_offset_rad": self.steer_learner.std()}
 
     # ----------------------------------------------------------------------------------------
     @staticmethod
@@ -578,8 +583,9 @@ class Estimator:
                 # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
                 self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
                                        SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0)
-            if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
-                self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
+            if (steer_ok and imu_ok and not iso and abs(r) < STEER_LEARN_MAX_R
+                    and self.steer_learner.observe(steer_sw, r, vx, ay, math.sqrt(max(P[BR, BR], 0.0)))):
+                self.steer_offset = self.steer_learner.offset
         self.wheel_new = False
         if self.mag_new:
             self.mag_new = False

@@ -68,7 +68,7 @@ def combine(values: np.ndarray, stds: np.ndarray | None) -> dict:
 #: (process noise for a tyre's wear, a gyro's drift) on top of what the drive taught it: on the
 #: simulated fleet their drives scatter 0.3-0.65x their stds (chi-square per degree of freedom
 #: 0.08-0.43 on 10 cars x 20 drives), and 1 / sqrt(W) gave the yaw-rate bias a z mean square of 0.26.
-SCATTER_RULED = ("wheel_scale", "yaw_rate_bias_radps")
+SCATTER_RULED = ("wheel_scale", "yaw_rate_bias_radps", "steering_offset_rad")
 #: per parameter of :data:`SCATTER_RULED`, the 1-sigma error all drives of one car share (added once,
 #: no averaging removes it, no scatter shows it). Wheel scale: the learned scale is what the
 #: non-driven wheels show, rolling-resistance slip (-f_rr / kx1 = -0.067 %, the same on every drive)
@@ -77,8 +77,9 @@ SCATTER_RULED = ("wheel_scale", "yaw_rate_bias_radps")
 #: 0.5 m/s^2 on a non-driven axle before de-weighting): on the simulated fleet 13 of 14 cars' combined
 #: scale came out above its free-rolling truth, +0.0031 % on average (-0.008..+0.009 %).
 #: Yaw-rate bias: none shared (a gyro's bias is observed directly at every standstill and straight
-#: run; its drift shows in the scatter; fleet: mean square z 1.1 without).
-SHARED = {"wheel_scale": 3e-5, "yaw_rate_bias_radps": 0.0}
+#: run; its drift shows in the scatter; fleet: mean square z 1.1 without). Steering offset: none
+#: shared (what the wheel reads when the car drives straight is the offset, by definition).
+SHARED = {"wheel_scale": 3e-5, "yaw_rate_bias_radps": 0.0, "steering_offset_rad": 0.0}
 #: how many degrees of freedom the drives' own stds count for beside their scatter's n - 1
 #: (:func:`with_scatter`): with 20 drives the scatter rules, with 2-3 it cannot pull the std
 #: below ~0.6 of what the drives' stds give, however closely two drives agree by chance

@@ -36,8 +36,9 @@ PARAMS = {
 }
 #: per cornering stiffness, what moves it to another latency (see :func:`learned_parameters`)
 STIFFNESS_EXTRA = ("std_given_latency", "per_latency_s")
-#: parameters the estimator learns without an uncertainty (a running mean): their std column is NaN
-NO_STD = ("steering_offset_rad",)
+#: parameters the estimator learns without an uncertainty: their std column is NaN (none since the
+#: steering offset has its own, estimator/steering_offset.py)
+NO_STD: tuple = ()
 VALIDITY = ("sideslip_valid", "heading_valid", "velocity_valid", "biases_valid")
 #: quantity scored against truth -> record column prefix
 SCORED = {"sideslip": "sideslip", "heading": "heading", "vx": "vx"}
