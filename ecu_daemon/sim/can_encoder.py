@@ -6,8 +6,8 @@ The exact inverse of :mod:`ecu_daemon.signals`: the decoder computes
 STEER_ANGLE + STEER_FRACTION) ``a`` gets the value rounded to its own resolution and ``b`` the
 remainder (``a`` is moved by one step if the remainder would not fit ``b``). Signals the mapping
 does not use carry their DBC initial value (GenSigStartValue) or 0. Rolling counters count up by
-one per frame; checksums use the same code the decoder checks them with
-(:mod:`ecu_daemon.integrity`). Quantisation happens here, by the DBC's resolution, as on a car.
+one per frame; checksums, every scheme with the config's data id, use the same code the decoder
+checks them with (:class:`ecu_daemon.checksums.FrameChecksum`). Quantisation happens here, by the DBC's resolution, as on a car.
 A sign-magnitude mapping (``sign_signal``) gets |value| in its signal(s) and 1 in the sign signal
 when negative. A value the DBC cannot hold (a negative yaw rate in an unsigned signal without a
 sign bit, a speed beyond the signal's range) raises :class:`UnencodableValue`: clipping it would
@@ -18,7 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..config import Config, ConfigError
-from ..integrity import data_id_for, e2e_p2_apply, toyota_checksum
+from ..checksums import FrameChecksum
+from ..integrity import data_id_for
 from ..dbc_loading import load_dbc
 
 
@@ -104,8 +105,7 @@ class MessagePlan:
     message: object  # cantools Message
     inputs: list = field(default_factory=list)  # (input name, InputMapping, [Signal, ...])
     counters: dict = field(default_factory=dict)  # counter signal name -> [next raw value, mask]
-    e2e: bool = False
-    toyota: bool = False
+    checksum: FrameChecksum | None = None  # the message's scheme, as the decoder binds it
     template: dict = field(default_factory=dict)  # raw values of every signal
 
     @property
@@ -149,8 +149,12 @@ class FrameEncoder:
             if m.counter:
                 length = self._signal(name, msg, m.counter).length
                 plan.counters.setdefault(m.counter, [0, (1 << length) - 1])
-            plan.e2e |= m.checksum == "e2e_p2"
-            plan.toyota |= m.checksum == "toyota"
+            if m.checksum != "none" and plan.checksum is None:
+                # the decoder's binding (signals.SignalDecoder._bind_checksum): the config's data id
+                # (one, or VW's 16 indexed by the counter), else the DBC's; it refuses disagreeing inputs
+                ids = ((data_id_for(msg),) if m.data_id is None
+                       else tuple(m.data_id) if isinstance(m.data_id, list) else (m.data_id,))
+                plan.checksum = FrameChecksum(m.checksum, msg.frame_id, msg.is_extended_frame, ids)
         self.plans = list(plans.values())
 
     def _find_message(self, name: str, ref):
@@ -191,8 +195,6 @@ class FrameEncoder:
             raw[cname] = state[0]
             state[0] = (state[0] + 1) & state[1]
         data = bytearray(plan.message.encode(raw, scaling=False, padding=False, strict=False))
-        if plan.e2e:
-            e2e_p2_apply(data, data_id_for(plan.message))
-        if plan.toyota:
-            data[-1] = toyota_checksum(plan.frame_id, data)
+        if plan.checksum is not None:
+            plan.checksum.apply(data)
         return bytes(data)
