@@ -86,6 +86,28 @@ class _Binding:
         self.sign = sign  # sign-magnitude: the sign signal's name, else None
 
 
+def unsigned_range_hint(sig, message_name: str, dbc_name: str) -> str | None:
+    """A line when an unsigned signal's own DBC range goes below what its bits can decode to.
+
+    Why: opendbc's ``hyundai_i30_2014.dbc`` declares ``SAS_Angle`` (steering-wheel angle) unsigned
+    (``0|16@1+``) with the range [-3276.8|3276.7]; the car sends two's complement, so every right turn
+    decodes (here, in cantools and in every DBC tool) as 6553.6 deg minus the angle, and is then
+    dropped by the range check. The bits cannot say which of the two the DBC means; the range says
+    the author meant a signed signal, so the user is told which bit of the DBC to fix.
+    """
+    if sig.is_signed or sig.is_float or sig.minimum is None or not sig.scale:
+        return None
+    top = ((1 << sig.length) - 1) * sig.scale + sig.offset
+    lowest = min(sig.offset, top)
+    if sig.minimum >= lowest - 0.5 * abs(sig.scale):
+        return None
+    order = "1" if sig.byte_order == "little_endian" else "0"
+    return (f"signal '{sig.name}' of {message_name} is unsigned in {dbc_name} (it decodes to"
+            f" [{lowest:g}, {max(sig.offset, top):g}]) but its DBC range is [{sig.minimum:g}, {sig.maximum:g}]:"
+            f" negative values sent in two's complement read as {(1 << sig.length) * abs(sig.scale):g} + value;"
+            f" if the car sends them, make it signed in the DBC ({sig.start}|{sig.length}@{order}-)")
+
+
 def _layout(message) -> tuple | None:
     """The message's bit layout precompiled for :func:`_unpack`: per signal (name, little-endian,
     shift from the payload integer's LSB, mask, sign bit, cantools' own raw-to-scaled conversion);
@@ -136,7 +158,7 @@ class _FramePlan:
     """Per frame id: the message, its checks and the inputs it carries."""
 
     __slots__ = ("message", "decode", "layout", "frame_id", "length", "label", "checksum", "checksum_of",
-                 "counters", "bindings", "fast")
+                 "counters", "bindings", "fast", "muxed")
 
     def __init__(self, message, label: str):
         self.message = message
@@ -150,6 +172,11 @@ class _FramePlan:
         self.counters: dict[str, tuple[CounterCheck, float, float]] = {}
         self.bindings: tuple[_Binding, ...] = ()
         self.fast: tuple = ()  # per binding, the values decode needs, unpacked in one go
+        # a multiplexed message carries an input only in the frames whose multiplexer selects its
+        # signal: the others are not frames of that input (VW PQ's Bremse_2 sends the lateral
+        # acceleration in every other frame; a message with 3+ pages would otherwise read as
+        # "fewer than half of its frames used", i.e. not usable)
+        self.muxed = message.is_multiplexed()
 
     def bind(self, bindings: list[_Binding]) -> None:
         self.bindings = tuple(bindings)
@@ -182,6 +209,10 @@ class SignalDecoder:
             signals = tuple(self._find_signal(name, msg, s, "signal") for s in m.signal_names())
             sign = self._find_signal(name, msg, m.sign_signal, "sign_signal") if m.sign_signal else None
             b = _Binding(name, m, signals, label, sign)
+            for sname in signals:
+                hint = unsigned_range_hint(msg.get_signal_by_name(sname), msg.name, self.dbc_path.name)
+                if hint:
+                    log.warning("[inputs.%s] %s", name, hint)
             if m.counter:
                 sig = msg.get_signal_by_name(self._find_signal(name, msg, m.counter, "counter"))
                 if sig.length > 32:
@@ -311,7 +342,10 @@ class SignalDecoder:
                 counter_ok[cname] = None if chk.check(raw) else (
                     f"{plan.label}: {cname} {raw} after {prev}, expected {(prev + 1) & chk.mask}")
         out = []
+        muxed = plan.muxed and intact  # a corrupt frame's multiplexer value says nothing
         for b, h, sig1, scale, offset, lo, hi, index, checked, sign in plan.fast:
+            if muxed and (sign is not None and sign not in values or any(s not in values for s in b.signals)):
+                continue  # multiplexed away in this frame: not one of this input's frames
             h.frames += 1
             if checked:
                 if b.checksum and not intact:

@@ -21,6 +21,7 @@ from ..config import Config, ConfigError
 from ..checksums import FrameChecksum
 from ..integrity import data_id_for
 from ..dbc_loading import load_dbc
+from ..signals import unsigned_range_hint
 
 
 class UnencodableValue(ValueError):
@@ -106,6 +107,8 @@ class MessagePlan:
     inputs: list = field(default_factory=list)  # (input name, InputMapping, [Signal, ...])
     counters: dict = field(default_factory=dict)  # counter signal name -> [next raw value, mask]
     checksum: FrameChecksum | None = None  # the message's scheme, as the decoder binds it
+    pages: list = field(default_factory=list)  # multiplexed: (multiplexer signal, value) per page sent
+    page_k: int = 0  # frames sent so far (which page comes next)
     template: dict = field(default_factory=dict)  # raw values of every signal
 
     @property
@@ -133,8 +136,6 @@ class FrameEncoder:
         plans: dict[tuple, MessagePlan] = {}
         for name, m in cfg.inputs.items():
             msg = self._find_message(name, m.message)
-            if msg.is_multiplexed():
-                raise ConfigError(f"[inputs.{name}] {msg.name} is multiplexed; the simulator cannot encode it")
             key = (msg.frame_id, msg.is_extended_frame)
             plan = plans.get(key)
             if plan is None:
@@ -145,7 +146,13 @@ class FrameEncoder:
                                                else info.to_raw(info.clip(0.0)))
             sigs = [SignalInfo(self._signal(name, msg, s)) for s in m.signal_names()]
             sign = SignalInfo(self._signal(name, msg, m.sign_signal)) if m.sign_signal else None
-            plan.inputs.append((name, m, sigs, sign))
+            page = self._page(name, msg, m.signal_names() + ([m.sign_signal] if m.sign_signal else []))
+            if page is not None and page not in plan.pages:
+                if plan.pages and plan.pages[0][0] != page[0]:
+                    raise ConfigError(f"[inputs.{name}] {msg.name}: signals under two multiplexers"
+                                      f" ({plan.pages[0][0]}, {page[0]}); the simulator cannot encode that")
+                plan.pages.append(page)
+            plan.inputs.append((name, m, sigs, sign, page))
             if m.counter:
                 length = self._signal(name, msg, m.counter).length
                 plan.counters.setdefault(m.counter, [0, (1 << length) - 1])
@@ -171,6 +178,27 @@ class FrameEncoder:
             raise ConfigError(f"[inputs.{name}] no message with frame id 0x{ref:X} in {self.dbc_path}")
         return found[0]
 
+    @classmethod
+    def _page(cls, name: str, msg, sig_names: list[str]) -> tuple[str, int] | None:
+        """The (multiplexer signal, value) whose frames carry the input's signals; None when they are
+        in every frame. A car sends the pages of a multiplexed message in turn (VW PQ Bremse_2: the
+        lateral acceleration in page 0, a timer in page 1); so does the simulator, one page per frame,
+        over the pages the mapping needs (the input's rate is the message's divided by their number)."""
+        pages = set()
+        for sig_name in sig_names:
+            sig = cls._signal(name, msg, sig_name)
+            if sig.multiplexer_signal is None:
+                pages.add(None)
+                continue
+            if cls._signal(name, msg, sig.multiplexer_signal).multiplexer_signal is not None:
+                raise ConfigError(f"[inputs.{name}] signal '{sig_name}' of {msg.name} is under a nested"
+                                  " multiplexer; the simulator cannot encode it")
+            pages.add((sig.multiplexer_signal, int(sig.multiplexer_ids[0])))
+        if len(pages) > 1:
+            raise ConfigError(f"[inputs.{name}] signals {', '.join(sig_names)} of {msg.name} are not in one"
+                              " multiplexer page: no frame carries all of them")
+        return pages.pop()
+
     @staticmethod
     def _signal(name: str, msg, sig_name: str):
         try:
@@ -181,7 +209,14 @@ class FrameEncoder:
     def encode(self, plan: MessagePlan, values: dict) -> bytes:
         """One frame of ``plan`` carrying ``values`` (input name -> SI value); advances counters."""
         raw = dict(plan.template)
-        for name, m, sigs, sign in plan.inputs:
+        page = None
+        if plan.pages:
+            page = plan.pages[plan.page_k % len(plan.pages)]
+            plan.page_k += 1
+            raw[page[0]] = page[1]
+        for name, m, sigs, sign, in_page in plan.inputs:
+            if in_page is not None and in_page != page:
+                continue  # this frame is another page: it does not carry the input
             phys = (values[name] - m.offset) / m.scale
             if sign is not None:
                 raw[sign.name] = 1 if phys < 0 else 0
@@ -189,8 +224,12 @@ class FrameEncoder:
             try:
                 raw.update(split_value(sigs, phys))
             except UnencodableValue as e:
+                hint = next(filter(None, (unsigned_range_hint(plan.message.get_signal_by_name(i.name),
+                                                              plan.message.name, self.dbc_path.name)
+                                          for i in sigs)), None) if phys < 0 else None
                 raise UnencodableValue(f"[inputs.{name}] {values[name]:.6g} (SI) cannot be encoded in"
-                                       f" {plan.message.name} of {self.dbc_path.name}: {e}") from None
+                                       f" {plan.message.name} of {self.dbc_path.name}: {e}"
+                                       + (f" ({hint})" if hint else "")) from None
         for cname, state in plan.counters.items():
             raw[cname] = state[0]
             state[0] = (state[0] + 1) & state[1]
