@@ -283,8 +283,15 @@ class SignalDecoder:
     def _find_signal(self, name: str, msg, signal: str, what: str) -> str:
         names = [s.name for s in msg.signals]
         if signal not in names:
+            # a DBC of a real car has hundreds of messages: the message that does carry it, if one does
+            elsewhere = [m.name for m in self.db.messages if m is not msg and any(s.name == signal for s in m.signals)]
+            where = _did_you_mean(signal, names)
+            if elsewhere:
+                where = (f" (it is in {', '.join(elsewhere[:3])}{', ...' if len(elsewhere) > 3 else ''}"
+                         + (f": message = \"{elsewhere[0]}\")" if what == "signal"
+                            else f"; the {what} must be in the message of the input's signal)"))
             raise ConfigError(f"[inputs.{name}] {what} '{signal}' is not in message {msg.name}"
-                              f"{_did_you_mean(signal, names)}; it has: {', '.join(names)}")
+                              f"{where}; it has: {', '.join(names)}")
         return signal
 
     def can_filters(self) -> list[dict]:
