@@ -119,21 +119,39 @@ def _layout(message) -> tuple | None:
         message.decode_simple(bytes(message.length), False)
     except Exception:
         return None
-    nbits = 8 * message.length
     out = []
     for sig in message.signals:
-        n = sig.length
-        if sig.is_float:
+        entry = _signal_layout(sig, 8 * message.length)
+        if entry is None:
             return None
-        if sig.byte_order == "little_endian":
-            little, shift = True, sig.start
-        else:  # Motorola: the MSB's position counted from the first byte's MSB (cantools' start_bit)
-            little, shift = False, nbits - (8 * (sig.start // 8) + 7 - sig.start % 8) - n
-        if shift < 0 or shift + n > nbits:
-            return None
-        out.append((sig.name, little, shift, (1 << n) - 1, 1 << (n - 1) if sig.is_signed else 0,
-                    sig.scale, sig.offset))
+        out.append(entry)
     return tuple(out)
+
+
+def _signal_layout(sig, nbits: int) -> tuple | None:
+    """One signal's entry of :func:`_layout` (None: a float, or bits outside the payload)."""
+    n = sig.length
+    if sig.is_float:
+        return None
+    if sig.byte_order == "little_endian":
+        little, shift = True, sig.start
+    else:  # Motorola: the MSB's position counted from the first byte's MSB (cantools' start_bit)
+        little, shift = False, nbits - (8 * (sig.start // 8) + 7 - sig.start % 8) - n
+    if shift < 0 or shift + n > nbits:
+        return None
+    return (sig.name, little, shift, (1 << n) - 1, 1 << (n - 1) if sig.is_signed else 0, sig.scale, sig.offset)
+
+
+def _pages(message) -> tuple[tuple, frozenset] | None:
+    """A multiplexed message's top multiplexer (its :func:`_layout` entry) and the values the DBC
+    defines pages for; None when there is no single top multiplexer to read."""
+    tops = [s for s in message.signals if s.is_multiplexer and s.multiplexer_signal is None]
+    if len(tops) != 1:
+        return None
+    entry = _signal_layout(tops[0], 8 * message.length)
+    ids = frozenset(i for s in message.signals if s.multiplexer_signal == tops[0].name
+                    for i in (s.multiplexer_ids or ()))
+    return None if entry is None else ((entry,), ids)
 
 
 def _unpack(layout: tuple, data) -> dict:
@@ -158,7 +176,7 @@ class _FramePlan:
     """Per frame id: the message, its checks and the inputs it carries."""
 
     __slots__ = ("message", "decode", "layout", "frame_id", "length", "label", "checksum", "checksum_of",
-                 "counters", "bindings", "fast", "muxed")
+                 "counters", "bindings", "fast", "muxed", "pages")
 
     def __init__(self, message, label: str):
         self.message = message
@@ -177,6 +195,9 @@ class _FramePlan:
         # acceleration in every other frame; a message with 3+ pages would otherwise read as
         # "fewer than half of its frames used", i.e. not usable)
         self.muxed = message.is_multiplexed()
+        # a car sends pages the DBC does not define (cantools cannot decode them): those frames carry
+        # none of the inputs either, and are skipped rather than counted as decode errors
+        self.pages = _pages(message) if self.muxed else None
 
     def bind(self, bindings: list[_Binding]) -> None:
         self.bindings = tuple(bindings)
@@ -321,6 +342,10 @@ class SignalDecoder:
         try:
             values = plan.decode(data, False) if plan.layout is None else _unpack(plan.layout, data)
         except Exception as e:  # cantools: bad multiplexer id and the like
+            if plan.pages is not None and intact:
+                (entry,), ids = plan.pages
+                if _unpack(plan.pages[0], data)[entry[0]] not in ids:
+                    return []  # a page the DBC does not define: not a frame of any mapped input
             self._fail_all(plan, t, "decode", f"{plan.label}: cannot decode {bytes(data).hex().upper()}: {e}")
             return []
         counter_ok = None

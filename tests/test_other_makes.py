@@ -165,3 +165,28 @@ def test_an_unsigned_signal_with_a_signed_range_is_named_in_one_line(tmp_path, c
                    "--out", str(tmp_path / "d")])
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert rc == 2 and "does not fit signal SAS_Angle" in err and "make it signed in the DBC (0|16@1-)" in err
+
+
+def test_pages_the_dbc_does_not_define_are_skipped_not_counted_as_decode_errors(tmp_path):
+    """A DBC rarely lists every page a car sends (opendbc's are reverse-engineered): cantools cannot
+    decode those frames ("expected multiplexer id 0 or 1, but got 2"). They carry none of the
+    mapped inputs; before, each one counted as a decode error of the input and was logged."""
+    (tmp_path / "mux.dbc").write_text('VERSION ""\n\nNS_ :\n\nBS_:\n\nBU_: ABS\n\n'
+                                      'BO_ 1440 Bremse_2: 8 ABS\n'
+                                      ' SG_ Page M : 8|2@1+ (1,0) [0|3] "" ABS\n'
+                                      ' SG_ Timer m1 : 0|8@1+ (0.04,0) [0|10.2] "usec" ABS\n'
+                                      ' SG_ Querbeschleunigung m0 : 0|8@1+ (0.01,-1.27) [-1.27|1.27] "g" ABS\n\n')
+    cfg = config_mod.from_dict({"can": {"dbc": str(tmp_path / "mux.dbc")},
+                                "inputs": {"accel_y": {"message": "Bremse_2", "signal": "Querbeschleunigung",
+                                                       "scale": 9.80665}}})
+    cfg.inputs = {"accel_y": cfg.inputs["accel_y"]}  # this DBC carries nothing else
+    dec = SignalDecoder(cfg)
+    got = []
+    for k in range(12):  # pages 0, 1, 2, 3 in turn: 2 and 3 are not in the DBC
+        got += [s.value for s in dec.decode(0.01 * k, 0x5A0, bytes([127 + k, k % 4, 0, 0, 0, 0, 0, 0]))]
+    assert got == pytest.approx([(127 + k) * 0.01 * 9.80665 - 1.27 * 9.80665 for k in (0, 4, 8)])
+    h = dec.health["accel_y"]
+    assert (h.frames, h.samples, sum(h.errors.values())) == (3, 3, 0)
+    # a frame cantools cannot decode for another reason is still a decode error
+    dec.decode(1.0, 0x5A0, bytes(7))
+    assert h.errors["dlc"] == 1
