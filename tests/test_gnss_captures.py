@@ -285,3 +285,24 @@ def test_every_shared_capture_yields_a_fix_or_says_why_not():
         if not fixes:
             said[path.name] = parser.why_unusable()
     assert len(said) == 9 and all(len(w) < 300 and "\n" not in w for w in said.values()), said
+
+
+def test_nav_velned_without_its_fix_state_says_which_message_to_enable():
+    """A u-blox 6/7 set up for NAV-VELNED alone: the velocity is there, its fix state is not (NAV-STATUS
+    or NAV-SOL of the same epoch); with NAV-STATUS each epoch gives a sample."""
+    from pyubx2 import GET, UBXMessage
+
+    def velned(itow):
+        return UBXMessage("NAV", "NAV-VELNED", GET, iTOW=itow, velN=1000, velE=200, velD=0, speed=1020,
+                          gSpeed=1020, heading=11.3, sAcc=30, cAcc=1.0).serialize()
+
+    alone = b"".join(velned(1000 * k) for k in range(5))
+    samples, parser = parse_all(alone)
+    assert not samples and parser.why_unusable() == (
+        "5 NAV-VELNED without a NAV-STATUS or NAV-SOL of the same epoch (the fix state it needs);"
+        " enable NAV-STATUS, or NAV-PVT")
+    paired = b"".join(UBXMessage("NAV", "NAV-STATUS", GET, iTOW=1000 * k, gpsFix=3, gpsFixOk=1).serialize()
+                      + velned(1000 * k) for k in range(5))
+    samples, parser = parse_all(paired)
+    assert len(samples) == 5 and all(s.fix_ok and s.vel_n_mps == 10.0 for s in samples)
+    assert parser.why_unusable() is None

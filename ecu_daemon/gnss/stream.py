@@ -49,6 +49,7 @@ _NMEA_BODY = re.compile(rb"[\x20\x22\x23\x25-\x7e]*")  # printable ASCII except 
 _SENTENCE_HEAD = re.compile(rb"[$!][A-Z0-9]{4}")  # what makes a cut-off fragment a "truncated" sentence
 #: UBX messages a velocity sample comes from (ubx.py): NAV-PVT, or on older receivers NAV-SOL, HNR-PVT, NAV-VELNED
 _UBX_VELOCITY = frozenset({NAV_PVT, NAV_SOL, HNR_PVT, NAV_VELNED})
+_NAV_STATUS = (0x01, 0x03)
 _NEED, _NOT, _BAD, _FRAG, _UBX, _NMEA, _RTCM = range(7)
 
 
@@ -438,9 +439,12 @@ class GnssStreamParser:
         if velocity and st["samples"]:
             return (f"no usable fix in any of its {st['samples']} epochs (the receiver said no fix, or an"
                     " estimated / simulated one)")
+        if ubx and not self.seen_ubx.get(_NAV_STATUS) and not self.seen_ubx.get(NAV_SOL):
+            return (f"{ubx} NAV-VELNED without a NAV-STATUS or NAV-SOL of the same epoch (the fix state it"
+                    " needs); enable NAV-STATUS, or NAV-PVT")
         if velocity:
             return (f"{velocity} velocity messages but no epoch could be dated (NMEA VTG needs GGA/GNS/ZDA"
-                    " and a date from RMC or ZDA; UBX: time not valid)")
+                    " and a date from RMC or ZDA; UBX NAV-VELNED needs NAV-STATUS or NAV-SOL of its epoch)")
         seen = sorted(((n, _ubx_name(k)) for k, n in self.seen_ubx.items()), reverse=True)
         seen += sorted(((n, k) for k, n in self.seen_nmea.items()), reverse=True)
         listed = ", ".join(f"{name} x{n}" for n, name in seen[:4]) + (", ..." if len(seen) > 4 else "")
