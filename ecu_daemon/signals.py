@@ -30,6 +30,7 @@ from .checksums import FrameChecksum
 from .integrity import CounterCheck, data_id_for
 from .io.logging_setup import RateLimitedLog
 from .samples import INPUT_INDEX, InputSample
+from .unit_check import scale_warning
 
 log = logging.getLogger(__name__)
 
@@ -234,6 +235,10 @@ class SignalDecoder:
                 hint = unsigned_range_hint(msg.get_signal_by_name(sname), msg.name, self.dbc_path.name)
                 if hint:
                     log.warning("[inputs.%s] %s", name, hint)
+            unit_line = scale_warning(name, signals[0], msg.get_signal_by_name(signals[0]).unit, m.scale,
+                                      cfg.vehicle.wheel_radius_m)
+            if unit_line:
+                log.warning("%s", unit_line)
             if m.counter:
                 sig = msg.get_signal_by_name(self._find_signal(name, msg, m.counter, "counter"))
                 if sig.length > 32:

@@ -190,3 +190,37 @@ def test_pages_the_dbc_does_not_define_are_skipped_not_counted_as_decode_errors(
     # a frame cantools cannot decode for another reason is still a decode error
     dec.decode(1.0, 0x5A0, bytes(7))
     assert h.errors["dlc"] == 1
+
+
+@pytest.mark.parametrize("make, warned", [
+    ("ford", {"wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr", "steering_wheel_angle"}),
+    ("vw_pq", {"wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr", "steering_wheel_angle",
+               "yaw_rate", "accel_y"}),
+    ("vw_mlb", {"wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr", "steering_wheel_angle",
+                "yaw_rate", "accel_y"}),
+])
+def test_a_scale_left_at_1_for_a_non_si_dbc_unit_is_one_line_per_input(tmp_path, caplog, make, warned):
+    """The DBC says km/h, rad/s of a wheel, deg, Grad/sec, g: with scale = 1 the value is read as SI.
+    Wheel speeds 3.6x too fast keep the velocity valid and wrong (the worst defect); before, nothing
+    said so until the end of a replay (and the live daemon never). The right mapping says nothing."""
+    cfg = config_mod.load(write_config(tmp_path, make))
+    with caplog.at_level("WARNING"):
+        SignalDecoder(cfg)
+    assert not [r for r in caplog.records if "DBC unit" in r.getMessage()]
+    for m in cfg.inputs.values():
+        m.scale = 1.0
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        SignalDecoder(cfg)
+    lines = {r.getMessage().split("]")[0][len("[inputs."):]: r.getMessage() for r in caplog.records
+             if "its DBC unit" in r.getMessage()}
+    assert set(lines) == warned, lines
+    if make == "ford":
+        assert lines["wheel_speed_fl"] == (
+            "[inputs.wheel_speed_fl] signal 'WhlFl_W_Meas' is in rad/s (its DBC unit), but scale = 1 reads it 3.12x"
+            " too large in m/s: rad/s of a wheel -> m/s is its rolling radius: scale = 0.32 for [vehicle]"
+            " wheel_radius_m = 0.32")
+    else:
+        assert "reads it 3.6x too large in m/s" in lines["wheel_speed_fl"]
+        assert "reads it 57.3x too large in rad" in lines["steering_wheel_angle"]
+        assert "reads it 9.81x too small in m/s^2" in lines["accel_y"]

@@ -282,8 +282,13 @@ def test_wheel_speeds_in_kmh_mapped_as_mps_end_with_a_warning_naming_the_mapping
     assert rc == 0, err
     (line,) = [ln for ln in err if "gnss:" in ln]
     assert "rejected by the estimator" in line and "[inputs.wheel_speed_*] scale" in line and "3.6x" in line
+    # and at the start, from the DBC's own unit (m/s here), one line per wheel naming its signal
+    said = [ln for ln in err if "its DBC unit" in ln]
+    assert len(said) == 4 and all(f"[inputs.wheel_speed_{c}] signal 'WHEEL_SPEED_{c.upper()}' is in m/s" in ln
+                                  for c, ln in zip(("fl", "fr", "rl", "rr"), said)), said
+    assert all("scale = 3.6 reads it 3.6x too large in m/s: m/s -> m/s is scale = 1" in ln for ln in said)
     rc, err = replay(drive, "--log-level", "warning", gnss=drive / "drive_gnss.log")
-    assert rc == 0 and not any("gnss:" in ln for ln in err), err
+    assert rc == 0 and not any("gnss:" in ln or "DBC unit" in ln for ln in err), err
 
 
 @pytest.mark.parametrize("capture, protocol, why", [
