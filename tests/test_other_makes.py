@@ -94,7 +94,31 @@ def write_config(tmp_path: Path, make: str, dbc_path: Path | None = None) -> Pat
 
 @pytest.mark.parametrize("make", sorted(MAKES))
 def test_a_drive_encoded_with_the_makes_dbc_replays_with_every_frame_used(tmp_path, make):
-    cfg_path = write_config(tmp_path, make)
+    simulate_and_replay(tmp_path, write_config(tmp_path, make))
+
+
+def test_chrysler_wheels_and_steering_with_an_imu_from_a_second_dbc_joined_by_import_lines(tmp_path):
+    """Chrysler's DBC has no yaw rate or accelerations: a user joins it with the IMU's DBC through
+    opendbc's IMPORT lines. Both name a message STEERING (cantools keeps the last one), so the
+    steering is mapped by frame id. Before: the simulator refused the drive, "1.01 does not fit signal
+    WHEEL_SPEED_FL [0, 1]" -- the placeholder range opendbc's Chrysler DBC gives every value signal."""
+    import shutil
+
+    for name in ("chrysler_cusw.dbc",):
+        shutil.copy(OPENDBC / name, tmp_path / name)
+    shutil.copy(Path(__file__).resolve().parents[1] / "ecu_daemon" / "dbc" / "ecu_daemon_inputs.dbc", tmp_path)
+    (tmp_path / "combo.dbc").write_text('CM_ "IMPORT chrysler_cusw.dbc";\nCM_ "IMPORT ecu_daemon_inputs.dbc";\n')
+    inputs = {f"wheel_speed_{c}": {"message": f"WHEEL_SPEEDS_{'FRONT' if c[0] == 'f' else 'REAR'}",
+                                   "signal": f"WHEEL_SPEED_{c.upper()}", "counter": "COUNTER"}
+              for c in ("fl", "fr", "rl", "rr")}  # 13-bit Motorola, [0|1] in the DBC
+    inputs["steering_wheel_angle"] = {"message": 494, "signal": "STEER_ANGLE", "scale": DEG,  # offset -720 deg
+                                      "counter": "COUNTER"}
+    p = tmp_path / "chrysler.toml"
+    p.write_text(tomli_w.dumps({"can": {"dbc": "combo.dbc", "send_outputs": False}, "inputs": inputs}))
+    simulate_and_replay(tmp_path, p)
+
+
+def simulate_and_replay(tmp_path: Path, cfg_path: Path) -> None:
     out = tmp_path / "drive"
     assert cli_main(["simulate", "--scenario", "dlc_dry", "--duration", "14", "--config", str(cfg_path),
                      "--out", str(out)]) == 0

@@ -46,8 +46,12 @@ class SignalInfo:
         mn, mx = sig.minimum, sig.maximum
         # the DBC's [min|max] narrows the range only when it is plausible, i.e. inside what the
         # bits can hold (opendbc writes [0|65535] on 10-bit offset signals, [0|0] for "unspecified")
+        # and at least half of it: opendbc's Chrysler DBC writes [0|1] on every value signal (13-bit
+        # wheel speeds that hold 0..71 m/s); a sensor range under half of its encoding is no
+        # reason to refuse a drive the bits carry
         tol = 1e-9 * max(1.0, abs(a), abs(b))
-        if mn is not None and mx is not None and mn < mx and mn >= a - tol and mx <= b + tol:
+        if (mn is not None and mx is not None and mn < mx and mn >= a - tol and mx <= b + tol
+                and mx - mn >= 0.5 * (b - a)):
             a, b = float(mn), float(mx)
         self.phys_lo, self.phys_hi = a, b
 
