@@ -290,6 +290,11 @@ class SignalDecoder:
     def _find_message(self, name: str, ref):
         where = f"[inputs.{name}] message"
         if isinstance(ref, str):
+            same = [m for m in self.db.messages if m.name == ref]
+            if len(same) > 1:  # two DBCs joined by IMPORT lines: cantools' name look-up keeps the last
+                ids = ", ".join(f"0x{m.frame_id:X}" for m in same)
+                raise ConfigError(f"{where} '{ref}' names {len(same)} messages in {self.dbc_path} ({ids}):"
+                                  f" give the frame id instead, e.g. message = 0x{same[0].frame_id:X}")
             try:
                 return self.db.get_message_by_name(ref)
             except KeyError:

@@ -18,6 +18,7 @@ import pytest
 import tomli_w
 
 from ecu_daemon import config as config_mod
+from ecu_daemon.config import ConfigError
 from ecu_daemon.cli import main as cli_main
 from ecu_daemon.evaluate import read_csv
 from ecu_daemon.replay import REQUIRED_INPUTS, run_replay
@@ -116,6 +117,13 @@ def test_chrysler_wheels_and_steering_with_an_imu_from_a_second_dbc_joined_by_im
     p = tmp_path / "chrysler.toml"
     p.write_text(tomli_w.dumps({"can": {"dbc": "combo.dbc", "send_outputs": False}, "inputs": inputs}))
     simulate_and_replay(tmp_path, p)
+    # by name, the mapping would silently read our STEERING (0xB2) instead of Chrysler's (0x1EE)
+    inputs["steering_wheel_angle"]["message"] = "STEERING"
+    p.write_text(tomli_w.dumps({"can": {"dbc": "combo.dbc", "send_outputs": False}, "inputs": inputs}))
+    with pytest.raises(ConfigError, match=r"^\[inputs.steering_wheel_angle\] message 'STEERING' names 2 messages in"
+                                          r" .*combo.dbc \(0x1EE, 0xB2\): give the frame id instead, e.g."
+                                          r" message = 0x1EE$"):
+        SignalDecoder(config_mod.load(p))
 
 
 def simulate_and_replay(tmp_path: Path, cfg_path: Path) -> None:
