@@ -124,6 +124,8 @@ def test_chrysler_wheels_and_steering_with_an_imu_from_a_second_dbc_joined_by_im
                                           r" .*combo.dbc \(0x1EE, 0xB2\): give the frame id instead, e.g."
                                           r" message = 0x1EE$"):
         SignalDecoder(config_mod.load(p))
+    with pytest.raises(ConfigError, match=r"message 'STEERING' names 2 messages in .*\(0x1EE, 0xB2\)"):
+        FrameEncoder(config_mod.load(p))  # the simulator too (before: it encoded our STEERING)
 
 
 def simulate_and_replay(tmp_path: Path, cfg_path: Path) -> None:

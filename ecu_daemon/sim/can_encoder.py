@@ -170,6 +170,11 @@ class FrameEncoder:
 
     def _find_message(self, name: str, ref):
         if isinstance(ref, str):
+            same = [m for m in self.db.messages if m.name == ref]
+            if len(same) > 1:  # as the decoder: two DBCs joined by IMPORT lines name two messages alike
+                raise ConfigError(f"[inputs.{name}] message '{ref}' names {len(same)} messages in {self.dbc_path}"
+                                  f" ({', '.join(f'0x{m.frame_id:X}' for m in same)}): give the frame id instead,"
+                                  f" e.g. message = 0x{same[0].frame_id:X}")
             try:
                 return self.db.get_message_by_name(ref)
             except KeyError:
