@@ -240,6 +240,31 @@ class FrameChecksum:
             return payload[-1] & 0x0F
         return payload[0] | payload[1] << 8
 
+    def apply(self, payload: bytearray) -> None:
+        """Store :meth:`expected` where :meth:`stored` reads it (the other bits of a shared byte kept).
+
+        Why: the simulator (``sim/can_encoder.py``) writes frames a car of any supported make would
+        send, so a replay of them passes the same check; the inverse of ``stored``, per scheme.
+        """
+        s = self.scheme
+        v = self.expected(payload)
+        if s in ("e2e_p2", "subaru"):
+            payload[0] = v
+        elif s in ("toyota", "fca_giorgio"):
+            payload[-1] = v
+        elif s == "honda":
+            payload[-1] = (payload[-1] & 0xF0) | v
+        elif s == "hyundai_bitcount":
+            payload[7] = (payload[7] & 0x3F) | (v >> 2) << 6
+            payload[5] = (payload[5] & 0x3F) | (v & 3) << 6
+        elif s == "hyundai_nibble":
+            at, keep, _ = _HYUNDAI_NIBBLE_AT.get(self.frame_id, _HYUNDAI_NIBBLE_DEFAULT)
+            payload[at] = (payload[at] & keep) | (v if keep == 0xF0 else v << 4)
+        elif s == "hyundai_bytesum":
+            payload[7] = (payload[7] & 0xF0) | v
+        else:  # hyundai_canfd
+            payload[0], payload[1] = v & 0xFF, v >> 8
+
     def describe(self, payload: bytes | bytearray) -> str:
         """``<scheme> checksum 0x.., expected 0x..`` for a log line."""
         what = "E2E CRC" if self.scheme == "e2e_p2" else f"{self.scheme} checksum"

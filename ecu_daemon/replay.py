@@ -355,9 +355,11 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
         log.warning("%s", disagreement)
     unusable = unusable_inputs(counters["inputs"])
     if unusable:
+        can_inputs = any(not u.startswith("gnss (") for u in unusable)
         raise UnusableInputError("required input(s) not usable: " + "; ".join(unusable)
-                                 + " (see the input table above); check [inputs.*] against the DBC"
-                                 " (message, signal, counter, checksum)", counters)
+                                 + " (see the input table above); check "
+                                 + ("[inputs.*] against the DBC (message, signal, counter, checksum)" if can_inputs
+                                    else "the GNSS capture and [gnss]"), counters)
     return counters
 
 
@@ -430,7 +432,11 @@ def input_table(decoder: SignalDecoder, pipeline: Pipeline | None, est: Estimato
                         "samples": st.get("samples", 0), "fused": est.gnss_counts()[0],
                         "rejected": est.gnss_counts()[1],
                         "checksum": st.get("checksum_errors", 0),
-                        "decode": st.get("malformed", 0) + st.get("truncated", 0)}
+                        "decode": st.get("malformed", 0) + st.get("truncated", 0),
+                        "fixes": sum(p.fixes for p in pipeline.parsers.values())}
+        if not rows["gnss"]["fixes"]:
+            rows["gnss"]["why"] = "; ".join(dict.fromkeys(filter(None, (p.why_unusable()
+                                                                      for p in pipeline.parsers.values()))))
     return rows
 
 
@@ -474,16 +480,17 @@ def gnss_rejection_warning(row: dict | None) -> str | None:
 def unusable_inputs(rows: dict[str, dict]) -> list[str]:
     """'name (why)' for each required input (and GNSS, when given) that was not usable: no sample,
     or samples from fewer than :data:`MIN_USED_FRACTION` (GNSS: :data:`MIN_USED_FRACTION_GNSS`)
-    of its frames."""
+    of its frames; GNSS also when no sample had a fix (its row's ``why`` says what the receiver
+    sent instead: ``GnssStreamParser.why_unusable``)."""
     out = []
     for name in REQUIRED_INPUTS + ("gnss",):
         r = rows.get(name)
         share = MIN_USED_FRACTION_GNSS if name == "gnss" else MIN_USED_FRACTION
-        if r is None or (r["samples"] > 0 and r["samples"] >= share * r["frames"]):
+        if r is None or (r["samples"] > 0 and r["samples"] >= share * r["frames"] and r.get("fixes", 1)):
             continue
         drops = ", ".join(f"{r[k]} {h}" for k, h in _TABLE[2:] if r.get(k))
         out.append(f"{name} ({r['samples']} of {r['frames']} frames used"
-                   + (f"; dropped: {drops})" if drops else ")"))
+                   + (f"; dropped: {drops}" if drops else "") + (f"; {r['why']})" if r.get("why") else ")"))
     return out
 
 

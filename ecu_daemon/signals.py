@@ -30,6 +30,7 @@ from .checksums import FrameChecksum
 from .integrity import CounterCheck, data_id_for
 from .io.logging_setup import RateLimitedLog
 from .samples import INPUT_INDEX, InputSample
+from .unit_check import scale_warning
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +87,28 @@ class _Binding:
         self.sign = sign  # sign-magnitude: the sign signal's name, else None
 
 
+def unsigned_range_hint(sig, message_name: str, dbc_name: str) -> str | None:
+    """A line when an unsigned signal's own DBC range goes below what its bits can decode to.
+
+    Why: opendbc's ``hyundai_i30_2014.dbc`` declares ``SAS_Angle`` (steering-wheel angle) unsigned
+    (``0|16@1+``) with the range [-3276.8|3276.7]; the car sends two's complement, so every right turn
+    decodes (here, in cantools and in every DBC tool) as 6553.6 deg minus the angle, and is then
+    dropped by the range check. The bits cannot say which of the two the DBC means; the range says
+    the author meant a signed signal, so the user is told which bit of the DBC to fix.
+    """
+    if sig.is_signed or sig.is_float or sig.minimum is None or not sig.scale:
+        return None
+    top = ((1 << sig.length) - 1) * sig.scale + sig.offset
+    lowest = min(sig.offset, top)
+    if sig.minimum >= lowest - 0.5 * abs(sig.scale):
+        return None
+    order = "1" if sig.byte_order == "little_endian" else "0"
+    return (f"signal '{sig.name}' of {message_name} is unsigned in {dbc_name} (it decodes to"
+            f" [{lowest:g}, {max(sig.offset, top):g}]) but its DBC range is [{sig.minimum:g}, {sig.maximum:g}]:"
+            f" negative values sent in two's complement read as {(1 << sig.length) * abs(sig.scale):g} + value;"
+            f" if the car sends them, make it signed in the DBC ({sig.start}|{sig.length}@{order}-)")
+
+
 def _layout(message) -> tuple | None:
     """The message's bit layout precompiled for :func:`_unpack`: per signal (name, little-endian,
     shift from the payload integer's LSB, mask, sign bit, cantools' own raw-to-scaled conversion);
@@ -97,21 +120,39 @@ def _layout(message) -> tuple | None:
         message.decode_simple(bytes(message.length), False)
     except Exception:
         return None
-    nbits = 8 * message.length
     out = []
     for sig in message.signals:
-        n = sig.length
-        if sig.is_float:
+        entry = _signal_layout(sig, 8 * message.length)
+        if entry is None:
             return None
-        if sig.byte_order == "little_endian":
-            little, shift = True, sig.start
-        else:  # Motorola: the MSB's position counted from the first byte's MSB (cantools' start_bit)
-            little, shift = False, nbits - (8 * (sig.start // 8) + 7 - sig.start % 8) - n
-        if shift < 0 or shift + n > nbits:
-            return None
-        out.append((sig.name, little, shift, (1 << n) - 1, 1 << (n - 1) if sig.is_signed else 0,
-                    sig.scale, sig.offset))
+        out.append(entry)
     return tuple(out)
+
+
+def _signal_layout(sig, nbits: int) -> tuple | None:
+    """One signal's entry of :func:`_layout` (None: a float, or bits outside the payload)."""
+    n = sig.length
+    if sig.is_float:
+        return None
+    if sig.byte_order == "little_endian":
+        little, shift = True, sig.start
+    else:  # Motorola: the MSB's position counted from the first byte's MSB (cantools' start_bit)
+        little, shift = False, nbits - (8 * (sig.start // 8) + 7 - sig.start % 8) - n
+    if shift < 0 or shift + n > nbits:
+        return None
+    return (sig.name, little, shift, (1 << n) - 1, 1 << (n - 1) if sig.is_signed else 0, sig.scale, sig.offset)
+
+
+def _pages(message) -> tuple[tuple, frozenset] | None:
+    """A multiplexed message's top multiplexer (its :func:`_layout` entry) and the values the DBC
+    defines pages for; None when there is no single top multiplexer to read."""
+    tops = [s for s in message.signals if s.is_multiplexer and s.multiplexer_signal is None]
+    if len(tops) != 1:
+        return None
+    entry = _signal_layout(tops[0], 8 * message.length)
+    ids = frozenset(i for s in message.signals if s.multiplexer_signal == tops[0].name
+                    for i in (s.multiplexer_ids or ()))
+    return None if entry is None else ((entry,), ids)
 
 
 def _unpack(layout: tuple, data) -> dict:
@@ -136,7 +177,7 @@ class _FramePlan:
     """Per frame id: the message, its checks and the inputs it carries."""
 
     __slots__ = ("message", "decode", "layout", "frame_id", "length", "label", "checksum", "checksum_of",
-                 "counters", "bindings", "fast")
+                 "counters", "bindings", "fast", "muxed", "pages")
 
     def __init__(self, message, label: str):
         self.message = message
@@ -150,6 +191,14 @@ class _FramePlan:
         self.counters: dict[str, tuple[CounterCheck, float, float]] = {}
         self.bindings: tuple[_Binding, ...] = ()
         self.fast: tuple = ()  # per binding, the values decode needs, unpacked in one go
+        # a multiplexed message carries an input only in the frames whose multiplexer selects its
+        # signal: the others are not frames of that input (VW PQ's Bremse_2 sends the lateral
+        # acceleration in every other frame; a message with 3+ pages would otherwise read as
+        # "fewer than half of its frames used", i.e. not usable)
+        self.muxed = message.is_multiplexed()
+        # a car sends pages the DBC does not define (cantools cannot decode them): those frames carry
+        # none of the inputs either, and are skipped rather than counted as decode errors
+        self.pages = _pages(message) if self.muxed else None
 
     def bind(self, bindings: list[_Binding]) -> None:
         self.bindings = tuple(bindings)
@@ -182,6 +231,14 @@ class SignalDecoder:
             signals = tuple(self._find_signal(name, msg, s, "signal") for s in m.signal_names())
             sign = self._find_signal(name, msg, m.sign_signal, "sign_signal") if m.sign_signal else None
             b = _Binding(name, m, signals, label, sign)
+            for sname in signals:
+                hint = unsigned_range_hint(msg.get_signal_by_name(sname), msg.name, self.dbc_path.name)
+                if hint:
+                    log.warning("[inputs.%s] %s", name, hint)
+            unit_line = scale_warning(name, signals[0], msg.get_signal_by_name(signals[0]).unit, m.scale,
+                                      cfg.vehicle.wheel_radius_m)
+            if unit_line:
+                log.warning("%s", unit_line)
             if m.counter:
                 sig = msg.get_signal_by_name(self._find_signal(name, msg, m.counter, "counter"))
                 if sig.length > 32:
@@ -233,6 +290,11 @@ class SignalDecoder:
     def _find_message(self, name: str, ref):
         where = f"[inputs.{name}] message"
         if isinstance(ref, str):
+            same = [m for m in self.db.messages if m.name == ref]
+            if len(same) > 1:  # two DBCs joined by IMPORT lines: cantools' name look-up keeps the last
+                ids = ", ".join(f"0x{m.frame_id:X}" for m in same)
+                raise ConfigError(f"{where} '{ref}' names {len(same)} messages in {self.dbc_path} ({ids}):"
+                                  f" give the frame id instead, e.g. message = 0x{same[0].frame_id:X}")
             try:
                 return self.db.get_message_by_name(ref)
             except KeyError:
@@ -252,8 +314,15 @@ class SignalDecoder:
     def _find_signal(self, name: str, msg, signal: str, what: str) -> str:
         names = [s.name for s in msg.signals]
         if signal not in names:
+            # a DBC of a real car has hundreds of messages: the message that does carry it, if one does
+            elsewhere = [m.name for m in self.db.messages if m is not msg and any(s.name == signal for s in m.signals)]
+            where = _did_you_mean(signal, names)
+            if elsewhere:
+                where = (f" (it is in {', '.join(elsewhere[:3])}{', ...' if len(elsewhere) > 3 else ''}"
+                         + (f": message = \"{elsewhere[0]}\")" if what == "signal"
+                            else f"; the {what} must be in the message of the input's signal)"))
             raise ConfigError(f"[inputs.{name}] {what} '{signal}' is not in message {msg.name}"
-                              f"{_did_you_mean(signal, names)}; it has: {', '.join(names)}")
+                              f"{where}; it has: {', '.join(names)}")
         return signal
 
     def can_filters(self) -> list[dict]:
@@ -283,6 +352,10 @@ class SignalDecoder:
         try:
             values = plan.decode(data, False) if plan.layout is None else _unpack(plan.layout, data)
         except Exception as e:  # cantools: bad multiplexer id and the like
+            if plan.pages is not None and intact:
+                (entry,), ids = plan.pages
+                if _unpack(plan.pages[0], data)[entry[0]] not in ids:
+                    return []  # a page the DBC does not define: not a frame of any mapped input
             self._fail_all(plan, t, "decode", f"{plan.label}: cannot decode {bytes(data).hex().upper()}: {e}")
             return []
         counter_ok = None
@@ -311,7 +384,10 @@ class SignalDecoder:
                 counter_ok[cname] = None if chk.check(raw) else (
                     f"{plan.label}: {cname} {raw} after {prev}, expected {(prev + 1) & chk.mask}")
         out = []
+        muxed = plan.muxed and intact  # a corrupt frame's multiplexer value says nothing
         for b, h, sig1, scale, offset, lo, hi, index, checked, sign in plan.fast:
+            if muxed and (sign is not None and sign not in values or any(s not in values for s in b.signals)):
+                continue  # multiplexed away in this frame: not one of this input's frames
             h.frames += 1
             if checked:
                 if b.checksum and not intact:

@@ -406,3 +406,71 @@ def test_hyundai_esp12_frames_from_a_kona_ev_pass_and_low_bit_flips_fail():
     # neither opendbc's nibble sum nor the WHL_SPD11 rule passes these frames
     for scheme in ("hyundai_nibble", "hyundai_bitcount"):
         assert sum(FrameChecksum(scheme, 0x220).check(f) for f in KONA_ESP12) <= 8
+
+
+# --- writing them: FrameChecksum.apply (the simulator's frames must pass the decoder's check)
+def _known_good() -> list[tuple[FrameChecksum, bytes]]:
+    out = [(FrameChecksum("e2e_p2", fid, False, tuple(ids)), f)
+           for fid, ids, fs in ((0x86, [0x86], LWI_01), (0x101, [0xAA], ESP_02), (0xFD, ESP_21_IDS, ESP_21),
+                                (0x121, MOTOR_20_IDS, MOTOR_20)) for f in fs]
+    out += [(FrameChecksum("fca_giorgio", fid), f) for fid, fs in FCA_GIORGIO.items() for f in fs
+            if f.hex() != "7bf0026e"]  # the one frame that does not pass (see above)
+    out += [(FrameChecksum("hyundai_nibble", 0x394), f) for f in KONA_TCS13]
+    out += [(FrameChecksum("hyundai_bytesum", 0x220), f) for f in KONA_ESP12]
+    return out
+
+
+def test_apply_writes_back_the_checksum_cars_sent():
+    """Every known-good frame with a bit of its stored checksum flipped: ``apply`` restores it byte for byte."""
+    pairs = _known_good()
+    assert len(pairs) == 64 + 11 + len(KONA_TCS13) + 51
+    for ck, f in pairs:
+        assert ck.check(f)
+        flipped = 0
+        for bit in range(8 * len(f)):
+            bad = bytearray(f)
+            bad[bit // 8] ^= 1 << (bit % 8)
+            if ck.stored(bad) == ck.stored(f) or ck.expected(bad) != ck.expected(f):
+                continue  # not a bit of the stored checksum
+            flipped += 1
+            ck.apply(bad)
+            assert bytes(bad) == f, (ck.scheme, f.hex(), bit)
+        assert flipped == (8 if ck.scheme in ("e2e_p2", "fca_giorgio") else 4)
+
+
+@pytest.mark.parametrize("scheme, frame_id, extended", [
+    ("toyota", 0x260, False), ("honda", 0x1A6, False), ("honda", 0x18DAF1, True), ("subaru", 0x119, False),
+    ("hyundai_canfd", 0x12A, False), ("hyundai_bitcount", 0x386, False), ("hyundai_nibble", 0x260, False),
+    ("hyundai_nibble", 0x421, False), ("e2e_p2", 0xB0, False)])
+def test_apply_then_check_passes_and_keeps_every_other_bit(scheme, frame_id, extended):
+    rng = random.Random(frame_id)
+    ck = FrameChecksum(scheme, frame_id, extended, (0x5A,))
+    for n in ((8, 16, 24, 32) if scheme == "hyundai_canfd" else (8,)):
+        for _ in range(200):
+            d = bytearray(rng.randrange(256) for _ in range(n))
+            ref = bytes(d)
+            ck.apply(d)
+            assert ck.check(d) and ck.stored(d) == ck.expected(ref)
+            # only the checksum's own bits moved: writing the stored value back into ref changes nothing else
+            changed = [i for i in range(n) if d[i] != ref[i]]
+            assert len(changed) <= 2
+
+
+def test_simulated_frames_pass_the_decoders_checksum_with_the_configs_data_ids(tmp_path):
+    """The simulator used the DBC's data id (here the frame id's low byte) whatever the config said:
+    every ESP_02 and ESP_21 frame it wrote failed the decoder's E2E check (VW's data ids)."""
+    from ecu_daemon.sim.can_encoder import FrameEncoder
+
+    esp_21 = {"message": "ESP_21", "signal": "ESP_v_Signal", "scale": 1 / 3.6, "counter": "COUNTER",
+              "checksum": "e2e_p2", "data_id": ESP_21_IDS}
+    cfg = vw_config(tmp_path, wheel_speed_fl=esp_21)
+    enc, dec = FrameEncoder(cfg), SignalDecoder(cfg)
+    values = {name: 0.0 for name in cfg.inputs}
+    values.update(wheel_speed_fl=13.9, wheel_speed_fr=14.0, wheel_speed_rl=14.0, wheel_speed_rr=14.1,
+                  steering_wheel_angle=0.3, yaw_rate=0.2, accel_x=-1.0, accel_y=0.25)  # g
+    n = 0
+    for k in range(32):  # two rounds of every counter value
+        for plan in enc.plans:
+            n += len(dec.decode(0.01 * k, plan.frame_id, enc.encode(plan, values)))
+    assert n == 32 * len(cfg.inputs)
+    assert all(sum(h.errors.values()) == 0 for h in dec.health.values()), {k: h.errors for k, h in dec.health.items()}

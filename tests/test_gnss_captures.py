@@ -243,3 +243,66 @@ def test_share_of_gpsd_speed_epochs_matched_over_all_shared_captures():
     assert len(scores) == 72 and total == 1671
     assert hit / total >= 0.85
     assert scores["nmea-fuzzy-cases"] == (14, 14) and scores["ublox-8-time"] == (89, 89)
+
+
+# ------------------------------------------------------------------------------------ why no velocity
+
+@pytest.mark.parametrize("path, why", [
+    (GPSD / "ublox-lea-5q.log", "no usable fix in any of its 10 epochs"),                # RMC status V
+    (GPSD / "garmin-geko201.log", "no usable fix in any of its 18 epochs"),              # mode S: simulator
+    (PYUBX2 / "2023-4-17_82912_serial-COM3.ubx", "no usable fix in any of its 90 epochs"),
+])
+def test_a_capture_without_a_fix_says_so(path, why):
+    _, parser = parse_all(capture_bytes(path))
+    assert parser.fixes == 0 and parser.why_unusable().startswith(why)
+
+
+@pytest.mark.skipif(not (SHARED / "gpsd").is_dir(), reason=f"{SHARED / 'gpsd'} not present")
+@pytest.mark.parametrize("name, listed", [
+    ("ublox-ned-m8t-sbfrx3.log", "(RXM-SFRBX x165)"),                  # raw subframes only
+    ("ublox-x20p.log", "(RXM-SFRBX x408, NAV-TIMEGPS x29"),            # satellites and time, no solution
+    ("ublox-zoe-m8b-logretrieve.log", "LOG-RETRIEVEPOS x34)"),         # a log read back, not a live fix
+])
+def test_a_receiver_sending_no_velocity_message_is_told_which_to_enable(name, listed):
+    """Before: nothing to say but "0 of 553 frames used"."""
+    samples, parser = parse_all(capture_bytes(SHARED / "gpsd" / name))
+    why = parser.why_unusable()
+    assert not samples and why.startswith("no velocity message: none of UBX NAV-PVT, NAV-SOL, HNR-PVT, NAV-VELNED"
+                                          " or NMEA RMC, VTG among its")
+    assert listed in why and why.endswith("enable one on the receiver")
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason=f"{SHARED} not present")
+def test_every_shared_capture_yields_a_fix_or_says_why_not():
+    said = {}
+    for path in sorted(SHARED.glob("*/*")):
+        if path.suffix in (".chk", ".csv") or "LICENSE" in path.name:
+            continue
+        samples, parser = parse_all(capture_bytes(path))
+        fixes = sum(1 for s in samples if getattr(s, "speed_mps", None) is not None and s.fix_ok)
+        assert parser.fixes == fixes, path.name
+        assert (parser.why_unusable() is None) == (fixes > 0), path.name
+        if not fixes:
+            said[path.name] = parser.why_unusable()
+    assert len(said) == 9 and all(len(w) < 300 and "\n" not in w for w in said.values()), said
+
+
+def test_nav_velned_without_its_fix_state_says_which_message_to_enable():
+    """A u-blox 6/7 set up for NAV-VELNED alone: the velocity is there, its fix state is not (NAV-STATUS
+    or NAV-SOL of the same epoch); with NAV-STATUS each epoch gives a sample."""
+    from pyubx2 import GET, UBXMessage
+
+    def velned(itow):
+        return UBXMessage("NAV", "NAV-VELNED", GET, iTOW=itow, velN=1000, velE=200, velD=0, speed=1020,
+                          gSpeed=1020, heading=11.3, sAcc=30, cAcc=1.0).serialize()
+
+    alone = b"".join(velned(1000 * k) for k in range(5))
+    samples, parser = parse_all(alone)
+    assert not samples and parser.why_unusable() == (
+        "5 NAV-VELNED without a NAV-STATUS or NAV-SOL of the same epoch (the fix state it needs);"
+        " enable NAV-STATUS, or NAV-PVT")
+    paired = b"".join(UBXMessage("NAV", "NAV-STATUS", GET, iTOW=1000 * k, gpsFix=3, gpsFixOk=1).serialize()
+                      + velned(1000 * k) for k in range(5))
+    samples, parser = parse_all(paired)
+    assert len(samples) == 5 and all(s.fix_ok and s.vel_n_mps == 10.0 for s in samples)
+    assert parser.why_unusable() is None

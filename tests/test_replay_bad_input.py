@@ -282,5 +282,48 @@ def test_wheel_speeds_in_kmh_mapped_as_mps_end_with_a_warning_naming_the_mapping
     assert rc == 0, err
     (line,) = [ln for ln in err if "gnss:" in ln]
     assert "rejected by the estimator" in line and "[inputs.wheel_speed_*] scale" in line and "3.6x" in line
+    # and at the start, from the DBC's own unit (m/s here), one line per wheel naming its signal
+    said = [ln for ln in err if "its DBC unit" in ln]
+    assert len(said) == 4 and all(f"[inputs.wheel_speed_{c}] signal 'WHEEL_SPEED_{c.upper()}' is in m/s" in ln
+                                  for c, ln in zip(("fl", "fr", "rl", "rr"), said)), said
+    assert all("scale = 3.6 reads it 3.6x too large in m/s: m/s -> m/s is scale = 1" in ln for ln in said)
     rc, err = replay(drive, "--log-level", "warning", gnss=drive / "drive_gnss.log")
-    assert rc == 0 and not any("gnss:" in ln for ln in err), err
+    assert rc == 0 and not any("gnss:" in ln or "DBC unit" in ln for ln in err), err
+
+
+@pytest.mark.parametrize("capture, protocol, why", [
+    ("ublox-lea-5q.log", "auto", "10 of 63 frames used; no usable fix in any of its 10 epochs"
+                                 " (the receiver said no fix, or an estimated / simulated one)"),  # RMC status V
+    ("ublox-lea-5q.log", "ubx", '0 of 63 frames used; protocol = "ubx" in [gnss], but the receiver sent its'
+                                ' velocity as NMEA RMC/VTG (18 ignored); set protocol = "auto" (or "nmea")'),
+    ("ublox-8-time.log", "ubx", None),  # a u-blox with a fix (NAV-SOL): no complaint
+])
+def test_a_gnss_capture_without_a_usable_fix_ends_with_exit_3_and_says_why(drive, tmp_path, capture, protocol, why):
+    """A real receiver's session, recorded as the daemon records it, on the drive's clock. Before: the
+    no-fix session ran to the end with exit 0, nothing fused and nothing said (10 samples of 63
+    sentences, above the 10 % rule); with the simulator's protocol = "ubx" it said "0 of 63 frames used"."""
+    from ecu_daemon.gnss import GnssStreamParser
+    from ecu_daemon.gnss.logfile import GnssLogWriter, raw_capture_bytes
+
+    log = tmp_path / "gnss.log"
+    writer = GnssLogWriter(log)
+    messages: list[bytes] = []
+    parser = GnssStreamParser(raw_sink=lambda t, data: messages.append(data))
+    parser.feed(0.0, raw_capture_bytes(Path(__file__).parent / "data" / "gnss" / "gpsd" / capture))
+    parser.finish()
+    t0 = stamp((drive / "drive.log").read_text().splitlines()[0])
+    for k, data in enumerate(messages[:400]):
+        writer.write(t0 + 0.02 * k, data)
+    writer.close()
+    data = tomllib.loads((drive / "config.toml").read_text())
+    data["gnss"]["protocol"] = protocol
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(tomli_w.dumps(data))
+    rc, err = replay(drive, "--out-csv", tmp_path / "o.csv", gnss=log, config=cfg)
+    if why is None:
+        assert rc == 0 and not any("gnss (" in line for line in err), err
+        return
+    assert rc == 3, err
+    final = err[-1]
+    assert final.startswith("ecu-daemon replay: error: required input(s) not usable: gnss (" + why + ")"), final
+    assert "wheel_speed" not in final and "yaw_rate" not in final and "DBC" not in final

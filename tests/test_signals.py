@@ -258,6 +258,12 @@ def test_summed_signals_scale_and_offset(tmp_path, clock):
     ({"yaw_rate": {"message": "IMU", "signal": "YAW_RATE", "counter": "CNT"}}, "counter 'CNT' is not in message IMU"),
     ({"steering_wheel_angle": {"message": "STEERING", "signals": ["STEERING_WHEEL_ANGLE", "STEER_FRAC"]}},
      "\\[inputs.steering_wheel_angle\\] signal 'STEER_FRAC'"),
+    # the right signal in the wrong message: the message that carries it is named
+    ({"accel_x": {"message": "STEERING", "signal": "ACCEL_X"}},
+     "signal 'ACCEL_X' is not in message STEERING \\(it is in IMU: message = \"IMU\"\\); it has:"),
+    ({"wheel_speed_fl": {"message": "WHEEL_SPEEDS", "signal": "WHEEL_SPEED_FL", "sign_signal": "YAW_RATE"}},
+     "sign_signal 'YAW_RATE' is not in message WHEEL_SPEEDS \\(it is in IMU; the sign_signal must be in the"
+     " message of the input's signal\\)"),
 ])
 def test_config_typos_are_one_clear_config_error(inputs, expect):
     cfg = config.from_dict({"inputs": inputs})

@@ -29,8 +29,9 @@ import numpy as np
 
 from ..io.logging_setup import RateLimitedLog
 from ..samples import GnssHeadingSample, GnssSample
-from .nmea import USED_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
-from .ubx import UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError, ubx_checksum
+from .nmea import USED_KINDS, VELOCITY_KINDS, NmeaEpochAssembler, NmeaError, nmea_checksum_ok
+from .ubx import (HNR_PVT, NAV_PVT, NAV_SOL, NAV_VELNED, UBX_CLASS_BYTES, UBX_MAX_PAYLOAD, UbxDecoder, UbxError,
+                  ubx_checksum)
 
 __all__ = ["GnssStreamParser", "STAT_KEYS", "crc24q", "sum_stats"]
 
@@ -46,6 +47,9 @@ NAV_SOL_HOLD_S = 0.25
 _START = re.compile(rb"[\xb5$!\xd3]")
 _NMEA_BODY = re.compile(rb"[\x20\x22\x23\x25-\x7e]*")  # printable ASCII except the starts '$' and '!'
 _SENTENCE_HEAD = re.compile(rb"[$!][A-Z0-9]{4}")  # what makes a cut-off fragment a "truncated" sentence
+#: UBX messages a velocity sample comes from (ubx.py): NAV-PVT, or on older receivers NAV-SOL, HNR-PVT, NAV-VELNED
+_UBX_VELOCITY = frozenset({NAV_PVT, NAV_SOL, HNR_PVT, NAV_VELNED})
+_NAV_STATUS = (0x01, 0x03)
 _NEED, _NOT, _BAD, _FRAG, _UBX, _NMEA, _RTCM = range(7)
 
 
@@ -169,6 +173,11 @@ class GnssStreamParser:
         self._last_pvt_t: float | None = None
         self._last_ubx_heading_t: float | None = None
         self._checks: _RangeChecks | None = None
+        # what the stream carried, for why_unusable(): UBX (class, id) and NMEA sentence kinds seen,
+        # velocity samples whose receiver reported a fix
+        self.seen_ubx: dict[tuple[int, int], int] = {}
+        self.seen_nmea: dict[str, int] = {}
+        self.fixes = 0
 
     # ------------------------------------------------------------------------------ public API
 
@@ -338,6 +347,7 @@ class GnssStreamParser:
 
     def _ubx_frame(self, t: float, frame: bytes, out: list) -> None:
         cls_id = (frame[2], frame[3])
+        self.seen_ubx[cls_id] = self.seen_ubx.get(cls_id, 0) + 1
         if self.protocol == "nmea":
             self.stats["ignored"] += 1
             return
@@ -357,6 +367,7 @@ class GnssStreamParser:
                 self._last_ubx_heading_t = sample.t
             else:
                 self._last_pvt_t = sample.t
+                self.fixes += sample.fix_ok
             self.stats["samples"] += 1
             out.append(replace(sample, source=self.source) if self.source else sample)
 
@@ -368,10 +379,12 @@ class GnssStreamParser:
             self._error(t, "checksum", "checksum_errors", f"NMEA {what}: {sentence[:16].decode('ascii')}...")
             return False
         self.stats["nmea_sentences"] += 1
+        text = sentence.decode("ascii")
+        kind = "P" + text[2:5] if text[1] == "P" else text[3:6]  # PUBX, PSTM..., else GGA, RMC...
+        self.seen_nmea[kind] = self.seen_nmea.get(kind, 0) + 1
         if self.protocol == "ubx":
             self.stats["ignored"] += 1
             return True
-        text = sentence.decode("ascii")
         if text[1] == "P" or text[3:6] not in USED_KINDS:
             self.stats["unsupported"] += 1
             return True
@@ -399,7 +412,45 @@ class GnssStreamParser:
                 self.stats["suppressed"] += 1
                 continue
             self.stats["samples"] += 1
+            if type(smp) is not GnssHeadingSample:
+                self.fixes += smp.fix_ok
             out.append(replace(smp, source=self.source) if self.source else smp)
+
+    def why_unusable(self) -> str | None:
+        """Why the stream gave no velocity with a fix, in a few words for one line; None if it did.
+
+        Why: a capture from a receiver set up for something else (raw measurements only, NMEA
+        without RMC/VTG, no fix all drive long) otherwise ends a replay with "gnss (0 of 553 frames
+        used)" or, worse, runs to the end with nothing fused and nothing said.
+        """
+        if self.fixes:
+            return None
+        st = self.stats
+        if not st["ubx_frames"] and not st["nmea_sentences"]:
+            return (f"no NMEA sentence or UBX frame in it ({st['garbage_bytes']} bytes skipped"
+                    f"{', ' + str(st['checksum_errors']) + ' checksum errors' if st['checksum_errors'] else ''})")
+        nmea = sum(self.seen_nmea.get(k, 0) for k in VELOCITY_KINDS)
+        ubx = sum(n for cls_id, n in self.seen_ubx.items() if cls_id in _UBX_VELOCITY)
+        other = {"ubx": ("nmea", nmea, "NMEA RMC/VTG"), "nmea": ("ubx", ubx, "UBX velocity messages")}.get(self.protocol)
+        if other and other[1] and not (ubx if self.protocol == "ubx" else nmea):
+            return (f"protocol = \"{self.protocol}\" in [gnss], but the receiver sent its velocity as {other[2]}"
+                    f" ({other[1]} ignored); set protocol = \"auto\" (or \"{other[0]}\")")
+        velocity = nmea + ubx
+        if velocity and st["samples"]:
+            return (f"no usable fix in any of its {st['samples']} epochs (the receiver said no fix, or an"
+                    " estimated / simulated one)")
+        if ubx and not self.seen_ubx.get(_NAV_STATUS) and not self.seen_ubx.get(NAV_SOL):
+            return (f"{ubx} NAV-VELNED without a NAV-STATUS or NAV-SOL of the same epoch (the fix state it"
+                    " needs); enable NAV-STATUS, or NAV-PVT")
+        if velocity:
+            return (f"{velocity} velocity messages but no epoch could be dated (NMEA VTG needs GGA/GNS/ZDA"
+                    " and a date from RMC or ZDA; UBX NAV-VELNED needs NAV-STATUS or NAV-SOL of its epoch)")
+        seen = sorted(((n, _ubx_name(k)) for k, n in self.seen_ubx.items()), reverse=True)
+        seen += sorted(((n, k) for k, n in self.seen_nmea.items()), reverse=True)
+        listed = ", ".join(f"{name} x{n}" for n, name in seen[:4]) + (", ..." if len(seen) > 4 else "")
+        return (f"no velocity message: none of UBX NAV-PVT, NAV-SOL, HNR-PVT, NAV-VELNED or NMEA RMC, VTG"
+                f" among its {st['ubx_frames'] + st['nmea_sentences']} messages ({listed});"
+                " enable one on the receiver")
 
     # ------------------------------------------------------------------------------ bookkeeping
 
@@ -436,6 +487,13 @@ class GnssStreamParser:
             self.stats[counter] += 1
         self.last_error = text
         self._report.report(kind, logging.WARNING, f"{self._name}: {text}", now=t)
+
+
+def _ubx_name(cls_id: tuple[int, int]) -> str:
+    """u-blox's name of a UBX message (pyubx2's table), else its class and id in hex."""
+    from pyubx2 import UBX_MSGIDS
+
+    return UBX_MSGIDS.get(bytes(cls_id), f"UBX 0x{cls_id[0]:02X} 0x{cls_id[1]:02X}")
 
 
 def sum_stats(parsers) -> dict:

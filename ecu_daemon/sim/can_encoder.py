@@ -6,8 +6,8 @@ The exact inverse of :mod:`ecu_daemon.signals`: the decoder computes
 STEER_ANGLE + STEER_FRACTION) ``a`` gets the value rounded to its own resolution and ``b`` the
 remainder (``a`` is moved by one step if the remainder would not fit ``b``). Signals the mapping
 does not use carry their DBC initial value (GenSigStartValue) or 0. Rolling counters count up by
-one per frame; checksums use the same code the decoder checks them with
-(:mod:`ecu_daemon.integrity`). Quantisation happens here, by the DBC's resolution, as on a car.
+one per frame; checksums, every scheme with the config's data id, use the same code the decoder
+checks them with (:class:`ecu_daemon.checksums.FrameChecksum`). Quantisation happens here, by the DBC's resolution, as on a car.
 A sign-magnitude mapping (``sign_signal``) gets |value| in its signal(s) and 1 in the sign signal
 when negative. A value the DBC cannot hold (a negative yaw rate in an unsigned signal without a
 sign bit, a speed beyond the signal's range) raises :class:`UnencodableValue`: clipping it would
@@ -18,8 +18,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..config import Config, ConfigError
-from ..integrity import data_id_for, e2e_p2_apply, toyota_checksum
+from ..checksums import FrameChecksum
+from ..integrity import data_id_for
 from ..dbc_loading import load_dbc
+from ..signals import unsigned_range_hint
 
 
 class UnencodableValue(ValueError):
@@ -44,8 +46,12 @@ class SignalInfo:
         mn, mx = sig.minimum, sig.maximum
         # the DBC's [min|max] narrows the range only when it is plausible, i.e. inside what the
         # bits can hold (opendbc writes [0|65535] on 10-bit offset signals, [0|0] for "unspecified")
+        # and at least half of it: opendbc's Chrysler DBC writes [0|1] on every value signal (13-bit
+        # wheel speeds that hold 0..71 m/s); a sensor range under half of its encoding is no
+        # reason to refuse a drive the bits carry
         tol = 1e-9 * max(1.0, abs(a), abs(b))
-        if mn is not None and mx is not None and mn < mx and mn >= a - tol and mx <= b + tol:
+        if (mn is not None and mx is not None and mn < mx and mn >= a - tol and mx <= b + tol
+                and mx - mn >= 0.5 * (b - a)):
             a, b = float(mn), float(mx)
         self.phys_lo, self.phys_hi = a, b
 
@@ -104,8 +110,9 @@ class MessagePlan:
     message: object  # cantools Message
     inputs: list = field(default_factory=list)  # (input name, InputMapping, [Signal, ...])
     counters: dict = field(default_factory=dict)  # counter signal name -> [next raw value, mask]
-    e2e: bool = False
-    toyota: bool = False
+    checksum: FrameChecksum | None = None  # the message's scheme, as the decoder binds it
+    pages: list = field(default_factory=list)  # multiplexed: (multiplexer signal, value) per page sent
+    page_k: int = 0  # frames sent so far (which page comes next)
     template: dict = field(default_factory=dict)  # raw values of every signal
 
     @property
@@ -133,8 +140,6 @@ class FrameEncoder:
         plans: dict[tuple, MessagePlan] = {}
         for name, m in cfg.inputs.items():
             msg = self._find_message(name, m.message)
-            if msg.is_multiplexed():
-                raise ConfigError(f"[inputs.{name}] {msg.name} is multiplexed; the simulator cannot encode it")
             key = (msg.frame_id, msg.is_extended_frame)
             plan = plans.get(key)
             if plan is None:
@@ -145,16 +150,31 @@ class FrameEncoder:
                                                else info.to_raw(info.clip(0.0)))
             sigs = [SignalInfo(self._signal(name, msg, s)) for s in m.signal_names()]
             sign = SignalInfo(self._signal(name, msg, m.sign_signal)) if m.sign_signal else None
-            plan.inputs.append((name, m, sigs, sign))
+            page = self._page(name, msg, m.signal_names() + ([m.sign_signal] if m.sign_signal else []))
+            if page is not None and page not in plan.pages:
+                if plan.pages and plan.pages[0][0] != page[0]:
+                    raise ConfigError(f"[inputs.{name}] {msg.name}: signals under two multiplexers"
+                                      f" ({plan.pages[0][0]}, {page[0]}); the simulator cannot encode that")
+                plan.pages.append(page)
+            plan.inputs.append((name, m, sigs, sign, page))
             if m.counter:
                 length = self._signal(name, msg, m.counter).length
                 plan.counters.setdefault(m.counter, [0, (1 << length) - 1])
-            plan.e2e |= m.checksum == "e2e_p2"
-            plan.toyota |= m.checksum == "toyota"
+            if m.checksum != "none" and plan.checksum is None:
+                # the decoder's binding (signals.SignalDecoder._bind_checksum): the config's data id
+                # (one, or VW's 16 indexed by the counter), else the DBC's; it refuses disagreeing inputs
+                ids = ((data_id_for(msg),) if m.data_id is None
+                       else tuple(m.data_id) if isinstance(m.data_id, list) else (m.data_id,))
+                plan.checksum = FrameChecksum(m.checksum, msg.frame_id, msg.is_extended_frame, ids)
         self.plans = list(plans.values())
 
     def _find_message(self, name: str, ref):
         if isinstance(ref, str):
+            same = [m for m in self.db.messages if m.name == ref]
+            if len(same) > 1:  # as the decoder: two DBCs joined by IMPORT lines name two messages alike
+                raise ConfigError(f"[inputs.{name}] message '{ref}' names {len(same)} messages in {self.dbc_path}"
+                                  f" ({', '.join(f'0x{m.frame_id:X}' for m in same)}): give the frame id instead,"
+                                  f" e.g. message = 0x{same[0].frame_id:X}")
             try:
                 return self.db.get_message_by_name(ref)
             except KeyError:
@@ -167,6 +187,27 @@ class FrameEncoder:
             raise ConfigError(f"[inputs.{name}] no message with frame id 0x{ref:X} in {self.dbc_path}")
         return found[0]
 
+    @classmethod
+    def _page(cls, name: str, msg, sig_names: list[str]) -> tuple[str, int] | None:
+        """The (multiplexer signal, value) whose frames carry the input's signals; None when they are
+        in every frame. A car sends the pages of a multiplexed message in turn (VW PQ Bremse_2: the
+        lateral acceleration in page 0, a timer in page 1); so does the simulator, one page per frame,
+        over the pages the mapping needs (the input's rate is the message's divided by their number)."""
+        pages = set()
+        for sig_name in sig_names:
+            sig = cls._signal(name, msg, sig_name)
+            if sig.multiplexer_signal is None:
+                pages.add(None)
+                continue
+            if cls._signal(name, msg, sig.multiplexer_signal).multiplexer_signal is not None:
+                raise ConfigError(f"[inputs.{name}] signal '{sig_name}' of {msg.name} is under a nested"
+                                  " multiplexer; the simulator cannot encode it")
+            pages.add((sig.multiplexer_signal, int(sig.multiplexer_ids[0])))
+        if len(pages) > 1:
+            raise ConfigError(f"[inputs.{name}] signals {', '.join(sig_names)} of {msg.name} are not in one"
+                              " multiplexer page: no frame carries all of them")
+        return pages.pop()
+
     @staticmethod
     def _signal(name: str, msg, sig_name: str):
         try:
@@ -177,7 +218,14 @@ class FrameEncoder:
     def encode(self, plan: MessagePlan, values: dict) -> bytes:
         """One frame of ``plan`` carrying ``values`` (input name -> SI value); advances counters."""
         raw = dict(plan.template)
-        for name, m, sigs, sign in plan.inputs:
+        page = None
+        if plan.pages:
+            page = plan.pages[plan.page_k % len(plan.pages)]
+            plan.page_k += 1
+            raw[page[0]] = page[1]
+        for name, m, sigs, sign, in_page in plan.inputs:
+            if in_page is not None and in_page != page:
+                continue  # this frame is another page: it does not carry the input
             phys = (values[name] - m.offset) / m.scale
             if sign is not None:
                 raw[sign.name] = 1 if phys < 0 else 0
@@ -185,14 +233,16 @@ class FrameEncoder:
             try:
                 raw.update(split_value(sigs, phys))
             except UnencodableValue as e:
+                hint = next(filter(None, (unsigned_range_hint(plan.message.get_signal_by_name(i.name),
+                                                              plan.message.name, self.dbc_path.name)
+                                          for i in sigs)), None) if phys < 0 else None
                 raise UnencodableValue(f"[inputs.{name}] {values[name]:.6g} (SI) cannot be encoded in"
-                                       f" {plan.message.name} of {self.dbc_path.name}: {e}") from None
+                                       f" {plan.message.name} of {self.dbc_path.name}: {e}"
+                                       + (f" ({hint})" if hint else "")) from None
         for cname, state in plan.counters.items():
             raw[cname] = state[0]
             state[0] = (state[0] + 1) & state[1]
         data = bytearray(plan.message.encode(raw, scaling=False, padding=False, strict=False))
-        if plan.e2e:
-            e2e_p2_apply(data, data_id_for(plan.message))
-        if plan.toyota:
-            data[-1] = toyota_checksum(plan.frame_id, data)
+        if plan.checksum is not None:
+            plan.checksum.apply(data)
         return bytes(data)
