@@ -114,6 +114,18 @@ IMU_LEVER_STD_M = 0.3
 # circle: heading and sideslip 1.4 deg off together with a white vy noise of 0.05): vy may drift
 # by this fraction of r vx.
 YAW_SCALE_STD = 0.005
+# The single-track model anchors vy wherever GNSS course cannot (a steady corner: course is
+# heading + sideslip, and the yaw rate x latency std turns it by degrees on a tight circle). Its
+# error is a bias over the corner, which the filter fuses as a pseudo-measurement inflated to a
+# ~2 s correlation while vy random-walks at the lateral noise floor in between: the filter's vy
+# std then settles near sqrt(q x model variance x 2 s), above the model's own error whenever that
+# error is small (lowspeed circles at 5 m/s: 0.085 m/s against the model's 0.037). The filter's vy
+# is never further from the truth than from the model plus the model's own error, both known at
+# each step: |vy - vy_true| <= |vy - vy_model| + |model error|. So the published vy std is at most
+# model std + |vy - vy_model| / 3 (3 sigma of it covers the known offset plus 3 model sigmas),
+# while the model is fused from genuine inputs (no IMU substitute, no lateral cross-check or
+# gyro disagreement widening vy) and was fused within the last MODEL_EVERY steps.
+MODEL_BOUND = True
 
 
 # A receiver's latency error is a filter state (latency_consider.py) while its dual-antenna heading
@@ -231,6 +243,8 @@ class Estimator:
         self.wheel_new = False
         self.r_lp = 0.0
         self.rdot = 0.0
+        self.model_t = -math.inf  # last single-track fusion (MODEL_BOUND) and its lateral acceleration
+        self.model_ay = 0.0
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
         self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
@@ -576,8 +590,10 @@ class Estimator:
             if imu_ok and k % MODEL_EVERY == 0:
                 # with an IMU signal isolated the model still holds vy, from its substitute (the
                 # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
-                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
-                                       SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0)
+                if self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
+                                          SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0):
+                    self.model_t = t
+                    self.model_ay = ay
             if steer_ok and imu_ok and not iso and x[VX] > 8.0 and abs(r) < 0.01 and abs(ay) < 0.3:
                 self.steer_offset += 0.0005 * (steer_sw - self.steer_offset)
         self.wheel_new = False
@@ -771,6 +787,14 @@ class Estimator:
         else:
             beta = 0.0
             beta_std = math.pi
+        vy_std = math.sqrt(pd[VY]) if pd[VY] > 0.0 else 0.0
+        if beta_std >= SIDESLIP_STD_VALID and sp2 > 0.25 and MODEL_BOUND:
+            b = self._model_bound(t, vx, vy, r, iso)
+            if b < vy_std:
+                c = b / vy_std  # same correlation with vx, smaller vy std
+                var_b = (vx * vx * b * b - 2.0 * vx * vy * float(p_vxvy) * c + vy * vy * pd[VX]) / (sp2 * sp2)
+                beta_std = math.sqrt(var_b) if var_b > 0 else 0.0
+                vy_std = b
         gnss_fresh = t - self.last_gnss_fused_t <= GNSS_FRESH_S
         if gnss_fresh:
             status |= est_mod.STATUS_GNSS_FRESH
@@ -839,7 +863,7 @@ class Estimator:
             imu_trusted = not fdi.yaw_suspect
         st = self.single_track
         return Estimate(
-            t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
+            t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, vy_std,
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
@@ -849,6 +873,15 @@ class Estimator:
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, *self.gnss_counts(), *self._road(imu_ok, iso))
+
+    def _model_bound(self, t: float, vx: float, vy: float, r: float, iso: int) -> float:
+        """The vy std the single-track model vouches for (``MODEL_BOUND``), inf when it does not."""
+        fdi = self.fdi
+        if (t - self.model_t > (MODEL_EVERY + 0.5) * self.dt or iso & (YAW_RATE | ACCEL_Y)
+                or fdi.lat_excess > 0.0 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0):
+            return math.inf
+        vy_m, s_m = self.single_track.model_error(vx, r, self.model_ay, self.rdot)
+        return s_m + abs(vy - vy_m) / 3.0
 
     def _published_delay(self) -> float:
         """The primary receiver's latency: ``latency.py``'s, plus the filter's estimate of its
