@@ -123,9 +123,18 @@ YAW_SCALE_STD = 0.005
 # is never further from the truth than from the model plus the model's own error, both known at
 # each step: |vy - vy_true| <= |vy - vy_model| + |model error|. So the published vy std is at most
 # model std + |vy - vy_model| / 3 (3 sigma of it covers the known offset plus 3 model sigmas),
-# while the model is fused from genuine inputs (no IMU substitute, no lateral cross-check or
-# gyro disagreement widening vy) and was fused within the last MODEL_EVERY steps.
+# The argument holds in a *steady* corner only, where the model's error is the constant bias its
+# std describes: not in transients (tyre relaxation lags the model's instantaneous vy; on mu 0.3 a
+# car sliding through a yaw-rate reversal had model and filter 2 m/s off together while ay was
+# crossing zero and the model's std with it), nor while the lateral cross-check or the gyro's
+# witnesses disagree (the model is one of the voters), nor with an IMU signal substituted, nor
+# without fresh GNSS. The bound applies once none of these has happened for MODEL_STEADY_S, the
+# correlation time of the model's errors (single_track.CORNER_STEPS x 6 ms).
 MODEL_BOUND = True
+MODEL_STEADY_S = 2.0
+# yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
+# model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
+MODEL_STEADY_RDOT = 0.2  # rad/s^2
 
 
 # A receiver's latency error is a filter state (latency_consider.py) while its dual-antenna heading
@@ -245,6 +254,7 @@ class Estimator:
         self.rdot = 0.0
         self.model_t = -math.inf  # last single-track fusion (MODEL_BOUND) and its lateral acceleration
         self.model_ay = 0.0
+        self.model_unsteady_t = math.inf  # last step the model's bound could not apply (MODEL_STEADY_S)
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
         self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
@@ -455,6 +465,7 @@ class Estimator:
         # mid-corner would otherwise publish a heading std without it for its first seconds)
         self.turn_lp = abs(r_m - x[BR])
         self.align_lat_var = 0.0
+        self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
         self.initialized = True
         self.aligned = False
 
@@ -562,6 +573,10 @@ class Estimator:
         r_lp = self.r_lp = r_lp_prev + self._lp_r * (r - r_lp_prev)
         rdot = self.rdot = self.rdot + self._lp_rdot * ((r_lp - r_lp_prev) / self.dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
+                or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
+                or t - self.last_gnss_fused_t > GNSS_FRESH_S or self.model_unsteady_t == math.inf):
+            self.model_unsteady_t = t
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
         # forwards (its fixes are observed only then) or standing (vx ~ 0 either side): a run kept
@@ -876,9 +891,7 @@ class Estimator:
 
     def _model_bound(self, t: float, vx: float, vy: float, r: float, iso: int) -> float:
         """The vy std the single-track model vouches for (``MODEL_BOUND``), inf when it does not."""
-        fdi = self.fdi
-        if (t - self.model_t > (MODEL_EVERY + 0.5) * self.dt or iso & (YAW_RATE | ACCEL_Y)
-                or fdi.lat_excess > 0.0 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0):
+        if t - self.model_t > (MODEL_EVERY + 0.5) * self.dt or t - self.model_unsteady_t < MODEL_STEADY_S:
             return math.inf
         vy_m, s_m = self.single_track.model_error(vx, r, self.model_ay, self.rdot)
         return s_m + abs(vy - vy_m) / 3.0
