@@ -115,6 +115,27 @@ IMU_LEVER_STD_M = 0.3
 # circle: heading and sideslip 1.4 deg off together with a white vy noise of 0.05): vy may drift
 # by this fraction of r vx.
 YAW_SCALE_STD = 0.005
+# The single-track model anchors vy wherever GNSS course cannot (a steady corner: course is
+# heading + sideslip, and the yaw rate x latency std turns it by degrees on a tight circle). Its
+# error is a bias over the corner, which the filter fuses as a pseudo-measurement inflated to a
+# ~2 s correlation while vy random-walks at the lateral noise floor in between: the filter's vy
+# std then settles near sqrt(q x model variance x 2 s), above the model's own error whenever that
+# error is small (lowspeed circles at 5 m/s: 0.085 m/s against the model's 0.037). The filter's vy
+# is never further from the truth than from the model plus the model's own error, both known at
+# each step: |vy - vy_true| <= |vy - vy_model| + |model error|. So the published vy std is at most
+# model std + |vy - vy_model| / 3 (3 sigma of it covers the known offset plus 3 model sigmas),
+# The argument holds in a *steady* corner only, where the model's error is the constant bias its
+# std describes: not in transients (tyre relaxation lags the model's instantaneous vy; on mu 0.3 a
+# car sliding through a yaw-rate reversal had model and filter 2 m/s off together while ay was
+# crossing zero and the model's std with it), nor while the lateral cross-check or the gyro's
+# witnesses disagree (the model is one of the voters), nor with an IMU signal substituted, nor
+# without fresh GNSS. The bound applies once none of these has happened for MODEL_STEADY_S, the
+# correlation time of the model's errors (single_track.CORNER_STEPS x 6 ms).
+MODEL_BOUND = True
+MODEL_STEADY_S = 2.0
+# yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
+# model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
+MODEL_STEADY_RDOT = 0.2  # rad/s^2
 
 
 # A receiver's latency error is a filter state (latency_consider.py) while its dual-antenna heading
@@ -235,6 +256,9 @@ class Estimator:
         self.wheel_new = False
         self.r_lp = 0.0
         self.rdot = 0.0
+        self.model_t = -math.inf  # last single-track fusion (MODEL_BOUND) and its lateral acceleration
+        self.model_ay = 0.0
+        self.model_unsteady_t = math.inf  # last step the model's bound could not apply (MODEL_STEADY_S)
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
         self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
@@ -446,6 +470,7 @@ class Estimator:
         # mid-corner would otherwise publish a heading std without it for its first seconds)
         self.turn_lp = abs(r_m - x[BR])
         self.align_lat_var = 0.0
+        self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
         self.initialized = True
         self.aligned = False
 
@@ -553,6 +578,10 @@ class Estimator:
         r_lp = self.r_lp = r_lp_prev + self._lp_r * (r - r_lp_prev)
         rdot = self.rdot = self.rdot + self._lp_rdot * ((r_lp - r_lp_prev) / self.dt - self.rdot)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
+                or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
+                or t - self.last_gnss_fused_t > GNSS_FRESH_S or self.model_unsteady_t == math.inf):
+            self.model_unsteady_t = t
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
         # forwards (its fixes are observed only then) or standing (vx ~ 0 either side): a run kept
@@ -581,8 +610,10 @@ class Estimator:
             if imu_ok and k % MODEL_EVERY == 0:
                 # with an IMU signal isolated the model still holds vy, from its substitute (the
                 # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
-                self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
-                                       SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0)
+                if self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
+                                          SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0):
+                    self.model_t = t
+                    self.model_ay = ay
             if (steer_ok and imu_ok and not iso and abs(r) < STEER_LEARN_MAX_R
                     and self.steer_learner.observe(steer_sw, r, vx, ay, math.sqrt(max(P[BR, BR], 0.0)))):
                 self.steer_offset = self.steer_learner.offset
@@ -777,6 +808,14 @@ class Estimator:
         else:
             beta = 0.0
             beta_std = math.pi
+        vy_std = math.sqrt(pd[VY]) if pd[VY] > 0.0 else 0.0
+        if beta_std >= SIDESLIP_STD_VALID and sp2 > 0.25 and MODEL_BOUND:
+            b = self._model_bound(t, vx, vy, r, iso)
+            if b < vy_std:
+                c = b / vy_std  # same correlation with vx, smaller vy std
+                var_b = (vx * vx * b * b - 2.0 * vx * vy * float(p_vxvy) * c + vy * vy * pd[VX]) / (sp2 * sp2)
+                beta_std = math.sqrt(var_b) if var_b > 0 else 0.0
+                vy_std = b
         gnss_fresh = t - self.last_gnss_fused_t <= GNSS_FRESH_S
         if gnss_fresh:
             status |= est_mod.STATUS_GNSS_FRESH
@@ -845,7 +884,7 @@ class Estimator:
             imu_trusted = not fdi.yaw_suspect
         st = self.single_track
         return Estimate(
-            t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, sd[VY],
+            t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, vy_std,
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
@@ -855,6 +894,13 @@ class Estimator:
             vel_valid,
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, *self.gnss_counts(), *self._road(imu_ok, iso))
+
+    def _model_bound(self, t: float, vx: float, vy: float, r: float, iso: int) -> float:
+        """The vy std the single-track model vouches for (``MODEL_BOUND``), inf when it does not."""
+        if t - self.model_t > (MODEL_EVERY + 0.5) * self.dt or t - self.model_unsteady_t < MODEL_STEADY_S:
+            return math.inf
+        vy_m, s_m = self.single_track.model_error(vx, r, self.model_ay, self.rdot)
+        return s_m + abs(vy - vy_m) / 3.0
 
     def _published_delay(self) -> float:
         """The primary receiver's latency: ``latency.py``'s, plus the filter's estimate of its

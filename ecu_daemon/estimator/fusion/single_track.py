@@ -178,6 +178,17 @@ class SingleTrackFusion:
         var = 16.0 * (self.base_sigma_beta * vx) ** 2 + CORNER_STEPS * (var_par + (nl * vx) ** 2)
         return vy, var
 
+    def model_error(self, vx: float, r: float, ay: float, rdot: float) -> tuple[float, float]:
+        """(vy_model, std of its error): :meth:`pseudo_measurement`'s vy and what it gets wrong at
+        this instant, *not* inflated for fusion: the parameter and tyre-law uncertainty (a bias
+        for the whole corner), the saturation term, and the unmodelled dynamics' floor once.
+        ``core.Estimator`` bounds the published vy std by it (``MODEL_BOUND``)."""
+        phi = self.regressor_rear(vx, ay, rdot)
+        n = abs(ay) / G
+        y, var_par = self.rear.predict(phi, n * n)
+        nl = 0.0 if n < 0.8 else (n - 0.8) * math.radians(3.0)
+        return self.lr * r + y, math.sqrt(var_par + (nl * vx) ** 2 + (self.base_sigma_beta * vx) ** 2)
+
     def substitute_vy_rate(self, vx: float, rdot: float) -> float:
         """|d vy / dt| the single-track model expects from the yaw acceleration ``rdot``: what an
         ay substituted by r vx (which says vy is steady) leaves out. In the steady state,
