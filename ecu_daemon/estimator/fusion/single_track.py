@@ -196,14 +196,15 @@ class SingleTrackFusion:
         return self.lr * r + (phi * k1 + phi * (n * n) * k3)
 
     def fuse(self, x: np.ndarray, P: np.ndarray, r: float, ay: float, rdot: float, A=None,
-             every: int = 1, var_scale: float = 1.0) -> bool:
+             every: int = 1, var_scale: float = 1.0, shift: float = 0.0) -> bool:
         """Fuse the pseudo-measurement; ``every``: it is fused every n-th step (noise scaled);
-        ``var_scale``: its variance widened (an input is a coarse substitute)."""
+        ``var_scale``: its variance widened (an input is a coarse substitute); ``shift``: what vy
+        did since the instant the inputs describe (inputs lagged alike, ``Estimator._model_lag_start``)."""
         vx = x[VX]
         if vx < MIN_SPEED:
             return False
         vy_m, var = self.pseudo_measurement(vx, r, ay, rdot)
-        return kalman.index_update(x, P, vy_m - x[VY], VY, var * var_scale / every, 0.0, A)
+        return kalman.index_update(x, P, vy_m + shift - x[VY], VY, var * var_scale / every, 0.0, A)
 
     def adapt_from(self, vx: float, vy: float, var_vy: float, r: float, ay: float, rdot: float,
                    delta: float) -> None:
