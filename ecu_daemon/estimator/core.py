@@ -41,7 +41,7 @@ from .fault_detection import ACCEL_X, ACCEL_Y, LAT_WINDOW_S, LEARNED_BOUNDS, WHE
 from .fusion.gnss_heading import REALIGN_REJECTS, STAGGER_S, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
-from .fusion.single_track import SingleTrackFusion, std_keys as stiffness_std_keys
+from .fusion.single_track import LaggedModelInputs, SingleTrackFusion, std_keys as stiffness_std_keys
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
@@ -231,7 +231,6 @@ class Estimator:
         self.wheel_new = False
         self.r_lp = 0.0
         self.rdot = 0.0
-        self._model_lag_start(0.0, 0.0)
         self.last_gnss_fused_t = -math.inf
         self.last_gnss_speed = math.nan
         self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
@@ -249,6 +248,7 @@ class Estimator:
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
+        self.model_inputs = LaggedModelInputs(self._lp_r, self._lp_rdot, dt)  # r, ay at rdot's lag
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
         # the (yaw rate x latency std)^2 a course alignment put into P, and P's heading variance then
         # (``_estimate``: that part of P and the published latency term are one error, counted once)
@@ -483,7 +483,8 @@ class Estimator:
                 return self._invalid(t)
             self._initialize(k, wheel_z, r_m, ay_m)
             self.r_lp = r_m - h.Xr[k % h.n][BR]
-            self._model_lag_start(self.r_lp, ay_m - h.Xr[k % h.n][BAY] - h.Xr[k % h.n][GAY] * ay_m)
+            xk = h.Xr[k % h.n]
+            self.model_inputs.start(self.r_lp, ay_m - xk[BAY] - xk[GAY] * ay_m)
         n = h.n
         i = k % n
         predict = h.last >= h.first
@@ -550,15 +551,7 @@ class Estimator:
         r_lp = self.r_lp = r_lp_prev + self._lp_r * (r - r_lp_prev)
         rdot = self.rdot = self.rdot + self._lp_rdot * ((r_lp - r_lp_prev) / self.dt - self.rdot)
         # the single-track model's inputs at rdot's lag, and vy's kinematic change over that lag
-        a1 = self._lp_r
-        a2 = self._lp_rdot
-        r_c = self.model_r = self.model_r + a2 * (r_lp - self.model_r)
-        ay1 = self.model_ay1 = self.model_ay1 + a1 * (ay - self.model_ay1)
-        ay_c = self.model_ay = self.model_ay + a2 * (ay1 - self.model_ay)
-        dv = (ay - r * vx) * self.dt
-        e1 = self.model_vy1 = (self.model_vy1 + dv) * (1.0 - a1)
-        e2 = self.model_vy2 + dv
-        vy_shift = self.model_vy2 = e2 - a2 * (e2 - e1)
+        r_c, ay_c, vy_shift = self.model_inputs.step(r_lp, r, ay, vx)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)
@@ -723,23 +716,6 @@ class Estimator:
         P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * dt) ** 2
         if bias:
             P[BAY, BAY] += (e * dt) ** 2 / LAT_BIAS_STEPS
-
-    def _model_lag_start(self, r: float, ay: float) -> None:
-        """Start the single-track model's lagged inputs (``_step``) at a steady state: r, ay now.
-
-        Timing of the samples (issue 7, low-speed accuracy): the yaw acceleration is the slope of
-        the low-passed yaw rate, itself low-passed (``_lp_r`` then ``_lp_rdot``: 0.03 + 0.05 s of
-        lag), while the model took r and ay as they came. At a turn-in the yaw-inertia term then
-        came 0.08 s after the lateral-force term: on the demo's 0.8 g turn-in (rdot 1.7 rad/s^2)
-        the model's vy was 0.4 deg off for those 0.1 s, every time. Now r and ay pass the same two
-        low-passes, so the model gives vy as it was one lag ago from consistent inputs, and the
-        vy the IMU integrated over that lag (``ay - r vx`` high-passed by the same two stages, the
-        part the low-passes have not yet passed on) brings it to the present step: like a late
-        GNSS sample, a measurement carried forward by the kinematics (a complementary filter).
-        The IMU's noise is low-passed too (Revs' 1.5 m/s^2 per sample)."""
-        self.model_r = r
-        self.model_ay1 = self.model_ay = ay
-        self.model_vy1 = self.model_vy2 = 0.0
 
     def _model_vy(self, vx: float, r: float, ay: float, rdot: float) -> float:
         """The single-track model's vy (the lateral cross-check's third voter)."""
