@@ -9,7 +9,7 @@ import pytest
 
 from ecu_daemon.estimator import generated as gen
 from ecu_daemon.estimator.fusion.gnss_velocity import GnssVelocityFusion
-from ecu_daemon.estimator.fusion.single_track import SingleTrackFusion
+from ecu_daemon.estimator.fusion.single_track import LaggedModelInputs, SingleTrackFusion
 from ecu_daemon.estimator.fusion.standstill import StandstillFusion
 from ecu_daemon.estimator.fusion.wheel_speed import WheelSpeedFusion
 from ecu_daemon.estimator.history import AUX_R, StepHistory
@@ -96,6 +96,47 @@ def test_single_track_fuses_vy_only_and_not_at_a_crawl():
     assert not st.fuse(x, P, 0.1, 0.0, 0.0, A)
     np.testing.assert_array_equal(x, x0)
 
+
+
+def _linear_turn_in(steps: int, dt: float, vx: float):
+    """A linear single-track car (the model's own law, exact: m 1500, Iz 2500, lf 1.2, lr 1.5,
+    C_f 80 kN/rad, C_r 90 kN/rad) at vx, steered to 0.04 rad over 0.15 s from t = 0.2 s:
+    per step (r, ay, vy) as the IMU reads r and ay and the truth has vy (0.25 g, rdot ~1 rad/s^2)."""
+    m, iz, lf, lr, cf, cr = 1500.0, 2500.0, 1.2, 1.5, 80000.0, 90000.0
+    vy = r = 0.0
+    for k in range(steps):
+        delta = 0.04 * min(max((k * dt - 0.2) / 0.15, 0.0), 1.0)
+        fyf = -cf * ((vy + lf * r) / vx - delta)
+        fyr = -cr * (vy - lr * r) / vx
+        ay = (fyf + fyr) / m
+        vy += (ay - r * vx) * dt
+        r += (lf * fyf - lr * fyr) / iz * dt
+        yield r, ay, vy
+
+
+def test_single_track_inputs_at_one_lag_follow_a_turn_in():
+    """Timing of the samples (issue 7): the model's yaw acceleration is the slope of a twice
+    low-passed yaw rate (0.08 s late); fed with r and ay as they come, the model's vy led its
+    yaw-inertia term by that lag and missed a turn-in by 0.2 deg. With r and ay through the same
+    low-passes and the IMU's vy change over the lag added (LaggedModelInputs), it follows the
+    turn-in to a twentieth of that, and both are exact in the steady corner."""
+    dt, vx = 0.006, 16.0
+    st = single_track()
+    st.rear.k[1] = 0.0  # the linear car: no saturation term
+    a1, a2 = dt / (0.03 + dt), dt / (0.05 + dt)  # the estimator's r_lp and rdot low-passes
+    lag = LaggedModelInputs(a1, a2, dt)
+    r_lp = rdot = 0.0
+    before, after = [], []
+    for r, ay, vy in _linear_turn_in(int(1.5 / dt), dt, vx):
+        r_prev, r_lp = r_lp, r_lp + a1 * (r - r_lp)
+        rdot += a2 * ((r_lp - r_prev) / dt - rdot)
+        before.append(st.model_vy(vx, r, ay, rdot) - vy)
+        r_c, ay_c, shift = lag.step(r_lp, r, ay, vx)
+        after.append(st.model_vy(vx, r_c, ay_c, rdot) + shift - vy)
+    before, after = (np.degrees(np.abs(np.array(e)) / vx) for e in (before, after))
+    assert before.max() > 0.15  # the old inputs: 0.2 deg at the turn-in
+    assert after.max() < 0.02 and after.max() < before.max() / 10.0
+    assert after[-1] < 1e-3 and before[-1] < 1e-3  # steady corner: both the law itself
 
 # ---- standstill --------------------------------------------------------------------------------
 

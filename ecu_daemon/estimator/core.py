@@ -41,7 +41,7 @@ from .fault_detection import ACCEL_X, ACCEL_Y, LAT_WINDOW_S, LEARNED_BOUNDS, WHE
 from .fusion.gnss_heading import REALIGN_REJECTS, STAGGER_S, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
 from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
-from .fusion.single_track import SingleTrackFusion, std_keys as stiffness_std_keys
+from .fusion.single_track import LaggedModelInputs, SingleTrackFusion, std_keys as stiffness_std_keys
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
@@ -276,6 +276,7 @@ class Estimator:
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
+        self.model_inputs = LaggedModelInputs(self._lp_r, self._lp_rdot, dt)  # r, ay at rdot's lag
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
         # the (yaw rate x latency std)^2 a course alignment put into P, and P's heading variance then
         # (``_estimate``: that part of P and the published latency term are one error, counted once)
@@ -512,6 +513,8 @@ class Estimator:
                 return self._invalid(t)
             self._initialize(k, wheel_z, r_m, ay_m)
             self.r_lp = r_m - h.Xr[k % h.n][BR]
+            xk = h.Xr[k % h.n]
+            self.model_inputs.start(self.r_lp, ay_m - xk[BAY] - xk[GAY] * ay_m)
         n = h.n
         i = k % n
         predict = h.last >= h.first
@@ -577,6 +580,8 @@ class Estimator:
         r_lp_prev = self.r_lp
         r_lp = self.r_lp = r_lp_prev + self._lp_r * (r - r_lp_prev)
         rdot = self.rdot = self.rdot + self._lp_rdot * ((r_lp - r_lp_prev) / self.dt - self.rdot)
+        # the single-track model's inputs at rdot's lag, and vy's kinematic change over that lag
+        r_c, ay_c, vy_shift = self.model_inputs.step(r_lp, r, ay, vx)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
@@ -610,10 +615,11 @@ class Estimator:
             if imu_ok and k % MODEL_EVERY == 0:
                 # with an IMU signal isolated the model still holds vy, from its substitute (the
                 # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
-                if self.single_track.fuse(x, P, r, ay, rdot, A, MODEL_EVERY,
-                                          SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0):
+                if self.single_track.fuse(x, P, r_c, ay_c, rdot, A, MODEL_EVERY,
+                                          SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0,
+                                          vy_shift):
                     self.model_t = t
-                    self.model_ay = ay
+                    self.model_ay = ay_c
             if (steer_ok and imu_ok and not iso and abs(r) < STEER_LEARN_MAX_R
                     and self.steer_learner.observe(steer_sw, r, vx, ay, math.sqrt(max(P[BR, BR], 0.0)))):
                 self.steer_offset = self.steer_learner.offset
