@@ -371,7 +371,34 @@ static PyObject *f_encode(PyObject *self, PyObject *const *args, Py_ssize_t narg
     return PyByteArray_FromStringAndSize((const char *)buf, length);
 }
 
+/* e2e_p2(payload, data_id, crc_table) -> int | NotImplemented: integrity.e2e_p2_crc in C, for the
+ * frames the Python path encodes (the EST_DIAG pages: every other step; ~1 us in Python). A data id
+ * outside 0..255 returns NotImplemented (the reference then decides what that means). */
+static PyObject *f_e2e_p2(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3 || !PyByteArray_Check(args[0]) || !PyLong_Check(args[1]) || !PyBytes_Check(args[2])
+        || PyBytes_GET_SIZE(args[2]) != 256) {
+        PyErr_SetString(PyExc_TypeError, "e2e_p2(payload: bytearray, data_id: int, crc_table: bytes[256])");
+        return NULL;
+    }
+    int overflow = 0;
+    long id = PyLong_AsLongAndOverflow(args[1], &overflow);
+    if (id == -1 && PyErr_Occurred())
+        return NULL;
+    if (overflow || id < 0 || id > 255)
+        Py_RETURN_NOTIMPLEMENTED;
+    const unsigned char *t = (const unsigned char *)PyBytes_AS_STRING(args[2]);
+    const unsigned char *b = (const unsigned char *)PyByteArray_AS_STRING(args[0]);
+    Py_ssize_t n = PyByteArray_GET_SIZE(args[0]);
+    unsigned r = 0xFF;
+    for (Py_ssize_t i = 1; i < n; i++)
+        r = t[r ^ b[i]];
+    return PyLong_FromLong((long)(t[r ^ (unsigned)id] ^ 0xFF));
+}
+
 static PyMethodDef methods[] = {
+    {"e2e_p2", (PyCFunction)(void (*)(void))f_e2e_p2, METH_FASTCALL,
+     "e2e_p2(payload, data_id, crc_table): integrity.e2e_p2_crc of a bytearray, or NotImplemented"},
     {"pack", (PyCFunction)(void (*)(void))f_pack, METH_FASTCALL,
      "pack(layout, values, length): the payload of outputs._pack_reference, or None"},
     {"compile_plan", (PyCFunction)(void (*)(void))f_compile_plan, METH_FASTCALL,

@@ -29,7 +29,9 @@ MODULES = (
     "ecu_daemon/estimator/road.py",
     "ecu_daemon/estimator/latency.py",
     "ecu_daemon/estimator/latency_consider.py",
-    "ecu_daemon/estimator/steering_offset.py",
+    "ecu_daemon/estimator/steering_offset.py",  # SteeringOffset.observe: every gentle-path step
+    "ecu_daemon/estimator/input_consistency.py",  # LongitudinalScaleCheck.step: every step
+    "ecu_daemon/estimator/lateral_noise.py",  # LateralNoise.observe: every lateral-accelerometer sample
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",

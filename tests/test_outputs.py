@@ -373,6 +373,27 @@ def test_compiled_packer_hands_what_it_cannot_hold_to_the_reference():
     assert outputs._pack_compiled(narrow, {"A": 9.0}, 1) is None  # raw 18 > 7: out of range, as the reference
 
 
+def test_compiled_e2e_crc_is_the_reference_crc():
+    """``_frames.e2e_p2`` (the CRC of the frames the Python path packs, EST_DIAG's pages) against
+    integrity.e2e_p2_crc on random payloads of every length and data id; an id outside a byte is
+    left to the reference (NotImplemented), and ``outputs._crc`` gives the reference's answer."""
+    import random
+
+    from ecu_daemon import outputs
+    from ecu_daemon.integrity import CRC8H2F_TABLE, e2e_p2_crc
+
+    assert outputs._e2e_p2_compiled is not None, "pip install builds ecu_daemon/_frames.c (setup.py)"
+    rng = random.Random(10)
+    for _ in range(2000):
+        payload = bytearray(rng.randrange(256) for _ in range(rng.randrange(0, 9)))
+        did = rng.randrange(256)
+        assert outputs._e2e_p2_compiled(payload, did, CRC8H2F_TABLE) == e2e_p2_crc(payload, did)
+        assert outputs._crc(payload, did) == e2e_p2_crc(payload, did)
+    assert outputs._e2e_p2_compiled(bytearray(8), 256, CRC8H2F_TABLE) is NotImplemented
+    assert outputs._e2e_p2_compiled(bytearray(8), -1, CRC8H2F_TABLE) is NotImplemented
+    assert outputs._crc(bytearray(8), -1) == e2e_p2_crc(bytearray(8), -1)
+
+
 def test_a_big_endian_message_keeps_cantools_encode(tmp_path):
     from ecu_daemon.outputs import _layout
 
