@@ -499,8 +499,12 @@ class Estimator:
         if iso & (WHEELS | ACCEL_X):  # a sensor fault the fault detector has isolated
             self.lon_scale.reset()
         else:
+            # GNSS, fresh and fused, last found the wheels right: an independent witness
+            # (input_consistency.py: a steady speed's failing window is then ax's bias)
             self.lon_scale.step(k, wheel_z * xpl[KW] if wheels_ok else math.nan,
-                                ax_m - xpl[BAX] if imu_ok else math.nan)
+                                ax_m - xpl[BAX] if imu_ok else math.nan,
+                                self.gnss_agrees and t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
+                                and t - self.last_gnss_fused_t <= GNSS_FRESH_S)
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None

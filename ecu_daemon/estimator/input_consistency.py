@@ -19,6 +19,16 @@ already outvoted it), so velocity is not promised while windows fail and ``LON2_
 the last. Nothing is fused differently: this check only withholds the promise. While the fault
 detector has isolated the wheels or ax it has found the culprit (a sensor fault, not a mapping
 error) and the filter no longer fuses it: the check stands aside and starts afresh after.
+
+An accelerometer *offset* is not a scale error: it is a bias, it fails windows at a steady speed,
+where no mapping error can. With the wheel speed changing by at most ``LON2_STEADY_MPS`` over
+the window, a failing residual needs an ax scale beyond -1.5x or +4.6x (tolerance below at
+v = 0), never a reversed axis or wheels 3.6x off: what it shows is ax's bias (a fault the filter
+carries as a bias; between wheel samples it moves vx by bias x 10 ms). If the latest GNSS speed
+check, fresh, also confirms the wheels (``wheels_confirmed``: a receiver independent of both),
+vx, which the steady wheels hold, is right: such a window is counted in :attr:`offsets` and
+withholds nothing. Without that confirmation a frozen wheel reading while the car brakes
+looks the same, and the window fails as before.
 """
 from __future__ import annotations
 
@@ -30,6 +40,9 @@ LON2_TOL_MPS = 1.0  # accelerometer bias error (0.2 m/s^2) and grade change over
 LON2_TOL_SPEED = 0.05  # wheel slip change over the window, as a share of the speed
 LON2_TOL_SCALE = 0.35  # ... and of the speed change: wheel radius error, slip growing with deceleration
 LON2_HOLD_S = 5.0  # the promise stays withheld this long after the last failing window
+# a steady wheel speed: no reversed ax nor any wheel scale can fail a window that changes less
+# (module docstring); 0.5 m/s over 2 s is 0.25 m/s^2 of mean acceleration
+LON2_STEADY_MPS = 0.5
 
 
 class LongitudinalScaleCheck:
@@ -49,6 +62,7 @@ class LongitudinalScaleCheck:
         self.failing = False
         self.residual = 0.0  # m/s, the last window's wheel change minus ax's integral
         self.failures = 0  # windows that failed, over the drive
+        self.offsets = 0  # failing windows at a steady, GNSS-confirmed wheel speed (an ax bias), not held
 
     def reset(self) -> None:
         """The fault detector has isolated the wheels or ax (it knows which is wrong and the filter
@@ -59,9 +73,10 @@ class LongitudinalScaleCheck:
         self._last_fail_k = -(1 << 62)
         self.failing = False
 
-    def step(self, k: int, v_wheels: float, ax: float) -> bool:
+    def step(self, k: int, v_wheels: float, ax: float, wheels_confirmed: bool = False) -> bool:
         """One estimator step: ``v_wheels`` the fused wheel speed (scaled; NaN: none), ``ax`` the
-        bias-corrected longitudinal acceleration (NaN: none). Returns :attr:`failing`."""
+        bias-corrected longitudinal acceleration (NaN: none), ``wheels_confirmed`` whether a fresh
+        GNSS speed check agrees with the wheels. Returns :attr:`failing`."""
         if ax == ax:
             self._cum_a += ax * self.dt
         else:
@@ -86,7 +101,10 @@ class LongitudinalScaleCheck:
                 tol = (LON2_TOL_MPS + LON2_TOL_SPEED * max(abs(v_wheels), abs(v_old))
                        + LON2_TOL_SCALE * abs(dv_a))
                 if abs(res) > tol:
-                    self._last_fail_k = k
-                    self.failures += 1
+                    if wheels_confirmed and abs(v_wheels - v_old) <= LON2_STEADY_MPS:
+                        self.offsets += 1  # ax's bias at a steady, confirmed speed (docstring)
+                    else:
+                        self._last_fail_k = k
+                        self.failures += 1
         self.failing = k - self._last_fail_k <= self._hold
         return self.failing
