@@ -108,3 +108,66 @@ class LongitudinalScaleCheck:
                         self.failures += 1
         self.failing = k - self._last_fail_k <= self._hold
         return self.failing
+
+
+# --- lateral: the accelerometer's ay against the yaw rate times the speed
+LAT2_TAU_S = 0.05  # low-pass of both sides: ay's noise (0.05-0.3 m/s^2), CAN timing; short, as a
+#                    wrong ay corrupts vy within 0.03 s of a turn-in
+LAT2_MIN_SPEED = 3.0  # m/s: below it sideslip is not promised anyway (core.MIN_SPEED_SIDESLIP)
+LAT2_TOL_MPS2 = 1.5  # ay's unlearned bias (0.3), a 6 % bank's gravity (0.6), body roll's (0.3 at 0.6 g)
+LAT2_TOL_REL = 0.3  # x |r vx|: vy's own rate at the limit and in transients beyond the rdot term
+LAT2_TOL_RDOT_M = 2.5  # x peak |yaw acceleration|: kinematic dvy/dt = lr rdot (lr <= 1.7 m) and
+#                       an IMU up to 0.8 m ahead of or behind the CG that nobody configured
+LAT2_RDOT_MEMORY_S = 0.5  # the peak |rdot| decays over this (the low-passed sides lag the transient)
+LAT2_HOLD_S = 2.0  # sideslip stays withheld this long after the last failing step
+
+
+class LateralScaleCheck:
+    """The lateral accelerometer against its witness ``r vx`` (``ay = dvy/dt + r vx`` at the CG):
+    :attr:`failing` while they disagree beyond what bias, bank, roll and vy's own rate allow.
+
+    Why: the fault detector judges ay by ``ay / vx`` against the gyro only above 6 m/s (at low
+    speed that ratio magnifies every bias), but a configuration error -- ay in g mapped as m/s^2,
+    a signal already in m/s^2 given a g scale (9.81x), a reversed axis -- is wrong at any speed:
+    at 5 m/s on a 15 m circle the 9.81x ay put sideslip 75 deg off while it was promised (the
+    single-track model and vy's integration both take ay). In acceleration units the tolerance
+    does not depend on the speed. Like :class:`LongitudinalScaleCheck` it only withholds the
+    sideslip promise, for ``LAT2_HOLD_S`` after the last failing step. While the fault detector
+    has isolated the gyro or ay (their substitutes are fused then) it judges nothing, but a hold
+    already running goes on: the vy that the wrong ay integrated is not right the moment ay is
+    isolated.
+    """
+
+    def __init__(self, dt: float):
+        self.dt = dt
+        self._a = dt / (LAT2_TAU_S + dt)
+        self._rdot_decay = math.exp(-dt / LAT2_RDOT_MEMORY_S)
+        self._hold = int(round(LAT2_HOLD_S / dt))
+        self._ay = self._rv = math.nan
+        self._rdot = 0.0
+        self._last_fail_k = -(1 << 62)
+        self.failing = False
+        self.residual = 0.0  # m/s^2, low-passed ay - r vx
+        self.failures = 0  # steps that failed, over the drive
+
+    def step(self, k: int, ay: float, r: float, vx: float, rdot: float) -> bool:
+        """One estimator step: ``ay`` bias-corrected, ``r`` the bias-corrected yaw rate, ``vx``
+        the filter's, ``rdot`` the yaw acceleration; NaN ``ay`` or ``r``: no judgement (gyro or
+        ay isolated, IMU stale), the low-passes restart. Returns :attr:`failing`."""
+        rv = r * vx
+        if ay != ay or rv != rv:
+            self._ay = self._rv = math.nan
+        elif self._ay != self._ay:
+            self._ay, self._rv = ay, rv
+        else:
+            a = self._a
+            self._ay += a * (ay - self._ay)
+            self._rv += a * (rv - self._rv)
+            self._rdot = max(abs(rdot), self._rdot * self._rdot_decay)
+            if abs(vx) > LAT2_MIN_SPEED:
+                res = self.residual = self._ay - self._rv
+                if abs(res) > LAT2_TOL_MPS2 + LAT2_TOL_REL * abs(self._rv) + LAT2_TOL_RDOT_M * self._rdot:
+                    self._last_fail_k = k
+                    self.failures += 1
+        self.failing = k - self._last_fail_k <= self._hold
+        return self.failing
