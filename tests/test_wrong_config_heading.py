@@ -21,7 +21,7 @@ from ecu_daemon.sim import simulate, vehicle_config
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.writer import write_all
 
-LOW = Scenario("lowspeed_r15", "low_speed", params=(("radius_m", 15.0), ("v_max", 10.0)), duration_s=40.0)
+LOW = Scenario("lowspeed_r15", "low_speed", params=(("radius_m", 15.0), ("v_max", 10.0)))  # 75 s
 
 
 def _heading_rows(d, edit, name):
