@@ -114,6 +114,10 @@ class LongitudinalScaleCheck:
 LAT2_TAU_S = 0.05  # low-pass of both sides: ay's noise (0.05-0.3 m/s^2), CAN timing; short, as a
 #                    wrong ay corrupts vy within 0.03 s of a turn-in
 LAT2_MIN_SPEED = 3.0  # m/s: below it sideslip is not promised anyway (core.MIN_SPEED_SIDESLIP)
+# m/s: from here up the fault detector's ay / vx vote judges ay (fault_detection, 2 x YAW_MIN_SPEED),
+# and vy's own rate is no longer the kinematic lr rdot: a 50 m/s swerve has ay - r vx = -10 m/s^2
+# for 0.3 s with the sideslip right (flying_50_r400r_h300 lost 5 % of its valid rows to this check)
+LAT2_MAX_SPEED = 6.0
 LAT2_TOL_MPS2 = 2.5  # ay's unlearned bias (0.3), a banked track's gravity (1.4 on the Revs track),
 #                      body roll's (0.5 at 1 g); 1.5 withheld 2.2 % of Revs' right sideslip
 LAT2_TOL_REL = 0.5  # x |r vx|: vy's own rate at the limit (a race car at 1.7 g) and in transients
@@ -132,7 +136,8 @@ class LateralScaleCheck:
     a signal already in m/s^2 given a g scale (9.81x), a reversed axis -- is wrong at any speed:
     at 5 m/s on a 15 m circle the 9.81x ay put sideslip 75 deg off while it was promised (the
     single-track model and vy's integration both take ay). In acceleration units the tolerance
-    does not depend on the speed. Like :class:`LongitudinalScaleCheck` it only withholds the
+    does not depend on the speed; this check covers the speeds below the fault detector's
+    (``LAT2_MIN_SPEED`` to ``LAT2_MAX_SPEED``), where vy's rate is the kinematic lr rdot. Like :class:`LongitudinalScaleCheck` it only withholds the
     sideslip promise, for ``LAT2_HOLD_S`` after the last failing step. While the fault detector
     has isolated the gyro or ay (their substitutes are fused then) it judges nothing, but a hold
     already running goes on: the vy that the wrong ay integrated is not right the moment ay is
@@ -165,7 +170,7 @@ class LateralScaleCheck:
             self._ay += a * (ay - self._ay)
             self._rv += a * (rv - self._rv)
             self._rdot = max(abs(rdot), self._rdot * self._rdot_decay)
-            if abs(vx) > LAT2_MIN_SPEED:
+            if LAT2_MIN_SPEED < abs(vx) <= LAT2_MAX_SPEED:
                 res = self.residual = self._ay - self._rv
                 if abs(res) > LAT2_TOL_MPS2 + LAT2_TOL_REL * abs(self._rv) + LAT2_TOL_RDOT_M * self._rdot:
                     self._last_fail_k = k
