@@ -135,3 +135,30 @@ def test_reset_clears_the_verdict_and_the_window():
     # consistent signals after the reset: no verdict from the old window's samples
     v2, a2 = _series(1.0)
     assert not np.array([chk.step(1000 + k, vk, ak) for k, (vk, ak) in enumerate(zip(v2, a2))]).any()
+
+
+def _run_confirmed(check, v, a, confirmed):
+    return np.array([check.step(k, vk, ak, confirmed) for k, (vk, ak) in enumerate(zip(v, a))])
+
+
+def test_an_accelerometer_offset_at_a_steady_confirmed_speed_is_a_bias_not_a_scale():
+    """fault_accel_x_offset: ax reads 2 m/s^2 high for 5 s at a steady 22 m/s. The wheels, which
+    GNSS confirms, hold vx (0.15 m/s worst): before, the check withheld velocity -- and sideslip --
+    for 10 s (78 % valid above 5 m/s)."""
+    n = int(20.0 / DT)
+    t = np.arange(n) * DT
+    v = 22.0 + 0.02 * np.sin(7.0 * t)  # steady, with the wheels' noise
+    a = np.where((t > 8.0) & (t < 13.0), 2.0, 0.0)
+    chk = LongitudinalScaleCheck(DT)
+    assert not _run_confirmed(chk, v, a, True).any()
+    assert chk.offsets > 0 and chk.failures == 0
+    # without a receiver vouching for the wheels, a frozen wheel reading looks the same: withheld
+    assert _run_confirmed(LongitudinalScaleCheck(DT), v, a, False).any()
+
+
+@pytest.mark.parametrize("scale_w, sign_a", [(3.6, 1.0), (1.0, -1.0)])
+def test_a_confirmation_does_not_excuse_a_scale_or_sign_error(scale_w, sign_a):
+    """The exemption is for a steady speed only: a speed change shows a mapping error even while
+    the last GNSS check still agreed (it is up to 2 s old)."""
+    v, a = _series(scale_w, sign_a)
+    assert _run_confirmed(LongitudinalScaleCheck(DT), v, a, True).any()

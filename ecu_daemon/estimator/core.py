@@ -46,7 +46,7 @@ from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
-from .input_consistency import LongitudinalScaleCheck
+from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider
@@ -273,6 +273,7 @@ class Estimator:
         self.gnss_conflict_t = math.inf
         self.gnss_conflict_last_t = -math.inf
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
+        self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self._lp_rdot = dt / (0.05 + dt)
@@ -532,8 +533,16 @@ class Estimator:
         if iso & (WHEELS | ACCEL_X):  # a sensor fault the fault detector has isolated
             self.lon_scale.reset()
         else:
+            # GNSS, fresh and fused, last found the wheels right: an independent witness
+            # (input_consistency.py: a steady speed's failing window is then ax's bias)
             self.lon_scale.step(k, wheel_z * xpl[KW] if wheels_ok else math.nan,
-                                ax_m - xpl[BAX] if imu_ok else math.nan)
+                                ax_m - xpl[BAX] if imu_ok else math.nan,
+                                self.gnss_agrees and t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
+                                and t - self.last_gnss_fused_t <= GNSS_FRESH_S)
+        # ay against r vx at any speed; nothing to judge while the gyro's or ay's substitute is fused
+        self.lat_scale.step(k, ay_m - xpl[BAY] - xpl[GAY] * ay_m
+                            if imu_ok and not iso & (YAW_RATE | ACCEL_Y) else math.nan,
+                            r_m - xpl[BR], xpl[VX], self.rdot)
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None
@@ -893,7 +902,8 @@ class Estimator:
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, vy_std,
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
-            vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID,
+            vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
+            and not self.lat_scale.failing,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and all(f.consecutive_rejects == 0 for f in self.receivers) and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),

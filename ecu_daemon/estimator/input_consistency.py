@@ -19,6 +19,16 @@ already outvoted it), so velocity is not promised while windows fail and ``LON2_
 the last. Nothing is fused differently: this check only withholds the promise. While the fault
 detector has isolated the wheels or ax it has found the culprit (a sensor fault, not a mapping
 error) and the filter no longer fuses it: the check stands aside and starts afresh after.
+
+An accelerometer *offset* is not a scale error: it is a bias, it fails windows at a steady speed,
+where no mapping error can. With the wheel speed changing by at most ``LON2_STEADY_MPS`` over
+the window, a failing residual needs an ax scale beyond -1.5x or +4.6x (tolerance below at
+v = 0), never a reversed axis or wheels 3.6x off: what it shows is ax's bias (a fault the filter
+carries as a bias; between wheel samples it moves vx by bias x 10 ms). If the latest GNSS speed
+check, fresh, also confirms the wheels (``wheels_confirmed``: a receiver independent of both),
+vx, which the steady wheels hold, is right: such a window is counted in :attr:`offsets` and
+withholds nothing. Without that confirmation a frozen wheel reading while the car brakes
+looks the same, and the window fails as before.
 """
 from __future__ import annotations
 
@@ -30,6 +40,9 @@ LON2_TOL_MPS = 1.0  # accelerometer bias error (0.2 m/s^2) and grade change over
 LON2_TOL_SPEED = 0.05  # wheel slip change over the window, as a share of the speed
 LON2_TOL_SCALE = 0.35  # ... and of the speed change: wheel radius error, slip growing with deceleration
 LON2_HOLD_S = 5.0  # the promise stays withheld this long after the last failing window
+# a steady wheel speed: no reversed ax nor any wheel scale can fail a window that changes less
+# (module docstring); 0.5 m/s over 2 s is 0.25 m/s^2 of mean acceleration
+LON2_STEADY_MPS = 0.5
 
 
 class LongitudinalScaleCheck:
@@ -49,6 +62,7 @@ class LongitudinalScaleCheck:
         self.failing = False
         self.residual = 0.0  # m/s, the last window's wheel change minus ax's integral
         self.failures = 0  # windows that failed, over the drive
+        self.offsets = 0  # failing windows at a steady, GNSS-confirmed wheel speed (an ax bias), not held
 
     def reset(self) -> None:
         """The fault detector has isolated the wheels or ax (it knows which is wrong and the filter
@@ -59,9 +73,10 @@ class LongitudinalScaleCheck:
         self._last_fail_k = -(1 << 62)
         self.failing = False
 
-    def step(self, k: int, v_wheels: float, ax: float) -> bool:
+    def step(self, k: int, v_wheels: float, ax: float, wheels_confirmed: bool = False) -> bool:
         """One estimator step: ``v_wheels`` the fused wheel speed (scaled; NaN: none), ``ax`` the
-        bias-corrected longitudinal acceleration (NaN: none). Returns :attr:`failing`."""
+        bias-corrected longitudinal acceleration (NaN: none), ``wheels_confirmed`` whether a fresh
+        GNSS speed check agrees with the wheels. Returns :attr:`failing`."""
         if ax == ax:
             self._cum_a += ax * self.dt
         else:
@@ -86,6 +101,78 @@ class LongitudinalScaleCheck:
                 tol = (LON2_TOL_MPS + LON2_TOL_SPEED * max(abs(v_wheels), abs(v_old))
                        + LON2_TOL_SCALE * abs(dv_a))
                 if abs(res) > tol:
+                    if wheels_confirmed and abs(v_wheels - v_old) <= LON2_STEADY_MPS:
+                        self.offsets += 1  # ax's bias at a steady, confirmed speed (docstring)
+                    else:
+                        self._last_fail_k = k
+                        self.failures += 1
+        self.failing = k - self._last_fail_k <= self._hold
+        return self.failing
+
+
+# --- lateral: the accelerometer's ay against the yaw rate times the speed
+LAT2_TAU_S = 0.05  # low-pass of both sides: ay's noise (0.05-0.3 m/s^2), CAN timing; short, as a
+#                    wrong ay corrupts vy within 0.03 s of a turn-in
+LAT2_MIN_SPEED = 3.0  # m/s: below it sideslip is not promised anyway (core.MIN_SPEED_SIDESLIP)
+# m/s: from here up the fault detector's ay / vx vote judges ay (fault_detection, 2 x YAW_MIN_SPEED),
+# and vy's own rate is no longer the kinematic lr rdot: a 50 m/s swerve has ay - r vx = -10 m/s^2
+# for 0.3 s with the sideslip right (flying_50_r400r_h300 lost 5 % of its valid rows to this check)
+LAT2_MAX_SPEED = 6.0
+LAT2_TOL_MPS2 = 2.5  # ay's unlearned bias (0.3), a banked track's gravity (1.4 on the Revs track),
+#                      body roll's (0.5 at 1 g); 1.5 withheld 2.2 % of Revs' right sideslip
+LAT2_TOL_REL = 0.5  # x |r vx|: vy's own rate at the limit (a race car at 1.7 g) and in transients
+LAT2_TOL_RDOT_M = 2.5  # x peak |yaw acceleration|: kinematic dvy/dt = lr rdot (lr <= 1.7 m) and
+#                       an IMU up to 0.8 m ahead of or behind the CG that nobody configured
+LAT2_RDOT_MEMORY_S = 0.5  # the peak |rdot| decays over this (the low-passed sides lag the transient)
+LAT2_HOLD_S = 2.0  # sideslip stays withheld this long after the last failing step
+
+
+class LateralScaleCheck:
+    """The lateral accelerometer against its witness ``r vx`` (``ay = dvy/dt + r vx`` at the CG):
+    :attr:`failing` while they disagree beyond what bias, bank, roll and vy's own rate allow.
+
+    Why: the fault detector judges ay by ``ay / vx`` against the gyro only above 6 m/s (at low
+    speed that ratio magnifies every bias), but a configuration error -- ay in g mapped as m/s^2,
+    a signal already in m/s^2 given a g scale (9.81x), a reversed axis -- is wrong at any speed:
+    at 5 m/s on a 15 m circle the 9.81x ay put sideslip 75 deg off while it was promised (the
+    single-track model and vy's integration both take ay). In acceleration units the tolerance
+    does not depend on the speed; this check covers the speeds below the fault detector's
+    (``LAT2_MIN_SPEED`` to ``LAT2_MAX_SPEED``), where vy's rate is the kinematic lr rdot. Like :class:`LongitudinalScaleCheck` it only withholds the
+    sideslip promise, for ``LAT2_HOLD_S`` after the last failing step. While the fault detector
+    has isolated the gyro or ay (their substitutes are fused then) it judges nothing, but a hold
+    already running goes on: the vy that the wrong ay integrated is not right the moment ay is
+    isolated.
+    """
+
+    def __init__(self, dt: float):
+        self.dt = dt
+        self._a = dt / (LAT2_TAU_S + dt)
+        self._rdot_decay = math.exp(-dt / LAT2_RDOT_MEMORY_S)
+        self._hold = int(round(LAT2_HOLD_S / dt))
+        self._ay = self._rv = math.nan
+        self._rdot = 0.0
+        self._last_fail_k = -(1 << 62)
+        self.failing = False
+        self.residual = 0.0  # m/s^2, low-passed ay - r vx
+        self.failures = 0  # steps that failed, over the drive
+
+    def step(self, k: int, ay: float, r: float, vx: float, rdot: float) -> bool:
+        """One estimator step: ``ay`` bias-corrected, ``r`` the bias-corrected yaw rate, ``vx``
+        the filter's, ``rdot`` the yaw acceleration; NaN ``ay`` or ``r``: no judgement (gyro or
+        ay isolated, IMU stale), the low-passes restart. Returns :attr:`failing`."""
+        rv = r * vx
+        if ay != ay or rv != rv:
+            self._ay = self._rv = math.nan
+        elif self._ay != self._ay:
+            self._ay, self._rv = ay, rv
+        else:
+            a = self._a
+            self._ay += a * (ay - self._ay)
+            self._rv += a * (rv - self._rv)
+            self._rdot = max(abs(rdot), self._rdot * self._rdot_decay)
+            if LAT2_MIN_SPEED < abs(vx) <= LAT2_MAX_SPEED:
+                res = self.residual = self._ay - self._rv
+                if abs(res) > LAT2_TOL_MPS2 + LAT2_TOL_REL * abs(self._rv) + LAT2_TOL_RDOT_M * self._rdot:
                     self._last_fail_k = k
                     self.failures += 1
         self.failing = k - self._last_fail_k <= self._hold
