@@ -45,11 +45,12 @@ from .fusion.single_track import LaggedModelInputs, SingleTrackFusion, std_keys 
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
-from .history import AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
+from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
-from .latency_consider import LatencyConsider
+from .latency_consider import LatencyConsider, antenna_acceleration_ned
+from .latency_sensitivity import LatencySensitivity
 from .lateral_noise import LateralNoise
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
@@ -189,6 +190,9 @@ class Estimator:
         self.latency = self.latencies[0]
         # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
         self.considers = [LatencyConsider(self.hist.n) for _ in receivers]
+        # what of that error the heading still carries while it is not a state (latency_sensitivity.py);
+        # one receiver only (two have two latency errors: the low-pass of |r| below stays for them)
+        self.lat_sens = LatencySensitivity(self.hist.n) if len(receivers) == 1 else None
         # per receiver: the UTC epoch of its last velocity fix and the step it was fused at; a
         # dual-antenna heading of the same epoch (UBX RELPOSNED: NAV-PVT's iTOW) takes that step
         self.fix_steps: dict[int, tuple[float, int]] = {}
@@ -260,6 +264,8 @@ class Estimator:
         self.model_ay = 0.0
         self.model_unsteady_t = math.inf  # last step the model's bound could not apply (MODEL_STEADY_S)
         self.last_gnss_fused_t = -math.inf
+        self.gnss_run_t = -math.inf  # first fix of the current run of fused GNSS (no gap > HEADING_FRESH_S)
+        self.mag_bridged = False  # the magnetometer held the heading in the gap before that run
         self.last_gnss_speed = math.nan
         self.course_heading: tuple[int, float, float] | None = None  # (step, heading, var) a GNSS course implies
         self.last_gnss_rejected = False
@@ -660,6 +666,8 @@ class Estimator:
         for cons in self.considers:
             if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
                 cons.step(i, ip, A, predict)
+        if self.lat_sens is not None:
+            self.lat_sens.step(i, ip, A, predict)
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
@@ -861,15 +869,28 @@ class Estimator:
         floor = 0.0 if (hd.fused and hd.last is not None and t - hd.last.t < HEADING_FRESH_S
                         and hd.consecutive_rejects == 0) else COURSE_FLOOR_RAD
         mag = self.mag
-        if mag is not None and t - mag.last_fused_t <= GNSS_FRESH_S:
-            status |= est_mod.STATUS_MAGNETOMETER
-            if floor and t - self.last_gnss_fused_t > HEADING_FRESH_S:
-                # the magnetometer holds the heading: its slow error is a bias the filter cannot
-                # average away (module docstring of fusion/magnetometer.py)
+        if mag is not None:
+            if t - mag.last_fused_t <= GNSS_FRESH_S:
+                status |= est_mod.STATUS_MAGNETOMETER
+            # The magnetometer holds the heading (fused since GNSS went stale): its slow error is a
+            # bias the filter cannot average away (module docstring of fusion/magnetometer.py), and
+            # the heading keeps it after the magnetometer stops (a disturbance, the gyro alone in a
+            # corner) until GNSS courses have corrected it: the first HEADING_FRESH_S of GNSS after
+            # an outage the magnetometer bridged. (Before, a 5 s low-pass of |r| x latency std
+            # happened to cover that: 1.2-1.4 deg off against 0.40 in mag_outage_30s's corner without it.)
+            if floor and ((t - self.last_gnss_fused_t > HEADING_FRESH_S and mag.last_fused_t > self.last_gnss_fused_t)
+                          or (self.mag_bridged and t - self.gnss_run_t < HEADING_FRESH_S)):
                 floor = math.sqrt(COURSE_FLOOR_RAD ** 2 + mag.last_slow_var)
         # with the latency error a state, what the filter still does not know of it (its variance)
         # turns the heading the same way on every fix, so it stays in the published std
-        turn = self.turn_lp * (math.sqrt(self.considers[0].var) if self.augmented else self._latency_std())
+        # (without it, one receiver: what the filter's heading still carries of that error, tracked
+        # through its own gains, latency_sensitivity.py, instead of a low-pass of |r|)
+        if self.augmented:
+            turn = self.turn_lp * math.sqrt(self.considers[0].var)
+        elif self.lat_sens is not None:
+            turn = self.lat_sens.heading(self.hist.last) * self._latency_std()
+        else:
+            turn = self.turn_lp * self._latency_std()
         # After a course alignment P holds that course's latency error too (it must: later fixes
         # and the model correct the heading by it), the same error as this term: published once,
         # as the larger of the two. P's part shrinks as fixes shrink P (its share at alignment).
@@ -1022,7 +1043,11 @@ class Estimator:
                 self._align(s, g, fus, lat)
         else:
             cons = self._consider(g.source, lat)
+            sens = self.lat_sens
+            P_pre = h.P[js].copy() if sens is not None else None
             ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=cons)
+            if ok and sens is not None:
+                self._sensitivity_fused(sens, s, P_pre, fus, g)
             if g.source == 0:
                 self.augmented = cons is not None
             if ok and not self.fdi.isolated:
@@ -1038,6 +1063,10 @@ class Estimator:
         self.last_gnss_rejected = not ok
         if ok:
             self.gnss_conflict_t = math.inf
+            if k * self.dt - self.last_gnss_fused_t > HEADING_FRESH_S:  # GNSS back after a gap
+                self.mag_bridged = (self.mag is not None and self.last_gnss_fused_t > -math.inf
+                                    and self.mag.last_fused_t > self.last_gnss_fused_t)
+                self.gnss_run_t = k * self.dt
             self.last_gnss_fused_t = k * self.dt
             self.last_gnss_speed = speed
             if not self.fdi.isolated & ACCEL_X:
@@ -1074,18 +1103,41 @@ class Estimator:
         if self.aligned and fus.consecutive_rejects + 1 >= REALIGN_REJECTS and self._course_confirms(s, g):
             self.realignments += 1
             self.aligned = False
+        sens = self.lat_sens
         if self.aligned:
+            P_pre = h.P[h.slot(s)].copy() if sens is not None else None
             if not fus.fuse(h, s, g, std, self._consider(rx, lat), stagger):
                 return
+            if sens is not None:  # the heading reads psi + r d (gnss_heading.py)
+                sens.fused(h, s, P_pre, fus._H, fus._R, np.array((h.aux[h.slot(s), AUX_R],)))
         else:
             fus.align(h, s, g, std, self.model.Qd[PSI, PSI])
             self.align_lat_var = 0.0  # a baseline heading has no latency error
             for cons in self.considers:
                 cons.zero_heading(h)
+            if sens is not None:
+                sens.zero_heading(h)
             self.aligned = True
             for f in self.receivers:
                 f.consecutive_rejects = 0
         self.last_heading_fused_t = k * self.dt
+
+    def _sensitivity_fused(self, sens: LatencySensitivity, s: int, P_pre: np.ndarray,
+                           fus: GnssVelocityFusion, g: GnssSample) -> None:
+        """A velocity fix fused at stored step s: what a latency error d does to it is the
+        antenna's acceleration across the track times -d (v(t_s - d) = v - a d; along the track
+        the speed is what latency.py identifies the latency from, as in latency_consider.py)."""
+        h = self.hist
+        i = h.slot(s)
+        a = h.aux[i]
+        x = h.X[i]
+        an, ae = antenna_acceleration_ned(x[PSI], a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
+                                          fus.lever_x, fus.lever_y)
+        vn, ve = g.vel_n_mps, g.vel_e_mps  # the track's direction: this fix's
+        sp = math.hypot(vn, ve)
+        u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)
+        across = u1 * an - u0 * ae
+        sens.fused(h, s, P_pre, fus._H2, fus._R2, np.array((-across * u1, across * u0)))
 
     def _course_heading(self, s: int, g: GnssSample, fus: GnssVelocityFusion,
                         lat: LatencyEstimator) -> tuple[float, float]:
@@ -1167,6 +1219,8 @@ class Estimator:
         h.X[idx, PSI] = (X[:, PSI] + dpsi) % (2.0 * math.pi)
         for cons in self.considers:
             cons.set_heading(idx, J)
+        if self.lat_sens is not None:
+            self.lat_sens.set_heading(h, idx, J, float(r))
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var

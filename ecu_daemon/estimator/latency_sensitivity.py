@@ -1,0 +1,78 @@
+"""How much of a latency error the filter's heading still carries: d x / d d per history slot.
+
+A GNSS fix is fused at ``t_rx - delay``; with the delay off by ``d`` the course it gives is
+turned by ``r d`` (``latency_consider.py``), the same on every fix of a turn: a bias, not noise.
+Without a dual-antenna heading the filter cannot estimate ``d`` (only the lateral model would
+separate it from a sideslip error, and it passes its own errors for one), so it fuses the course
+with ``(r std)^2`` of white noise and publishes the bias on top of its heading std.
+
+How large that bias is now is not a rule of thumb: it is linear in ``d``, ``x_err = S d``, and
+``S`` follows the filter exactly (a consider analysis, Schmidt's, with ``d`` never estimated):
+each step's effective transition carries it (``S_k = A_k S_{k-1}``, ``A = (I - K H) F`` with that
+step's updates inside), and a late GNSS fix at stored step s, fused with gain ``K``, turns it into
+``(I - K H) S + K h`` where ``h = dz/dd`` is what the latency error does to that fix (the antenna's
+acceleration across the track, ``-a_perp``, for a velocity; ``r`` for a course alignment or a
+dual-antenna heading). Mid-corner ``S_psi`` tends to the yaw rate (every course is turned by the
+same ``r d``), as the old low-pass of ``|r|`` did; once the turn ends, the straight's courses
+correct the heading at the rate the filter's own gain says, and ``S_psi`` falls with the error it
+describes instead of over a fixed 5 s memory (the flying starts' heading stayed invalid 4-6 s
+after a 40 deg/s corner ended while the filter had already taken the straight's courses in).
+The published heading std is ``|S_psi| x latency std`` on top of the filter's own (``core.py``).
+
+Used for the single receiver's velocity fixes while its latency error is not an augmented state;
+the gain of a fix is the standard one from the stored covariance before the fix and the noise
+it was fused with.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .history import StepHistory
+from .kinematic import NX, PSI
+
+
+class LatencySensitivity:
+    """``S``: the state error per second of latency error, per history slot."""
+
+    __slots__ = ("S", "Sr")
+
+    def __init__(self, n: int) -> None:
+        self.S = np.zeros((n, NX))
+        self.Sr = list(self.S)  # per-slot row views (the per-step propagation is on the hot path)
+
+    def step(self, i: int, ip: int, A: np.ndarray, predict: bool) -> None:
+        """Carry S through step i's effective transition (after its updates)."""
+        if predict:
+            np.dot(A, self.Sr[ip], out=self.Sr[i])
+        else:  # a fresh start: the initial state owes nothing to the latency
+            self.Sr[i].fill(0.0)
+
+    def heading(self, k: int) -> float:
+        """|d psi / d d| at stored step k (rad per s of latency error)."""
+        return abs(float(self.Sr[k % len(self.Sr)][PSI]))
+
+    def fused(self, hist: StepHistory, s: int, P: np.ndarray, H: np.ndarray, R: np.ndarray,
+              h: np.ndarray) -> None:
+        """A fix was fused at stored step s with Jacobian H and noise R against the covariance
+        P it had before the fix; h = dz/dd. S at s becomes (I - K H) S + K h, carried to the present."""
+        S = H @ P @ H.T + R
+        K = P @ H.T @ np.linalg.inv(S)
+        i = hist.slot(s)
+        self.Sr[i][:] = self.Sr[i] - K @ (H @ self.Sr[i] - h)
+        self._carry(hist, s)
+
+    def set_heading(self, hist: StepHistory, idx: np.ndarray, J: np.ndarray, r: float) -> None:
+        """The heading was set from a course at every slot idx as course + J x: the course's
+        latency error r d plus what the states J reads carry."""
+        self.S[idx, PSI] = np.einsum("ki,ki->k", J, self.S[idx]) + r
+
+    def zero_heading(self, hist: StepHistory) -> None:
+        """The heading was set from a source independent of the latency error (a dual-antenna align)."""
+        self.S[np.arange(hist.oldest(), hist.last + 1) % hist.n, PSI] = 0.0
+
+    def _carry(self, hist: StepHistory, s: int) -> None:
+        n = hist.n
+        Sr = self.Sr
+        Ar = hist.Ar
+        for j in range(s + 1, hist.last + 1):
+            np.dot(Ar[j % n], Sr[(j - 1) % n], out=Sr[j % n])
