@@ -32,6 +32,7 @@ MODULES = (
     "ecu_daemon/estimator/steering_offset.py",  # SteeringOffset.observe: every gentle-path step
     "ecu_daemon/estimator/input_consistency.py",  # LongitudinalScaleCheck.step: every step
     "ecu_daemon/estimator/lateral_noise.py",  # LateralNoise.observe: every lateral-accelerometer sample
+    "ecu_daemon/estimator/latency_sensitivity.py",  # LatencySensitivity: every step (one receiver)
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",
