@@ -86,8 +86,13 @@ def test_gyro_offset_heading_std_covers_the_drift_before_the_vote(tmp_path):
     that lag now goes into the heading std at the first failure."""
     err, std, valid = _fault_window(tmp_path, "fault_yaw_rate_offset", "heading", "heading_rad", "heading_rad", True)
     assert valid.any()
-    # the one step before the fast test fails is at 3.04 sigma: nothing can tell before it (10 rows, to 3.6)
-    assert np.sum(np.abs(err[valid]) > 3.0 * std[valid]) <= 1
+    # the steps before the fast test fails: nothing can tell before it. 10 rows to 3.6 sigma before this
+    # rule; 1 at 3.06 while a 5 s low-pass of |r| x latency std stood for the heading's latency error
+    # (it widened the std by accident in the lane change); 4 to 3.3 since that term follows the filter's
+    # gains (latency_sensitivity.py). Over the whole drive 99.93 % of valid heading rows are within 3
+    # sigma; here, in the 0.28 s the heading stays valid, the last 4 steps before the vote are not.
+    z = np.abs(err[valid]) / std[valid]
+    assert np.sum(z > 3.0) <= 4 and z.max() < 3.5
     assert np.degrees(np.abs(err[valid]).max()) < 1.5  # 2.35 deg before (valid until the isolation)
 
 
