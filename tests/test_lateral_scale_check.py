@@ -5,8 +5,6 @@ configurations); bias, bank, roll and transients of a right configuration are no
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import tomllib
 
 import numpy as np
@@ -14,6 +12,8 @@ import pytest
 import tomli_w
 
 from ecu_daemon.estimator.input_consistency import LAT2_HOLD_S, LateralScaleCheck
+
+from config_replay import replay_with
 
 DT = 0.006
 
@@ -88,14 +88,7 @@ def test_ay_given_a_g_scale_is_not_promised_on_a_low_speed_circle(low_speed_driv
     i.update(scale=i["scale"] * 9.80665, min=i["min"] * 9.80665, max=i["max"] * 9.80665)
     cfg = d / "ay_g.toml"
     cfg.write_text(tomli_w.dumps(data))
-    out = d / "ay_g.csv"
-    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(cfg),
-                        "--can", str(d / "drive.log"), "--gnss", str(d / "drive_gnss.log"),
-                        "--out-csv", str(out), "--no-progress", "--log-level", "error"],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    e = np.genfromtxt(out, delimiter=",", names=True)
-    t = np.genfromtxt(d / "truth.csv", delimiter=",", names=True)
+    e, t = replay_with(d, cfg)
     err = np.degrees(np.abs(e["sideslip_rad"] - np.interp(e["t"], t["t"], t["sideslip_rad"])))
     valid = e["sideslip_valid"].astype(bool)
     assert (valid & (err > 2.0)).sum() <= 5, err[valid].max()  # the turn-in's first 0.03 s at most

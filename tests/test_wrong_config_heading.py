@@ -9,8 +9,6 @@ course 0.7 s older than assumed at the turn-in: 6.6 deg off with a 1.3 deg std."
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import tomllib
 
 import numpy as np
@@ -21,6 +19,8 @@ from ecu_daemon.sim import simulate, vehicle_config
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.writer import write_all
 
+from config_replay import replay_with
+
 LOW = Scenario("lowspeed_r15", "low_speed", params=(("radius_m", 15.0), ("v_max", 10.0)))  # 75 s
 
 
@@ -29,14 +29,7 @@ def _heading_rows(d, edit, name):
     edit(data)
     cfg = d / f"{name}.toml"
     cfg.write_text(tomli_w.dumps(data))
-    out = d / f"{name}.csv"
-    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(cfg),
-                        "--can", str(d / "drive.log"), "--gnss", str(d / "drive_gnss.log"),
-                        "--out-csv", str(out), "--no-progress", "--log-level", "error"],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    e = np.genfromtxt(out, delimiter=",", names=True)
-    t = np.genfromtxt(d / "truth.csv", delimiter=",", names=True)
+    e, t = replay_with(d, cfg)
     psi = np.interp(e["t"], t["t"], np.unwrap(t["heading_rad"]))
     err = np.degrees(np.abs((e["heading_rad"] - psi + math.pi) % (2 * math.pi) - math.pi))
     return e["heading_valid"].astype(bool), err

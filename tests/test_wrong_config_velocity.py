@@ -7,8 +7,6 @@ is unchanged."""
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import tomllib
 
 import numpy as np
@@ -18,6 +16,8 @@ import tomli_w
 from ecu_daemon.estimator.input_consistency import LON2_EVERY, LongitudinalScaleCheck
 from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 from ecu_daemon.sim.writer import write_all
+
+from config_replay import replay_with
 
 DT = 0.006
 
@@ -40,14 +40,7 @@ def _config(drive, name, edit):
 
 def _vx_rows(drive, config):
     """Replay through the real command line: (valid mask, |vx error|, vx std) per row."""
-    out = config.with_suffix(".csv")
-    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(config),
-                        "--can", str(drive / "drive.log"), "--gnss", str(drive / "drive_gnss.log"),
-                        "--out-csv", str(out), "--no-progress", "--log-level", "error"],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    e = np.genfromtxt(out, delimiter=",", names=True)
-    t = np.genfromtxt(drive / "truth.csv", delimiter=",", names=True)
+    e, t = replay_with(drive, config)
     vx = np.interp(e["t"], t["t"], t["vx_mps"])
     return e["velocity_valid"].astype(bool), np.abs(e["vx_mps"] - vx), e["vx_std_mps"]
 
