@@ -70,3 +70,38 @@ def test_front_rear_demo_feeds_both_receivers_through_their_own_ptys(capsys):
     m = re.search(r"GNSS receivers: #1 fused (\d+), latency ([0-9.]+) s; #2 fused (\d+), latency ([0-9.]+) s", out)
     assert m, out
     assert int(m.group(1)) > 10 and int(m.group(3)) > 10
+
+
+@pytest.mark.parametrize("speed", [1.0, 4.0])
+def test_the_feeder_stamps_each_frame_with_the_drive_s_receive_time(speed):
+    """The demo's feeder stands in for the bus and the kernel: each frame carries the drive's
+    receive time on the daemon's clock (wall-clock at speed 1), not when its thread got round to
+    sending it -- so the daemon's inputs are the drive's, whatever the machine's load."""
+    import os
+
+    import can
+
+    from ecu_daemon.demo import Feeder, open_gnss_pty
+    from ecu_daemon.io.tick import ScaledClock
+
+    scenario = SCENARIOS["demo"].with_(duration_s=2.0)
+    cfg = vehicle_config(scenario)
+    sim = simulate(scenario, cfg)
+    master, _ = open_gnss_pty()
+    channel = f"feeder-stamp-{os.getpid()}-{speed}"
+    rx = can.Bus(interface="virtual", channel=channel)
+    clock = ScaledClock(speed) if speed != 1.0 else None
+    feeder = Feeder(sim, channel, master, speed=speed, **({"clock": clock} if clock else {}))
+    try:
+        feeder.start()
+        assert feeder.played.wait(60), "feeder did not finish"
+        got = []
+        while (m := rx.recv(timeout=0)) is not None:
+            got.append(m)
+    finally:
+        feeder.stop()
+        rx.shutdown()
+        os.close(master)
+    assert [(m.arbitration_id, bytes(m.data)) for m in got] == [(fid, bytes(d)) for _, fid, d in sim.can_frames]
+    want = [feeder.stamp(feeder.c0 + (t - sim.t0)) for t, _, _ in sim.can_frames]
+    assert [m.timestamp for m in got] == want

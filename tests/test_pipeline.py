@@ -182,3 +182,77 @@ def test_steps_of_a_whole_log_is_step_of_of_each_time():
     k = rng.integers(0, 2_000_000, 20_000)
     t = np.round(np.concatenate([k * DT, k * DT + 1e-6, k * DT - 1e-6, rng.uniform(0, 3e5, 20_000)]), 6)
     assert steps_of(t, DT).tolist() == [step_of(x, DT) for x in t.tolist()]
+
+
+def _tick_through(cfg, events, arrival):
+    """Tick a pipeline over ``events`` ((t, kind, id, data), kind 0 CAN / 1 GNSS), each pushed at
+    ``arrival(i, t)`` (its step); returns the pipeline, the late reports and, per tick, the GNSS
+    samples fused so far with the step of validity of the newest."""
+    pl = Pipeline(cfg, encode=False, gnss_connected=True)
+    late = []
+    pl.on_late = lambda source, seq, k: late.append((source, seq, k))
+    per_tick = []
+    i = 0
+    order = sorted(range(len(events)), key=lambda j: (arrival(j, events[j][0]), j))
+    k0 = step_of(events[0][0], DT)
+    seqs = {}
+    for k in range(k0, last_step_at(events[-1][0], DT) + 3):
+        while i < len(order) and arrival(order[i], events[order[i]][0]) <= k:
+            t, kind, fid, data = events[order[i]]
+            seq = order[i]  # the event's line in its log
+            if kind == 0:
+                pl.push_can(t, fid, data, False, False, seq)
+            else:
+                pl.push_gnss(t, data, "ttyACM0", seq)
+            seqs[order[i]] = k
+            i += 1
+        pl.tick(k)
+        est = pl.estimator
+        per_tick.append((k, est.receivers[0].fused, est.fix_steps.get(0)))
+    return pl, late, per_tick
+
+
+@pytest.fixture(scope="module")
+def drive():
+    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+    scenario = SCENARIOS["demo"].with_(duration_s=8.0)
+    cfg = vehicle_config(scenario)
+    sim = simulate(scenario, cfg)
+    events = sorted([(float("%.6f" % t), 0, fid, data) for t, fid, data in sim.can_frames]
+                    + [(float("%.6f" % t), 1, None, p) for t, p in sim.gnss_messages], key=lambda e: (e[0], e[1]))
+    return cfg, events
+
+
+def test_a_late_gnss_sample_is_fused_at_its_time_of_validity(drive):
+    """A GNSS message that reaches the tick thread two steps after its step ran is not dropped:
+    it is fused, through the history, at the same step of validity as when it came in time."""
+    cfg, events = drive
+    gnss = [j for j, e in enumerate(events) if e[1] == 1]
+    on_time, _, ticks_a = _tick_through(cfg, events, lambda j, t: step_of(t, DT))
+    # the last messages, after the estimator initialised and fused some: each one 2 steps late
+    late_ones = set(gnss[-8:])
+    late_run, late, ticks_b = _tick_through(
+        cfg, events, lambda j, t: step_of(t, DT) + (2 if j in late_ones else 0))
+    assert sorted(seq for _, seq, _ in late) == sorted(late_ones)
+    assert all(source == "gnss" for source, _, _ in late)
+    assert all(k == step_of(events[seq][0], DT) + 2 for _, seq, k in late)  # applied at the tick it arrived
+    fused_a = on_time.estimator.receivers[0].fused
+    assert fused_a > len(late_ones)  # (the late ones are among the fused ones)
+    assert late_run.estimator.receivers[0].fused == fused_a
+    # the step of validity each message was fused at, in order: the same, late or not
+    steps_a = [s for _, _, s in ticks_a if s is not None]
+    steps_b = [s for _, _, s in ticks_b if s is not None]
+    assert list(dict.fromkeys(steps_b)) == list(dict.fromkeys(steps_a))
+
+
+def test_a_late_can_frame_is_applied_at_the_next_step_not_dropped(drive):
+    """A CAN input that reaches the tick thread after its step ran is taken at the next step run
+    (reported to ``on_late``, which the recording keeps) with its own receive time."""
+    cfg, events = drive
+    j = next(i for i, e in enumerate(events) if e[1] == 0 and e[0] > events[0][0] + 5.0)
+    t = events[j][0]
+    pl, late, _ = _tick_through(cfg, events[:j + 1], lambda i, ti: step_of(ti, DT) + (1 if i == j else 0))
+    assert late == [("can", j, step_of(t, DT) + 1)]
+    assert pl.late_items == 1 and pl.earliest_late_t == t
+    assert t in pl.estimator.held_t  # its value is held with its own time

@@ -178,3 +178,32 @@ def test_cli_errors_are_one_line(tmp_path):
     r = subprocess.run([sys.executable, str(ROOT / "tools" / "player.py"), "-I", str(can_log),
                         "badmap", "-i", "virtual"], capture_output=True, text=True, timeout=30)
     assert r.returncode == 2 and "OUT=IN" in r.stderr and r.stderr.strip().count("\n") == 0
+
+
+def test_a_late_player_stamps_frames_with_their_deadlines():
+    """With ``stamp``, a frame's timestamp is its deadline however late the player sends it (the
+    clock here is always 5 ms past whatever was asked): the lateness goes into the arrival, never
+    into the data."""
+    from ecu_daemon.io.player import Event, Player
+
+    now = [100.0]
+
+    def late_clock():
+        now[0] += 0.005
+        return now[0]
+
+    channel = f"player-stamp-{os.getpid()}"
+    rx = can.Bus(interface="virtual", channel=channel)
+    tx = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    try:
+        events = [(0.01 * i, Event(0.01 * i, "can0", can.Message(arbitration_id=0x100 + i, data=b"\x01")))
+                  for i in range(5)]
+        p = Player(events, buses={None: tx}, clock=late_clock, start_at=100.0, stamp=lambda d: d + 1000.0)
+        p.run()
+        got = [rx.recv(timeout=0) for _ in range(5)]
+        assert [m.arbitration_id for m in got] == [0x100 + i for i in range(5)]
+        assert [m.timestamp for m in got] == [1100.0 + 0.01 * i for i in range(5)]
+        assert min(p.stats.lateness) > 0  # every one of them was sent late
+    finally:
+        rx.shutdown()
+        tx.shutdown()

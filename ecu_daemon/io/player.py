@@ -219,12 +219,13 @@ class Player:
     output key (``None`` key = the single default bus). Frames from interfaces with no route are
     counted as unmapped and skipped, as canplayer skips them. ``gnss``: the port every GNSS event
     goes to, or a dict from an event's ``source`` to its port (several receivers; events of a
-    source not in it are skipped).
+    source not in it are skipped). ``stamp(deadline)``: each frame's timestamp from its deadline
+    on ``clock`` (for a bus that keeps the sender's timestamps, e.g. the demo's virtual bus).
     """
 
     def __init__(self, events: Iterable[tuple[float, Event]], *, buses: dict, route: dict | None = None,
                  gnss: GnssPort | dict[str, GnssPort] | None = None, clock: Callable[[], float] = time.monotonic,
-                 start_at: float | None = None, rate: float = 1.0, stamp: Callable[[], float] | None = None,
+                 start_at: float | None = None, rate: float = 1.0, stamp: Callable[[float], float] | None = None,
                  idle: Callable[[], None] | None = None):
         self.events = events
         self.buses = buses
@@ -233,7 +234,9 @@ class Player:
         self.clock = clock
         self.start_at = start_at  # on ``clock``; default: now
         self.rate = rate  # seconds of ``clock`` per real second (the demo's fast-forward clock)
-        self.stamp = stamp  # when set, each frame is stamped with it as it is sent
+        # when set, each frame is stamped ``stamp(deadline)``: the time it is due, not when this
+        # thread got round to sending it (see :meth:`run`)
+        self.stamp = stamp
         self.idle = idle  # called while waiting for the next deadline (the demo drains its bus)
         self.stats = Stats()
         self._stop = threading.Event()
@@ -285,7 +288,11 @@ class Player:
                     self.stats.can_unmapped += 1
                     continue
                 if self.stamp is not None:
-                    ev.message.timestamp = self.stamp()
+                    # The receive time a bus would give the frame: its deadline. A player standing
+                    # in for the bus and the kernel (the demo) that is late (its thread descheduled,
+                    # the GIL) delivers the frame late, as a late reader would find it, but with
+                    # the drive's own time, never with the player's lateness folded into the data.
+                    ev.message.timestamp = self.stamp(deadline)
                 try:
                     bus.send(ev.message, timeout=0.01)
                     self.stats.can_sent += 1
