@@ -13,7 +13,11 @@ estimates before the daemon's stale mask). Here they are decided once:
 * **step rule** (``step_grid``) -- an item belongs to step ``step_of(t)``. Live, the shell calls
   :meth:`tick` for the newest step due; everything received and due by then is decoded and handed
   to the estimator, sorted by (time, CAN before GNSS, seq). An item that arrives after its step ran
-  is applied at the next step run and reported to ``on_late`` (the recording keeps it);
+  is applied at the next step run and reported to ``on_late`` (the recording keeps it), never
+  dropped: a GNSS sample is fused at its time of validity through the estimator's history, at the
+  same step as if it had come in time; a CAN input enters the held inputs with its own receive
+  time, but the step already run used the value before it (the history rewinds GNSS corrections,
+  not the prediction's inputs), so a late CAN input is one step of zero-order hold late;
   :class:`TickRecord` makes a replay of the recording hand every item over at the same tick.
   Offline without such a record, :meth:`feed` hands each item over at its own step (and the
   estimator skips input gaps).
