@@ -19,7 +19,7 @@ late samples, tick lateness (p50/p99/max, overruns), and how far the recorded re
 the drive's (CAN frames; GNSS: the chunk completing each message), in ms. Wall-clock numbers: report
 the load average with them.
 
-    python3 tools/live_vs_replay.py [--runs 3] [--phases 12] [--duration S] [--out DIR]
+    python3 tools/live_vs_replay.py [--runs 3] [--phases 12] [--late-gnss 0 1 3] [--duration S] [--out DIR]
 """
 from __future__ import annotations
 
@@ -77,6 +77,33 @@ def pct(a, qs=(50, 99)) -> list[float]:
     return [round(float(np.percentile(a, q)), 3) for q in qs] + [round(float(a.max()), 3)] if len(a) else []
 
 
+def late_gnss_replay(cfg, sim, lag_steps: int) -> dict:
+    """The drive ticked as live (``Pipeline.tick``), every GNSS message reaching the tick thread
+    ``lag_steps`` steps after its step: what late GNSS alone does (fused count, learned latency)."""
+    from ecu_daemon.step_grid import last_step_at, step_of
+
+    dt = cfg.estimator.dt_s
+    c0 = 1000.0
+    can_items, gnss_items = drive_items(sim, c0)
+    events = sorted(can_items + gnss_items, key=lambda e: (e[0], e[1]))
+    due = [step_of(t, dt) + (lag_steps if kind else 0) for t, kind, _, _ in events]
+    order = sorted(range(len(events)), key=lambda j: (due[j], j))
+    pl = Pipeline(cfg, encode=False, gnss_connected=True)
+    ests, i = [], 0
+    for k in range(step_of(events[0][0], dt), last_step_at(events[-1][0], dt) + lag_steps + 2):
+        while i < len(order) and due[order[i]] <= k:
+            t, kind, fid, data = events[order[i]]
+            i += 1
+            if kind == 0:
+                pl.push_can(t, fid, data)
+            else:
+                pl.push_gnss(t, data, "gnss")
+        ests += [st.estimate for st in pl.tick(k)]
+    est = pl.estimator
+    return {"gnss_lag_steps": lag_steps, "late": pl.late_items, "fused": est.receivers[0].fused,
+            "latency_s": round(est.latency.delay_s, 4), "rms": score(sim, c0, ests)}
+
+
 def one_live_run(sim, scenario, rec: Path) -> dict:
     cfg = vehicle_config(scenario)
     session = DemoSession(cfg, sim, speed=1.0, tui=False, record_dir=rec, out=io.StringIO())
@@ -129,6 +156,8 @@ def main() -> int:
     ap.add_argument("--phases", type=int, default=12, help="offline replays at this many step-grid phases (0: none)")
     ap.add_argument("--duration", type=float, help="only the first S seconds of the demo drive")
     ap.add_argument("--out", help="keep the recordings here (default: a temporary directory)")
+    ap.add_argument("--late-gnss", type=int, nargs="*", default=[], metavar="STEPS",
+                    help="also tick the drive with every GNSS message STEPS steps late (e.g. 0 1 3)")
     args = ap.parse_args()
     from ecu_daemon.io.logging_setup import setup_logging
 
@@ -149,6 +178,8 @@ def main() -> int:
         print(f"replay over {len(got)} grid phases: sideslip RMS {min(beta):.3f}-{max(beta):.3f} deg"
               f" (median {np.median(beta):.3f}), heading {min(g[1] for g in got):.3f}-{max(g[1] for g in got):.3f}"
               f" deg; load {os.getloadavg()[0]:.2f}", flush=True)
+    for lag in args.late_gnss:
+        print(json.dumps(late_gnss_replay(vehicle_config(scenario), sim, lag)), flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         base = Path(args.out) if args.out else Path(tmp)
         runs = []
