@@ -110,7 +110,7 @@ YAW_MIN_SPEED = 3.0
 # which the daemon does not know (mu, load transfer, ABS). imu_brake_turn (5 m/s^2 in a 0.55 g
 # circle at 18 m/s): the wheels' yaw rate 0.65 rad/s off a right gyro, whose heading and vy stds
 # were then widened to 25 deg / 1 m/s. 1 m/s^2 (0.1 g) is above what rolling resistance, drag and
-# engine braking of the front axle give a free-rolling rear pair (0.35 m/s^2 at 30 m/s, 0.6 at 50),
+# engine braking of the front axle give a free-rolling rear pair (0.35 m/s^2 at 30 m/s, 0.75 at 50),
 # so below it the rear wheels are not braked; above it ay / vx judges the gyro alone (as below
 # YAW_MIN_SPEED) and the wheel residuals hold their last value (the suite's 1.3-2 m/s^2 braking
 # already put them at 0.7-1.3 x their tolerance).
