@@ -165,6 +165,45 @@ def test_yaw_disagreement_is_the_gyro_against_the_wheels_while_suspect_only():
     assert all(e == 0.0 for s_, e in seen if not s_)
 
 
+def _brake_in_a_corner(det, k0: int, n: int, gyro_extra: float, ax: float, slip_yaw: float = 0.4):
+    """n steps in a 0.3 rad/s corner from 15 m/s decelerating at -ax, the inner (left) rear wheel
+    slipping more than the outer so the rear pair reads ``slip_yaw`` rad/s more yaw rate than the car
+    turns (imu_brake_turn: up to 0.65 at 5 m/s^2; here each wheel stays inside the wheels' own vote);
+    ay = r vx, the gyro reads the true rate + ``gyro_extra``."""
+    seen = []
+    for j in range(k0, k0 + n):
+        v = 15.0 + ax * (j - k0) * DT
+        x = _state(v)
+        left = v - 0.3 * TRACK / 2 - 0.75 * slip_yaw * TRACK
+        right = v + 0.3 * TRACK / 2 + 0.25 * slip_yaw * TRACK
+        mask = det.step(j, (v - 0.3 * TRACK / 2, v + 0.3 * TRACK / 2, left, right), True,
+                        0.3 + gyro_extra, ax, 0.3 * v, True, x, 1e-4, 4e-4)
+        seen.append((mask, det.yaw_suspect, det.yaw_disagreement, det.r_wheels))
+    return seen
+
+
+def test_braked_rear_wheels_do_not_judge_the_gyro():
+    """Braking in a corner unloads the inner rear wheel, which then slips more than the outer one:
+    their difference is no yaw rate (BRAKE_WITNESS_MPS2). imu_brake_turn: the gyro was suspect for
+    3 s of each 5 m/s^2 braking, and its heading and vy stds widened by the wheels' 0.65 rad/s
+    (25 deg, 1 m/s) while the heading was < 1 deg off and the sideslip invalid. The same wheels
+    rolling free (no braking) still make the gyro suspect; ay / vx still judges it while braking."""
+    det = fd.FaultDetector(DT, TRACK)
+    _run(det, 300, v=15.0, r=0.3, x=_state(15.0))
+    braking = _brake_in_a_corner(det, 300, 250, 0.0, -5.0)
+    assert all(m == 0 and not s_ and e == 0.0 for m, s_, e, _ in braking)
+    assert braking[-1][3] == pytest.approx(0.3 + 0.4, abs=0.05)  # still the isolated gyro's stand-in
+    assert not det.yaw_suspect
+    free = fd.FaultDetector(DT, TRACK)
+    _run(free, 300, v=15.0, r=0.3, x=_state(15.0))
+    rolling = _brake_in_a_corner(free, 300, 50, 0.0, -0.5)  # engine braking: the rear rolls free
+    assert any(s_ for _, s_, _, _ in rolling)
+    faulty = fd.FaultDetector(DT, TRACK)
+    _run(faulty, 300, v=15.0, r=0.3, x=_state(15.0))
+    gyro_off = _brake_in_a_corner(faulty, 300, 100, 0.3, -5.0)  # gyro 0.3 rad/s high: ay sees it
+    assert any(s_ and e > 0.2 for _, s_, e, _ in gyro_off)
+
+
 def test_gyro_bias_is_not_a_fault():
     det = fd.FaultDetector(DT, TRACK)
     x = _state()

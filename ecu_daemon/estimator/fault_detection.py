@@ -104,6 +104,17 @@ RELEARN_SLOPE = 0.03  # |d(gyro - wheels) / d r_gyro| below this: an offset, not
 RELEARN_RESID = 0.01  # rad/s: rms of the low-passed disagreement about the fit (a noisy gyro has more)
 RELEARN_MIN_SPREAD = 0.02  # rad/s: the gyro's spread needed to tell an offset from a scale (or stuck)
 YAW_MIN_SPEED = 3.0
+# Braking harder than this, the rear wheels' left/right difference is no yaw-rate witness: each
+# braked wheel slips by its brake force over its own load (x its slip stiffness), and in a corner the
+# load moves to the outer wheel, so the unloaded inner one slips more -- up to its friction limit,
+# which the daemon does not know (mu, load transfer, ABS). imu_brake_turn (5 m/s^2 in a 0.55 g
+# circle at 18 m/s): the wheels' yaw rate 0.65 rad/s off a right gyro, whose heading and vy stds
+# were then widened to 25 deg / 1 m/s. 1 m/s^2 (0.1 g) is above what rolling resistance, drag and
+# engine braking of the front axle give a free-rolling rear pair (0.35 m/s^2 at 30 m/s, 0.75 at 50),
+# so below it the rear wheels are not braked; above it ay / vx judges the gyro alone (as below
+# YAW_MIN_SPEED) and the wheel residuals hold their last value (the suite's 1.3-2 m/s^2 braking
+# already put them at 0.7-1.3 x their tolerance).
+BRAKE_WITNESS_MPS2 = 1.0
 YAW_TOL_WHEELS = 0.03  # rad/s + YAW_TOL_WHEELS_REL * |r| (track and L/R radius errors)
 YAW_TOL_WHEELS_REL = 0.15
 YAW_TOL_AY = 0.08  # rad/s + YAW_TOL_AY_REL * |r| (dvy/dt / vx is not in the steady-state relation)
@@ -309,7 +320,8 @@ class FaultDetector:
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._all_wheels_stuck(k, wheels, wheels_ok, r_m - x[BR] if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot)
+        self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot,
+                  ax < -BRAKE_WITNESS_MPS2)
         iso = WHEEL_SPEED if self.wheel_mask else 0
         if self.lon.active:
             iso |= self.lon_culprit
@@ -516,7 +528,7 @@ class FaultDetector:
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
     def _yaw(self, k: int, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
-             x: list, rdot: float) -> None:
+             x: list, rdot: float, braking: bool = False) -> None:
         if not imu_ok:
             self.yaw_catch_up = 0.0
             return
@@ -528,14 +540,18 @@ class FaultDetector:
         kw = x[KW]
         r_g = r_m - x[BR]
         v_rear = 0.5 * (rl + rr) * kw
-        have_w = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
+        wheels_yaw = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
+        # the wheels' yaw rate still stands in for an isolated gyro while braking (nothing better),
+        # but it judges the gyro only while the rear wheels roll free (BRAKE_WITNESS_MPS2)
+        have_w = wheels_yaw and not braking
         e_w = self.e_w
         e_ws = self.e_ws
-        if have_w:
+        if wheels_yaw:
             r_wheels = self.r_wheels = ((rr - rl) * kw - self.lr * v_rear) / self.track
             rw_lp = self._rw_lp
             self._rw_lp = r_wheels if rw_lp != rw_lp else rw_lp + a_yaw * (r_wheels - rw_lp)
             d = r_g - r_wheels
+        if have_w:
             e_w = self.e_w = e_w + a_yaw * (d - e_w)
             e_ws = self.e_ws = e_ws + a_slow * (d - e_ws)
             self._yaw_cum += d * self.dt
@@ -547,7 +563,7 @@ class FaultDetector:
                 a[3] += e_w
                 a[4] += e_w * r_g
                 a[5] += e_w * e_w
-        else:
+        elif not wheels_yaw:
             r_wheels = self.r_wheels = self._rw_lp = math.nan
         ring = self._yaw_ring
         ring[k % len(ring)] = self._yaw_cum
@@ -555,7 +571,7 @@ class FaultDetector:
         # an isolated gyro is not the lateral check's yaw rate: its substitute (the wheels') is what
         # the filter integrates vy with, so that is what the check must judge (a stuck gyro left
         # in here read as an ay fault of 10 m/s^2 and kept sideslip invalid the whole fault)
-        self._lateral(vx, r_wheels if self.gyro.active and have_w else r_g, ay, rdot)
+        self._lateral(vx, r_wheels if self.gyro.active and wheels_yaw else r_g, ay, rdot)
         have_a = vx > 2.0 * YAW_MIN_SPEED
         e_a = self.e_a
         e_as = self.e_as
