@@ -109,3 +109,13 @@ def test_a_lever_arm_y_one_metre_off_or_mirrored_is_found_and_its_speed_error_pu
 def test_a_small_lever_arm_y_error_is_tolerated():
     chk, stds, _ = _drive_y(0.3, 0.3 + 0.5 * LEVER_Y_TOL_M)
     assert not chk.flagged
+
+
+def test_moving_the_drift_origin_does_not_change_the_fit():
+    """A long drive moves the drift regressor's origin (conditioning): the same data, the same dx (but
+    for the vanishing prior on the offset, which the move re-parametrises)."""
+    chk, _ = _drive(0.5, 2.0)
+    a = (chk.dx, chk.dx_std)
+    chk._shift_origin(chk.t0 + 37.0)
+    chk._solve(0.02)
+    assert abs(chk.dx - a[0]) < 1e-3 and abs(chk.dx_std - a[1]) < 1e-3

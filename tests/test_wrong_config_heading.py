@@ -1,7 +1,6 @@
 """Wrong GNSS configurations on a low-speed circle that break the heading promise (issue 7, wrong
-configurations; measured by cfg10): strict xfails while not fixed, so whoever fixes one sees XPASS.
-The lever-arm cases are fixed (estimator/lever_arm_check.py finds the wrong lever arm against the
-gyro and the wheels).
+configurations; measured by cfg10), fixed by estimator/lever_arm_check.py, which finds the course
+inconsistent with the gyro (x, and a latency far off) or the speed with the wheels (y).
 
 On lowspeed_r15 (5-10 m/s on a 15 m circle) a single antenna's course differs from the CG's by
 ``atan(r x_antenna / v)``: an antenna lever arm configured 1.5 m too far forward turns the course
@@ -74,10 +73,11 @@ def test_gnss_lever_arm_y_configured_wrong_keeps_vx_within_its_std(low_drive, ed
     assert within.mean() >= 0.99, within.mean()
 
 
-@pytest.mark.xfail(strict=True, reason="latency prior 0.8 s for a 0.1 s receiver: the turn-in's course "
-                                       "alignment 6.6-8.7 deg off while valid (286 rows); the prior std "
-                                       "0.15 s does not cover a user's 0.7 s error")
 def test_latency_prior_far_too_long_is_not_promised(tmp_path_factory):
+    """Before the lever-arm check: the turn-in's course alignment 6.6-8.7 deg off while valid (286 rows;
+    the prior std 0.15 s does not cover a user's 0.7 s error). A latency error turns the course by
+    r dd, which the check (lever_arm_check.py) finds against the gyro as it would a lever arm
+    (dd vx = -3.5 m here: beyond its latency prior), and the heading std takes it."""
     d = _drive(tmp_path_factory, "latency", LOW.with_(name="lat01", gnss_latency_s=0.1, duration_s=25.0))
 
     def edit(c):

@@ -1111,9 +1111,9 @@ class Estimator:
         if chk.suspected:
             self.lever_flagged = True
         if chk.flagged and not was:
-            log.warning("GNSS receiver %d: configured antenna lever arm x = %.2f m disagrees with the courses "
-                        "against the gyro by %.2f m (+- %.2f): heading not promised in corners",
-                        g.source, fus.lever_x, chk.dx, chk.dx_std)
+            log.warning("GNSS receiver %d: courses against the gyro say the configured antenna lever arm x = %.2f m "
+                        "is %.2f m (+- %.2f) off, or the latency (%.2f s) is far off: heading not promised in corners",
+                        g.source, fus.lever_x, chk.dx, chk.dx_std, lat.delay_s)
 
     def _check_lever_arm_y(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Feed this fix's speed to its receiver's lever-arm y check (against the wheels)."""

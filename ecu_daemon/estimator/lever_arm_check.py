@@ -107,6 +107,8 @@ class LeverArmCheck:
             f = math.exp(-(t - self.t_last) / WINDOW_S)
             self.info *= f
             self.rhs *= f
+        if t - self.t0 > WINDOW_S:
+            self._shift_origin(t)
         self.k_last = k
         self.t_last = t
         z = math.remainder(course + beta - self.psi_gyro, 2.0 * math.pi)
@@ -116,6 +118,16 @@ class LeverArmCheck:
         self.rhs += h * (z / var)
         self.n += 1
         self._solve(latency_std_s)
+
+    def _shift_origin(self, t: float) -> None:
+        """Move the drift's time origin to t (a long drive keeps its regressor near 1, the fit well
+        conditioned): the old regressors are h_old = M h_new with M = I + c e1 e0' (c the shift in
+        windows), so the information becomes M' info M, the right-hand side M' rhs."""
+        M = np.eye(4)
+        M[1, 0] = (t - self.t0) / WINDOW_S
+        self.info = M.T @ self.info @ M
+        self.rhs = M.T @ self.rhs
+        self.t0 = t
 
     def _new_run(self, psi0: float) -> None:
         """A new gyro integral (starting at this fix's heading, so z stays near 0, away from the
