@@ -51,6 +51,15 @@ Z_SUSPECT = 2.0
 MIN_SPEED = 2.0
 WINDOW_S = 60.0  # forgetting time of the fit: a drive's geometry is constant, a yaw-rate bias drifts
 TURN_MEMORY_S = 5.0  # the heading keeps a course error this long after the corner (core.TURN_MEMORY_S)
+# A fix whose residual is this many sigma from the fit's prediction (its noise plus the fit's own
+# uncertainty there) is not the slow geometry this fits but a glitch (a GNSS velocity tripled for
+# 5 s in gnss_glitch passed the core's checks for a few fixes and taught a lever arm y of 7.7 m):
+# left out. A real lever-arm error is not: where the fit has not seen it yet, its uncertainty there
+# (the corner's first r / vx or r) is large.
+GATE_SIGMA = 5.0
+# m: dx is flagged only by a fit that can resolve it: its std below 2 x LEVER_TOL_M (an early,
+# ill-conditioned fit at 21 +- 7 m is no diagnosis)
+MAX_FLAG_STD_FACTOR = 2.0
 MAX_GAP_S = 2.0  # a gap this long (or a filter reset) restarts the gyro integral: a new offset c0
 # Per-fix course noise the fit assumes besides the receiver's sigma_v / v: multipath and the
 # filter's sideslip errors, both correlated over seconds, so counted as one fix per CORR_FIXES.
@@ -76,6 +85,9 @@ class LeverArmCheck:
         self.n = 0
         self.dx = 0.0
         self.dx_std = math.inf
+        self.theta = np.zeros(4)
+        self.cov = None  # of the last solve (None: no fit yet, or a new run since)
+        self.gated = 0  # fixes left out as glitches
         self.flagged = False  # the lever arm is wrong (sticky: a configuration does not fix itself)
         self.suspected = False  # the fit has been heading for a flag (sticky; set before flagged)
         self.excess = 0.0  # |dx| the heading std covers while suspected
@@ -99,7 +111,8 @@ class LeverArmCheck:
             self.k_last = -1
             return
         beta = math.atan2(vy + r * self.lever_x, vx - r * lever_y)
-        if self.k_last < 0 or r_steps is None or t - self.t_last > MAX_GAP_S or k <= self.k_last:
+        new_run = self.k_last < 0 or r_steps is None or t - self.t_last > MAX_GAP_S or k <= self.k_last
+        if new_run:
             self._new_run(course + beta)
         else:
             self.psi_gyro -= float(np.sum(r_steps)) * dt  # clockwise, as the heading
@@ -114,6 +127,11 @@ class LeverArmCheck:
         z = math.remainder(course + beta - self.psi_gyro, 2.0 * math.pi)
         var = ((sigma_v / speed) ** 2 + COURSE_NOISE_RAD ** 2) * CORR_FIXES
         h = np.array((1.0, (t - self.t0) / WINDOW_S, ratio, -r))
+        if not new_run and self.cov is not None:
+            e = z - float(h @ self.theta)
+            if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
+                self.gated += 1
+                return
         self.info += np.outer(h, h) / var
         self.rhs += h * (z / var)
         self.n += 1
@@ -134,6 +152,7 @@ class LeverArmCheck:
         wrap) and so a new unknown offset: the old one is marginalised out (Schur complement), the
         fit keeps its drift and dx information across the break."""
         self.psi_gyro = psi0
+        self.cov = None
         a = self.info[0, 0]
         if a > 0.0:
             c = self.info[0].copy()
@@ -151,8 +170,13 @@ class LeverArmCheck:
             cov = np.linalg.inv(A)
         except np.linalg.LinAlgError:
             return
-        self.dx = float(cov[2] @ self.rhs)
+        self.theta = cov @ self.rhs
+        self.cov = cov
+        self.dx = float(self.theta[2])
         self.dx_std = math.sqrt(max(cov[2, 2], 0.0))
+        if self.dx_std > MAX_FLAG_STD_FACTOR * LEVER_TOL_M:
+            self.excess = abs(self.dx) if self.suspected else 0.0
+            return
         if abs(self.dx) - Z_FLAG * self.dx_std > LEVER_TOL_M:
             self.flagged = True
         self.suspected = self.suspected or abs(self.dx) - Z_SUSPECT * self.dx_std > LEVER_TOL_M
@@ -199,6 +223,9 @@ class LeverArmYCheck:
         self.n = 0
         self.dy = 0.0
         self.dy_std = math.inf
+        self.theta = np.zeros(3)
+        self.cov = None
+        self.gated = 0
         self.flagged = False
         self.suspected = False
         self.excess = 0.0
@@ -223,6 +250,11 @@ class LeverArmYCheck:
             self.rhs *= f
         self.t_last = t
         h = np.array((wheel, r, ax))
+        if self.cov is not None:
+            e = z - float(h @ self.theta)
+            if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
+                self.gated += 1
+                return
         self.info += np.outer(h, h) / var
         self.rhs += h * (z / var)
         self.n += 1
@@ -231,8 +263,13 @@ class LeverArmYCheck:
             cov = np.linalg.inv(A)
         except np.linalg.LinAlgError:
             return
-        self.dy = float(cov[1] @ self.rhs)
+        self.theta = cov @ self.rhs
+        self.cov = cov
+        self.dy = float(self.theta[1])
         self.dy_std = math.sqrt(max(cov[1, 1], 0.0))
+        if self.dy_std > MAX_FLAG_STD_FACTOR * LEVER_Y_TOL_M:
+            self.excess = abs(self.dy) if self.suspected else 0.0
+            return
         if abs(self.dy) - Z_FLAG * self.dy_std > LEVER_Y_TOL_M:
             self.flagged = True
         # a wider vx std is all a suspicion costs here (velocity validity does not follow the std):
