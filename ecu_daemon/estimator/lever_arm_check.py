@@ -10,10 +10,10 @@ gyro's heading,
 
     z = course + beta_pred - psi_gyro = c0 + c1 t + dx (r / vx) + noise,
 
-is a constant (the heading's offset; a new one after a gap), a drift (a residual yaw-rate bias) and dx times r / vx,
-which changes at every corner entry and exit, every speed change on a circle, every slalom. A
-least-squares fit (with a forgetting window, so old driving does not pin them) gives
-dx and its standard deviation; the filter's own heading and vy are not the reference (both take
+is a constant (the heading's offset; a new one after a gap), a drift (a residual yaw-rate bias)
+and dx times r / vx, which changes at every corner entry and exit, every speed change on a
+circle, every slalom. A least-squares fit (with a forgetting window, so old driving does not pin
+them) gives dx and its standard deviation; the filter's own heading and vy are not the reference (both take
 part of the error), the gyro is.
 
 A GNSS latency error dd turns the course by r dd, which on a circle at one speed is the same
@@ -41,10 +41,11 @@ import numpy as np
 #: a valid heading promises, and a CG that moves with the load moves by decimetres.
 LEVER_TOL_M = 0.5
 Z_FLAG = 3.0  # the fit's dx this many of its standard deviations beyond the tolerance: flagged
-# ... this many: suspected (no log line; sticky, but the std it adds follows the fit's dx). The heading takes the course error within a few
-# seconds of the corner entry, the fit needs ~10 s of the corner to reach Z_FLAG: while suspected,
-# the heading std already covers the error the fit's dx would make (lowspeed_r15, dx = 1.5 m: the
-# first rows 5 deg off came 2 s after the fit was 2 sigma beyond the tolerance, 6 s before 3 sigma).
+# ... this many: suspected (no log line; sticky, but the std it adds follows the fit's dx). The
+# heading takes the course error within seconds of the corner entry, the fit needs ~15 s of the
+# corner to reach Z_FLAG: while suspected, the heading std already covers the error the fit's dx
+# makes (lowspeed_r15, dx = 1.5 m: the first rows 5 deg off came 1.6 s after the fit was 2 sigma
+# beyond the tolerance, ~6 s before 3 sigma).
 Z_SUSPECT = 2.0
 # m/s: courses from this speed up (each weighted by its sigma_v / v): the straight before a corner
 # is often slow (a start), and it is what anchors the heading offset the corner entry is read against
@@ -57,8 +58,8 @@ TURN_MEMORY_S = 5.0  # the heading keeps a course error this long after the corn
 # left out. A real lever-arm error is not: where the fit has not seen it yet, its uncertainty there
 # (the corner's first r / vx or r) is large.
 GATE_SIGMA = 5.0
-# m: dx is flagged only by a fit that can resolve it: its std below 2 x LEVER_TOL_M (an early,
-# ill-conditioned fit at 21 +- 7 m is no diagnosis)
+# A lever arm is suspected or flagged only by a fit that can resolve it: its std below this many
+# tolerances (an early, ill-conditioned fit of dy = 21 +- 7 m on latency_0.8 is no diagnosis)
 MAX_FLAG_STD_FACTOR = 2.0
 MAX_GAP_S = 2.0  # a gap this long (or a filter reset) restarts the gyro integral: a new offset c0
 # Per-fix course noise the fit assumes besides the receiver's sigma_v / v: multipath and the
