@@ -25,6 +25,7 @@ the same steps. Everything here is deterministic floating-point arithmetic on th
 """
 from __future__ import annotations
 
+import logging
 import math
 from collections import deque
 
@@ -52,6 +53,7 @@ from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, Spe
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
 from .latency_sensitivity import LatencySensitivity
 from .lateral_noise import LateralNoise
+from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
 from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
@@ -152,6 +154,8 @@ LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
 LEARNED_BOUNDS_LIST = tuple((j, lo, hi) for j, (lo, hi) in LEARNED_BOUNDS.items())
 
+log = logging.getLogger(__name__)
+
 
 def _learned_key(key: str, receiver: int) -> str:
     """Learned-state key of a receiver's value: the primary keeps the single-receiver name."""
@@ -187,6 +191,10 @@ class Estimator:
         self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
+        # each antenna's configured lever arm x checked against its courses and the gyro
+        self.lever_checks = [LeverArmCheck(rx.lever_arm_m[0]) for rx in receivers]
+        self.lever_y_checks = [LeverArmYCheck(*rx.lever_arm_m) for rx in receivers]
+        self.lever_flagged = False  # a lever arm found wrong: its course error goes into the heading std
         self.latency = self.latencies[0]
         # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
         self.considers = [LatencyConsider(self.hist.n) for _ in receivers]
@@ -491,6 +499,8 @@ class Estimator:
         for fus in self.receivers:
             fus.consecutive_rejects = 0
         self.heading.consecutive_rejects = 0
+        for chk in self.lever_checks:
+            chk.restart()
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -897,10 +907,17 @@ class Estimator:
         turn_var = turn * turn
         if self.align_lat_var > 0.0:
             turn_var = max(turn_var - self.align_lat_var * min(1.0, pd[PSI] / self.align_psi_var), 0.0)
+        if self.lever_flagged:  # a wrong antenna lever arm turns the course by |dx| r / vx
+            for chk in self.lever_checks:
+                e = chk.heading_std(t)
+                turn_var += e * e
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor ** 2)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
+        if self.lever_flagged:  # a wrong antenna lever arm y moves the GNSS speed by |dy| r
+            for chy in self.lever_y_checks:
+                vx_std = math.hypot(vx_std, chy.vx_std(t))
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
@@ -1034,6 +1051,9 @@ class Estimator:
             self.realignments += 1
         if g.course_known and speed >= ALIGN_SPEED:
             self.course_heading = (s, *self._course_heading(s, g, fus, lat))
+        if g.course_known:
+            self._check_lever_arm(g, s, fus, lat)
+        self._check_lever_arm_y(g, s, fus, lat)
         if not self.aligned or not g.course_known:  # heading unknown, or no course: |v| only
             ok = agree and fus.fuse_speed(h, s, g, delay_std_s=lat.std_s)
             if not agree:
@@ -1073,6 +1093,46 @@ class Estimator:
                 self.road.fuse_vertical(g.vel_d_mps, speed, fus.sigma(g))
                 # an altitude (NMEA GGA): grade from the climb over the distance travelled
                 self.road.fuse_altitude(g, speed, h.X[h.slot(h.last), VX] > 0)
+
+    def _check_lever_arm(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
+        """Feed this fix's course to its receiver's lever-arm check (lever_arm_check.py) with the
+        gyro's yaw rates since that receiver's previous fix; one log line when it finds the lever arm wrong."""
+        h = self.hist
+        chk = self.lever_checks[g.source]
+        k0 = chk.k_last + 1
+        r_steps = None
+        if chk.k_last >= 0 and h.oldest() <= k0 <= s:
+            r_steps = h.aux[np.arange(k0, s + 1) % h.n, AUX_R]
+        i = h.slot(s)
+        x = h.X[i]
+        was = chk.flagged
+        chk.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
+                    float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s)
+        if chk.suspected:
+            self.lever_flagged = True
+        if chk.flagged and not was:
+            log.warning("GNSS receiver %d: courses against the gyro say the configured antenna lever arm x = %.2f m "
+                        "is %.2f m (+- %.2f) off, or the latency (%.2f s) is far off: heading not promised in corners",
+                        g.source, fus.lever_x, chk.dx, chk.dx_std, lat.delay_s)
+
+    def _check_lever_arm_y(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
+        """Feed this fix's speed to its receiver's lever-arm y check (against the wheels)."""
+        h = self.hist
+        i = h.slot(s)
+        x = h.X[i]
+        if self.fdi.isolated & WHEELS or not x[VX] > 0.0:
+            return
+        a = h.aux[i]
+        chk = self.lever_y_checks[g.source]
+        was = chk.flagged
+        chk.observe(s * self.dt, g.speed_mps, fus.sigma(g), float(a[AUX_WHEEL]), float(x[VY]), float(a[AUX_R]),
+                    float(a[AUX_AX]), lat.std_s)
+        if chk.suspected:
+            self.lever_flagged = True
+        if chk.flagged and not was:
+            log.warning("GNSS receiver %d: configured antenna lever arm y = %.2f m disagrees with the speeds "
+                        "against the wheels by %.2f m (+- %.2f): speed not promised to its std in corners",
+                        g.source, fus.lever_y, chk.dy, chk.dy_std)
 
     def _on_heading(self, g: GnssHeadingSample, k: int) -> None:
         """Fuse a dual-antenna heading received just before step k, at its time of validity (the
