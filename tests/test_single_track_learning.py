@@ -100,11 +100,12 @@ def test_the_model_takes_a_drive_estimate_only_when_it_is_the_more_certain():
     assert off.rear.k[0] == k and off.front.k[0] == M / CF
 
 
-def _var(st: SingleTrackFusion, vx: float, ay: float) -> tuple[float, float, float]:
-    """(predicted slip variance, its regressors h0 = phi and h1 = phi n^2) of the rear axle, steady."""
+def _var(st: SingleTrackFusion, vx: float, ay: float, once: bool = True) -> tuple[float, float, float]:
+    """(predicted slip variance, its regressors h0 = phi and h1 = phi n^2) of the rear axle, steady;
+    ``once``: as the published bound (model_error) counts it, else as the filter's pseudo-measurement."""
     phi = st.regressor_rear(vx, ay, 0.0)
     n2 = (ay / 9.81) ** 2
-    return st.rear.predict(phi, n2)[1], phi, phi * n2
+    return st.rear.predict(phi, n2, once)[1], phi, phi * n2
 
 
 def test_an_untaught_axle_counts_the_law_error_once():
@@ -116,6 +117,10 @@ def test_an_untaught_axle_counts_the_law_error_once():
     P0, rel0 = st.rear.P0, st.rear.rel_var0
     var, h0, h1 = _var(st, 6.3, 4.0)
     assert var == pytest.approx(h0 * h0 * P0[0, 0] + h1 * h1 * P0[1, 1], rel=1e-12)
+    vy, s = st.model_error(6.3, 4.0 / 6.3, 4.0, 0.0)  # the published bound: prior, k3, floor
+    assert s == pytest.approx(math.sqrt(var + (st.base_sigma_beta * 6.3) ** 2), rel=1e-12)
+    # the filter's pseudo-measurement keeps both (its weight gates the live RLS: adapt_from)
+    assert _var(st, 6.3, 4.0, False)[0] == pytest.approx(var + h0 * h0 * rel0, rel=1e-12)
     # beyond the fitted range (0.6 g) the law is an extrapolation: its error stays on top
     var, h0, h1 = _var(st, 7.9, 6.4)
     assert var == pytest.approx(h0 * h0 * (P0[0, 0] + rel0) + h1 * h1 * P0[1, 1], rel=1e-12)
