@@ -98,3 +98,49 @@ def test_the_model_takes_a_drive_estimate_only_when_it_is_the_more_certain():
     off = SingleTrackFusion(M, IZ, LF, LR, CF, CR, adapt=False)
     off.take_drive_estimate((sure, sure))  # adaptation switched off in the config: the config stands
     assert off.rear.k[0] == k and off.front.k[0] == M / CF
+
+
+def _var(st: SingleTrackFusion, vx: float, ay: float, once: bool = True) -> tuple[float, float, float]:
+    """(predicted slip variance, its regressors h0 = phi and h1 = phi n^2) of the rear axle, steady;
+    ``once``: as the published bound (model_error) counts it, else as the filter's pseudo-measurement."""
+    phi = st.regressor_rear(vx, ay, 0.0)
+    n2 = (ay / 9.81) ** 2
+    return st.rear.predict(phi, n2, once)[1], phi, phi * n2
+
+
+def test_an_untaught_axle_counts_the_law_error_once():
+    # a 10 m circle at 6.3 m/s (0.4 g), the configured stiffness untaught (k1 unobservable there):
+    # the configuration's prior is the stated law's whole error (a stated stiffness is a fit that
+    # includes the law's shape error); the law's own error stacked on it made the slip 0.5
+    # relative uncertain, the sideslip invalid from ~0.4 g on while right
+    st = _fusion()
+    P0, rel0 = st.rear.P0, st.rear.rel_var0
+    var, h0, h1 = _var(st, 6.3, 4.0)
+    assert var == pytest.approx(h0 * h0 * P0[0, 0] + h1 * h1 * P0[1, 1], rel=1e-12)
+    vy, s = st.model_error(6.3, 4.0 / 6.3, 4.0, 0.0)  # the published bound: prior, k3, floor
+    assert s == pytest.approx(math.sqrt(var + (st.base_sigma_beta * 6.3) ** 2), rel=1e-12)
+    # the filter's pseudo-measurement keeps both (its weight gates the live RLS: adapt_from)
+    assert _var(st, 6.3, 4.0, False)[0] == pytest.approx(var + h0 * h0 * rel0, rel=1e-12)
+    # beyond the fitted range (0.6 g) the law is an extrapolation: its error stays on top
+    var, h0, h1 = _var(st, 7.9, 6.4)
+    assert var == pytest.approx(h0 * h0 * (P0[0, 0] + rel0) + h1 * h1 * P0[1, 1], rel=1e-12)
+    # a taught axle (k1 fitted to 5 %) keeps the law's error apart, as it was
+    t = _taught()
+    var, h0, h1 = _var(t, 6.3, 4.0)
+    P = t.rear.P
+    assert var == pytest.approx(h0 * h0 * (P[0, 0] + t.rear.rel_var) + 2 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1],
+                                rel=1e-12)
+
+
+def test_learning_never_widens_the_model_error_and_residuals_can():
+    st = _fusion()
+    untaught = _var(st, 20.0, 3.0)[0]
+    k = M / CR
+    vx, ay = 20.0, 3.0
+    vy = LR * ay / vx + k * st.regressor_rear(vx, ay, 0.0) * (1.0 + 0.6 * (ay / 9.81) ** 2)
+    st.adapt_from(vx, vy, 0.05 ** 2, ay / vx, ay, 0.0, math.nan)  # one consistent RLS step
+    assert st.rear.updates == 1 and st.rear.P[0, 0] < st.rear.P0[0, 0]
+    assert _var(st, 20.0, 3.0)[0] <= untaught
+    # residuals that show the law worse than its prior (twice its std) count on top of the prior
+    st.rear.rel_var = 4.0 * st.rear.rel_var0
+    assert _var(st, 20.0, 3.0)[0] > untaught
