@@ -73,15 +73,17 @@ def test_gnss_lever_arm_y_configured_wrong_keeps_vx_within_its_std(low_drive, ed
     assert within.mean() >= 0.99, within.mean()
 
 
-def test_latency_prior_far_too_long_is_not_promised(tmp_path_factory):
-    """Before the lever-arm check: the turn-in's course alignment 6.6-8.7 deg off while valid (286 rows;
-    the prior std 0.15 s does not cover a user's 0.7 s error). A latency error turns the course by
-    r dd, which the check (lever_arm_check.py) finds against the gyro as it would a lever arm
-    (dd vx = -3.5 m here: beyond its latency prior), and the heading std takes it."""
-    d = _drive(tmp_path_factory, "latency", LOW.with_(name="lat01", gnss_latency_s=0.1, duration_s=25.0))
+@pytest.mark.parametrize("true_s, prior_s", [(0.1, 0.8), (0.8, 0.1)])
+def test_latency_prior_far_off_is_not_promised(tmp_path_factory, true_s, prior_s):
+    """Before the lever-arm check: a 0.8 s prior for a 0.1 s receiver gave the turn-in's course
+    alignment 6.6-8.7 deg off while valid (286 rows; the prior std 0.15 s does not cover a user's
+    0.7 s error). A latency error turns the course by r dd, which the check (lever_arm_check.py)
+    finds against the gyro as it would a lever arm, and the heading std takes it; either way round."""
+    d = _drive(tmp_path_factory, f"latency{true_s}",
+               LOW.with_(name=f"lat{true_s}", gnss_latency_s=true_s, duration_s=25.0))
 
     def edit(c):
-        c["gnss"]["delay_s"] = 0.8
-        c["gnss"]["max_delay_s"] = max(c["gnss"]["max_delay_s"], 0.8)
+        c["gnss"]["delay_s"] = prior_s
+        c["gnss"]["max_delay_s"] = max(c["gnss"]["max_delay_s"], prior_s, true_s)
     valid, err = _heading_rows(d, edit, "latency")
     assert not (valid & (err > 5.0)).any(), err[valid].max()
