@@ -71,6 +71,37 @@ def test_predict_agrees():
     np.testing.assert_array_equal(Fc, Fr)
 
 
+def test_predict_from_is_the_two_copies_and_predict():
+    """The step's predict from the previous slot (x <- x_prev, predict, A <- F) in one call: the
+    compiled one gives the same bits as the compiled predict around numpy's copies, and agrees
+    with the reference; the previous slot is left as it was."""
+    m = KinematicModel(0.006, 0.5, 0.01, 1e-4, 1e-3, 1e-4)
+    X = np.array([[20.0, 0.3, 6.2, 0.01, 0.1, -0.2, 1.01, 0.02], np.full(NX, np.nan)])
+    P = np.stack([spd(0.01), np.full((NX, NX), np.nan)])
+    A = np.full((2, NX, NX), np.nan)
+
+    def run(one_call):
+        x, Pn, An = X.copy(), P.copy(), A.copy()
+        if one_call:
+            m.predict_from(x[0], x[1], Pn[0], Pn[1], An[1], -0.5, 1.0, 3.0)
+        else:
+            x[1] = x[0]
+            m.predict(x[1], Pn[0], Pn[1], -0.5, 1.0, 3.0)
+            An[1] = m.F
+        return x, Pn, An
+
+    for use_compiled in (False, True):
+        with backend.selected(use_compiled):
+            x, Pn, An = run(True)
+            xs, Ps, As = run(False)
+        assert x.tobytes() == xs.tobytes() and Pn.tobytes() == Ps.tobytes() and An.tobytes() == As.tobytes()
+        assert X[0].tobytes() == x[0].tobytes() and P[0].tobytes() == Pn[0].tobytes()
+    (xr, Pr, Ar), (xc, Pc, Ac) = _both(lambda: run(True))
+    np.testing.assert_allclose(xc, xr, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(Pc[1], Pr[1], rtol=1e-14, atol=1e-18)
+    np.testing.assert_array_equal(Ac, Ar)
+
+
 @pytest.mark.parametrize("gate", [0.0, 3.0])
 def test_scalar_and_index_updates_agree(gate):
     x0 = RNG.normal(size=NX)

@@ -137,6 +137,16 @@ _STAGES = (
 )
 
 
+def _build_estimator_with(**methods) -> None:
+    """Make the pipeline build an ``Estimator`` subclass with ``methods`` replaced (none: the real
+    class again). Compiled, ``Estimator`` is an extension type (estimator/core.pxd) whose methods
+    cannot be set on the class itself."""
+    from ecu_daemon import pipeline
+    from ecu_daemon.estimator import core
+
+    pipeline.Estimator = type("Estimator", (core.Estimator,), methods) if methods else core.Estimator
+
+
 def _play_back_estimator(run) -> tuple[float, int]:
     """CPU seconds of ``run()`` with ``Estimator.advance_to`` played back from a first, recorded
     run (the same calls return the same estimates): the replay's cost without the estimator,
@@ -158,16 +168,16 @@ def _play_back_estimator(run) -> tuple[float, int]:
         return out
 
     try:
-        core.Estimator.advance_to = recording
+        _build_estimator_with(advance_to=recording)
         steps = run()["steps"]
-        core.Estimator.advance_to = playback
+        _build_estimator_with(advance_to=playback)
         it = iter(record)
         gc.collect()
         c0 = time.process_time()
         run()
         return time.process_time() - c0, steps
     finally:
-        core.Estimator.advance_to = real
+        _build_estimator_with()
 
 
 def _stage_split(run) -> dict:
@@ -197,7 +207,17 @@ def _stage_split(run) -> dict:
 
     from ecu_daemon.estimator import core
 
-    wrap(core.Estimator, "advance_to", "estimator (advance_to)")
+    real = core.Estimator.advance_to
+
+    def advance_to(self, t):
+        t0 = pc()
+        try:
+            return real(self, t)
+        finally:
+            acc["estimator (advance_to)"] = acc.get("estimator (advance_to)", 0.0) + pc() - t0
+
+    _build_estimator_with(advance_to=advance_to)
+    undo.append((None, None, None))
     for mod, cls, attr, label in _STAGES:
         owner = importlib.import_module(mod)
         owner = getattr(owner, cls, None) if cls else owner
@@ -210,7 +230,10 @@ def _stage_split(run) -> dict:
         total = pc() - c0
     finally:
         for owner, attr, f in reversed(undo):
-            setattr(owner, attr, f)
+            if owner is None:
+                _build_estimator_with()
+            else:
+                setattr(owner, attr, f)
     acc["everything else (step loop, publish, emit, ...)"] = total - sum(acc.values())
     return {"steps": r["steps"], "total_s": total, "stages_s": acc}
 

@@ -83,35 +83,11 @@ static int positive_definite(const double *P)
     return 1;
 }
 
-/* predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): x <- f(x, u); F's varying entries set;
- * P_out <- F P F' + diag(q), with F = I + (its few off-diagonal entries). */
-static PyObject *k_predict(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+/* x <- f(x, u); F's varying entries set; P_out <- F P F' + diag(q), with F = I + (its few
+ * off-diagonal entries). The math of predict and predict_from. */
+static void predict_core(double *x, const double *P, double *Po, double *F, const double *q,
+                         double r_m, double ax_m, double ay_m, double dt)
 {
-    if (nargs != 9) {
-        PyErr_SetString(PyExc_TypeError, "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt)");
-        return NULL;
-    }
-    double r_m = PyFloat_AsDouble(args[5]), ax_m = PyFloat_AsDouble(args[6]);
-    double ay_m = PyFloat_AsDouble(args[7]), dt = PyFloat_AsDouble(args[8]);
-    if (PyErr_Occurred())
-        return NULL;
-    Py_buffer bx, bp, bo, bf, bq;
-    double *x = get_doubles(args[0], &bx, N, "x");
-    if (!x)
-        return NULL;
-    double *P = get_doubles(args[1], &bp, N * N, "P");
-    if (!P)
-        goto fail_x;
-    double *Po = get_doubles(args[2], &bo, N * N, "P_out");
-    if (!Po)
-        goto fail_p;
-    double *F = get_doubles(args[3], &bf, N * N, "F");
-    if (!F)
-        goto fail_o;
-    double *q = get_doubles(args[4], &bq, N, "q");
-    if (!q)
-        goto fail_f;
-
     double fx[GEN_N_MODEL_ROWS], fv[GEN_N_F_VAR], fc[GEN_N_F_CONST];
     gen_kinematic_f(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], r_m, ax_m, ay_m, dt, fx);
     gen_kinematic_F_var(x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], r_m, ax_m, ay_m, dt, fv);
@@ -146,6 +122,38 @@ static PyObject *k_predict(PyObject *self, PyObject *const *args, Py_ssize_t nar
             Po[a * N + er[m]] += ev[m] * T[a * N + ec[m]];
     for (int a = 0; a < N; a++)
         Po[a * N + a] += q[a];
+}
+
+/* predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): x <- f(x, u); F's varying entries set;
+ * P_out <- F P F' + diag(q), with F = I + (its few off-diagonal entries). */
+static PyObject *k_predict(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError, "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt)");
+        return NULL;
+    }
+    double r_m = PyFloat_AsDouble(args[5]), ax_m = PyFloat_AsDouble(args[6]);
+    double ay_m = PyFloat_AsDouble(args[7]), dt = PyFloat_AsDouble(args[8]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bx, bp, bo, bf, bq;
+    double *x = get_doubles(args[0], &bx, N, "x");
+    if (!x)
+        return NULL;
+    double *P = get_doubles(args[1], &bp, N * N, "P");
+    if (!P)
+        goto fail_x;
+    double *Po = get_doubles(args[2], &bo, N * N, "P_out");
+    if (!Po)
+        goto fail_p;
+    double *F = get_doubles(args[3], &bf, N * N, "F");
+    if (!F)
+        goto fail_o;
+    double *q = get_doubles(args[4], &bq, N, "q");
+    if (!q)
+        goto fail_f;
+
+    predict_core(x, P, Po, F, q, r_m, ax_m, ay_m, dt);
 
     PyBuffer_Release(&bq);
     PyBuffer_Release(&bf);
@@ -162,6 +170,42 @@ fail_p:
 fail_x:
     PyBuffer_Release(&bx);
     return NULL;
+}
+
+/* predict_from(x_prev, x, P_prev, P_out, F, A, q, r_m, ax_m, ay_m, dt): one step from the
+ * previous slot into this one: x <- x_prev, then predict (x, P_prev, P_out, F, q, ...), then
+ * A <- F. The three calls core.Estimator._step made (two numpy slice copies and predict) in
+ * one, with the same arithmetic: the same bits. */
+static PyObject *k_predict_from(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 11) {
+        PyErr_SetString(PyExc_TypeError, "predict_from(x_prev, x, P_prev, P_out, F, A, q, r_m, ax_m, ay_m, dt)");
+        return NULL;
+    }
+    double r_m = PyFloat_AsDouble(args[7]), ax_m = PyFloat_AsDouble(args[8]);
+    double ay_m = PyFloat_AsDouble(args[9]), dt = PyFloat_AsDouble(args[10]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer b[7];
+    static const Py_ssize_t counts[7] = {N, N, N * N, N * N, N * N, N * N, N};
+    static const char *names[7] = {"x_prev", "x", "P_prev", "P_out", "F", "A", "q"};
+    double *p[7];
+    int got = 0;
+    for (; got < 7; got++) {
+        p[got] = get_doubles(args[got], &b[got], counts[got], names[got]);
+        if (!p[got])
+            break;
+    }
+    if (got == 7) {
+        memcpy(p[1], p[0], N * sizeof(double));
+        predict_core(p[1], p[2], p[3], p[4], p[6], r_m, ax_m, ay_m, dt);
+        memcpy(p[5], p[4], N * N * sizeof(double));
+    }
+    for (int m = 0; m < got; m++)
+        PyBuffer_Release(&b[m]);
+    if (got < 7)
+        return NULL;
+    Py_RETURN_NONE;
 }
 
 /* Joseph-form update with gain K = Ph / S: P <- (I - K h') P (I - K h')' + R K K', given
@@ -950,6 +994,8 @@ static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
 static PyMethodDef methods[] = {
     {"predict", (PyCFunction)(void (*)(void))k_predict, METH_FASTCALL,
      "predict(x, P, P_out, F, q, r_m, ax_m, ay_m, dt): one model step in place"},
+    {"predict_from", (PyCFunction)(void (*)(void))k_predict_from, METH_FASTCALL,
+     "predict_from(x_prev, x, P_prev, P_out, F, A, q, r_m, ax_m, ay_m, dt): x <- x_prev, predict, A <- F"},
     {"scalar_update", (PyCFunction)(void (*)(void))k_scalar_update, METH_FASTCALL,
      "scalar_update(x, P, innovation, h, R, gate_sigma=0.0, A=None) -> fused"},
     {"index_update", (PyCFunction)(void (*)(void))k_index_update, METH_FASTCALL,

@@ -1,7 +1,7 @@
 """Which implementation of the estimator's numerical kernels runs: compiled or reference.
 
 The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under the same names,
-``kinematic.KinematicModel.predict``, ``kalman.scalar_update`` / ``index_update`` /
+``kinematic.KinematicModel.predict`` / ``predict_from``, ``kalman.scalar_update`` / ``index_update`` /
 ``late_update`` / ``symmetrize``, ``history.StepHistory.correct`` and the stiffness regression's
 ``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``) and the
 single-track learner's ``rls_update`` (``fusion/single_track.py``); the pure-Python
@@ -18,7 +18,7 @@ from .fusion import single_track, stiffness_regression
 
 log = logging.getLogger(__name__)
 
-KERNELS = ("predict", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
+KERNELS = ("predict", "predict_from", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
 STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum", "window_fit")
 SINGLE_TRACK_KERNELS = ("rls_update",)
 
@@ -40,6 +40,10 @@ def _predict_compiled(self, x, P, P_out, r_m, ax_m, ay_m):
     compiled.predict(x, P, P_out, self.F, self.q, r_m, ax_m, ay_m, self.dt)
 
 
+def _predict_from_compiled(self, x_prev, x, P_prev, P_out, A, r_m, ax_m, ay_m):
+    compiled.predict_from(x_prev, x, P_prev, P_out, self.F, A, self.q, r_m, ax_m, ay_m, self.dt)
+
+
 def _correct_compiled(self, s, dx, M):
     return compiled.correct(self.X, self.P, self.A, s, self.last, dx, M)
 
@@ -49,6 +53,8 @@ def select(use_compiled: bool = True) -> str:
     one now active. Process-wide: every Estimator uses the same."""
     on = use_compiled and compiled is not None
     kinematic.KinematicModel.predict = _predict_compiled if on else kinematic.KinematicModel.predict_reference
+    kinematic.KinematicModel.predict_from = (_predict_from_compiled if on
+                                             else kinematic.KinematicModel.predict_from_reference)
     history.StepHistory.correct = _correct_compiled if on else history.StepHistory.correct_reference
     kalman.scalar_update = compiled.scalar_update if on else kalman.scalar_update_reference
     kalman.index_update = compiled.index_update if on else kalman.index_update_reference

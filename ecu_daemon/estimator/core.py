@@ -572,16 +572,14 @@ class Estimator:
         x = h.Xr[i]
         A = h.Ar[i]
         P = h.Pr[i]
-        if predict:  # predict from the previous step
-            x[:] = xp
+        if predict:  # predict from the previous step (x <- xp, predict, A <- F: one compiled call)
             density = self.lat_noise.density
             if density != self._vy_density:
                 self._set_vy_noise(density)
             if imu_ok:
-                self.model.predict(x, Pp, P, r_m, ax_m, ay_m)
+                self.model.predict_from(xp, x, Pp, P, A, r_m, ax_m, ay_m)
             else:  # hold: no rotation, no acceleration, covariance still grows
-                self.model.predict(x, Pp, P, x[BR], x[BAX], x[BAY])
-            A[:] = self.model.F
+                self.model.predict_from(xp, x, Pp, P, A, xp[BR], xp[BAX], xp[BAY])
             if imu_ok:
                 # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
                 e = IMU_LEVER_STD_M * abs(self.rdot) + YAW_SCALE_STD * abs(self.r_lp * x[VX])

@@ -84,6 +84,20 @@ class KinematicModel:
 
     predict = predict_reference
 
+    def predict_from_reference(self, x_prev: np.ndarray, x: np.ndarray, P_prev: np.ndarray, P_out: np.ndarray,
+                               A: np.ndarray, r_m: float, ax_m: float, ay_m: float) -> None:
+        """One step from the previous history slot into this one: x <- x_prev, then
+        :meth:`predict` (x, P_prev -> P_out), then A <- F (the transition the slot stores).
+
+        The estimator's step runs this every 6 ms; the compiled one (``backend.py``) does the
+        two copies and the predict in one C call, with the same arithmetic (the same bits).
+        """
+        x[:] = x_prev
+        self.predict_reference(x, P_prev, P_out, r_m, ax_m, ay_m)
+        A[:] = self.F
+
+    predict_from = predict_from_reference
+
 
 def wrap_pi(a: float) -> float:
     """Wrap an angle to [-pi, pi)."""

@@ -5,3 +5,9 @@ cdef class RoadAttitude:
     cdef public object _k, _lp, _ring, altitude, altitude_fused, altitude_rejected, bank, baselines, dt
     cdef public object elevation_fused, elevation_rejected, fy_lp, grade, gyro, roll, roll_bias0
     cdef public object roll_gyro_params, roll_std, vertical_fused, vertical_zero
+
+
+# one [angle, offset] filter (grade, bank): read for the published fields and validity every step
+cdef class _Channel:
+    cdef dict __dict__
+    cdef public object P, floor2, updates, x

@@ -91,6 +91,7 @@ class _Channel:
         self.x = np.array([0.0, offset])
         self.P = np.diag([ANGLE_PRIOR ** 2, offset_std ** 2])
         self.updates = 0
+        self.floor2 = 0.0  # variance of a bias under the angle no update removes (a mounting elevation)
 
     def predict(self, dt: float) -> None:
         self.P[0, 0] += ANGLE_WALK ** 2 * dt
@@ -111,8 +112,6 @@ class _Channel:
         h = self.x[1] + gain * G * math.sin(a)
         H = np.array([gain * G * math.cos(a), 1.0])
         return self.update(b - h, H, var_b)
-
-    floor2 = 0.0  # variance of a bias under the angle no update removes (a mounting elevation)
 
     @property
     def std(self) -> float:

@@ -3,3 +3,8 @@
 cdef class SingleTrackFusion:
     cdef dict __dict__
     cdef public object L, adapt, base_sigma_beta, front, iz_m, lf, lr, mass, rear
+
+# every step (core.Estimator._step)
+cdef class LaggedModelInputs:
+    cdef dict __dict__
+    cdef public object a1, a2, ay, ay1, dt, r, vy1, vy2

@@ -1,0 +1,24 @@
+# Cython declarations augmenting core.py when setup.py compiles it (compiled_python.py); plain
+# Python ignores this file. Estimator becomes an extension type whose instance attributes are
+# struct slots, as FaultDetector's (fault_detection.pxd): ``self.fdi`` in the compiled step is a
+# pointer load instead of a dict lookup (_step alone read ~60 attributes per 6 ms step, ~210
+# instructions each through Cython's untyped getattr). Every slot is a Python ``object``: the
+# values, their types and every operation on them stay those of the .py (the same bits).
+# ``__dict__`` keeps instances open to any other attribute (a new one needs no edit here; list it
+# when it is on the hot path). An extension type's methods cannot be replaced on the class: wrap
+# them on the instance or in a subclass (tools/bench_replay.py does).
+cdef class Estimator:
+    cdef dict __dict__
+    cdef public object _learned0, _lp_r, _lp_rdot, _lp_turn, _reset_flag, _slip_decay
+    cdef public object _velocity_latencies, _vy_density, align_lat_var, align_psi_var, aligned
+    cdef public object augmented, cfg, considers, course_heading, delay_compensation, dt, fdi
+    cdef public object fix_steps, gap_s, gaps, gnss, gnss_agrees, gnss_checked_t
+    cdef public object gnss_conflict_last_t, gnss_conflict_t, gnss_run_t, heading, held, held_t
+    cdef public object hist, imu_mount, initialized, k, last_gap, last_gnss_fused_t
+    cdef public object last_gnss_rejected, last_gnss_speed, last_heading_fused_t, lat_drift_tol
+    cdef public object lat_noise, lat_scale, lat_sens, late_inputs, latencies, latency, lon_scale
+    cdef public object mag, mag_bridged, mag_new, model, model_ay, model_inputs, model_t
+    cdef public object model_unsteady_t, queue, r_lp, rdot, realignments, receivers, resets, road
+    cdef public object single_track, slip_hold, speed_integral, speed_latencies, standstill
+    cdef public object steer_learner, steer_offset, steer_ratio, stiffness, timeouts, turn_lp
+    cdef public object uses_velocity, wheel_new, wheel_reject_t, wheels, yaw_integral
