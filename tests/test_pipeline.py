@@ -256,3 +256,28 @@ def test_a_late_can_frame_is_applied_at_the_next_step_not_dropped(drive):
     assert late == [("can", j, step_of(t, DT) + 1)]
     assert pl.late_items == 1 and pl.earliest_late_t == t
     assert t in pl.estimator.held_t  # its value is held with its own time
+
+
+@pytest.fixture(scope="module")
+def long_drive():
+    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+    scenario = SCENARIOS["demo"].with_(duration_s=40.0)
+    cfg = vehicle_config(scenario)
+    sim = simulate(scenario, cfg)
+    events = sorted([(float("%.6f" % t), 0, fid, data) for t, fid, data in sim.can_frames]
+                    + [(float("%.6f" % t), 1, None, p) for t, p in sim.gnss_messages], key=lambda e: (e[0], e[1]))
+    return cfg, events
+
+
+def test_a_late_gnss_sample_does_not_lengthen_the_identified_latency(long_drive):
+    """Every GNSS message applied 3 steps after it was received: the latency identification measures
+    from the receive step, so it learns what it learns on time (before, it took the 18 ms as latency)."""
+    cfg, events = long_drive
+    on_time, _, _ = _tick_through(cfg, events, lambda j, t: step_of(t, DT))
+    late_run, late, _ = _tick_through(
+        cfg, events, lambda j, t: step_of(t, DT) + (3 if events[j][1] == 1 else 0))
+    assert late  # the messages did arrive late
+    a, b = on_time.estimator.latencies[0], late_run.estimator.latencies[0]
+    assert a.delay_s != cfg.gnss.delay_s  # the drive taught the identification something
+    assert abs(a.delay_s - b.delay_s) < 1e-4 and abs(a.std_s - b.std_s) < 1e-4, (a.delay_s, b.delay_s)

@@ -1033,10 +1033,13 @@ class Estimator:
             self.last_gnss_rejected = True
             return
         agree = agree and not self.fdi.isolated & WHEELS
+        # the step the sample was received at, not the one it is applied at: live, a sample read
+        # late is applied at a later step, and that lateness is not the receiver's latency
+        k_rx = min(k, step_of(g.t, self.dt))
         if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
-            lat.observe(k, speed, h, (fus.lever_x, fus.lever_y), self.wheels)
+            lat.observe(k_rx, speed, h, (fus.lever_x, fus.lever_y), self.wheels)
         if h.X[h.slot(h.last), VX] > 0:
-            self.speed_integral.observe(g.source, k, speed, self.speed_latencies[g.source], (fus.lever_x, fus.lever_y))
+            self.speed_integral.observe(g.source, k_rx, speed, self.speed_latencies[g.source], (fus.lever_x, fus.lever_y))
         if late:
             fus.late += 1
         if self.aligned and fus.consecutive_rejects >= MAX_CONSECUTIVE_REJECTS and agree \
