@@ -212,16 +212,21 @@ def _tick_through(cfg, events, arrival):
     return pl, late, per_tick
 
 
-@pytest.fixture(scope="module")
-def drive():
+def _demo_events(duration_s):
+    """The demo drive's first seconds as (time, 0 CAN / 1 GNSS, id, payload) in arrival order."""
     from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
-    scenario = SCENARIOS["demo"].with_(duration_s=8.0)
+    scenario = SCENARIOS["demo"].with_(duration_s=duration_s)
     cfg = vehicle_config(scenario)
     sim = simulate(scenario, cfg)
     events = sorted([(float("%.6f" % t), 0, fid, data) for t, fid, data in sim.can_frames]
                     + [(float("%.6f" % t), 1, None, p) for t, p in sim.gnss_messages], key=lambda e: (e[0], e[1]))
     return cfg, events
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return _demo_events(8.0)
 
 
 def test_a_late_gnss_sample_is_fused_at_its_time_of_validity(drive):
@@ -260,14 +265,7 @@ def test_a_late_can_frame_is_applied_at_the_next_step_not_dropped(drive):
 
 @pytest.fixture(scope="module")
 def long_drive():
-    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
-
-    scenario = SCENARIOS["demo"].with_(duration_s=40.0)
-    cfg = vehicle_config(scenario)
-    sim = simulate(scenario, cfg)
-    events = sorted([(float("%.6f" % t), 0, fid, data) for t, fid, data in sim.can_frames]
-                    + [(float("%.6f" % t), 1, None, p) for t, p in sim.gnss_messages], key=lambda e: (e[0], e[1]))
-    return cfg, events
+    return _demo_events(40.0)  # long enough for the latency identification to move
 
 
 def test_a_late_gnss_sample_does_not_lengthen_the_identified_latency(long_drive):

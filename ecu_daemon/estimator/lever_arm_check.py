@@ -71,6 +71,15 @@ CORR_FIXES = 5.0
 DRIFT_INFO = 1.0 / (math.radians(0.3) * WINDOW_S) ** 2
 
 
+
+def _regularised_cov(info: np.ndarray, prior_info: tuple[float, ...]) -> np.ndarray | None:
+    """The fit's covariance: its information plus a diagonal prior (what keeps a fit the drive has
+    not excited yet invertible); None if it still is singular (the fit keeps its last solution)."""
+    try:
+        return np.linalg.inv(info + np.diag(prior_info))
+    except np.linalg.LinAlgError:
+        return None
+
 class LeverArmCheck:
     """One receiver's lever-arm consistency fit (information form, exponentially forgotten):
     unknowns [offset of the current run, drift, dx, latency error]."""
@@ -166,10 +175,8 @@ class LeverArmCheck:
     def _solve(self, latency_std_s: float) -> None:
         # tiny priors keep a not-yet-excited fit invertible; the latency error's is the latency
         # estimator's std (latency.py): what a corner at one speed cannot tell from dx
-        A = self.info + np.diag((1e-9, DRIFT_INFO, 1e-6, 1.0 / max(latency_std_s, 1e-3) ** 2))
-        try:
-            cov = np.linalg.inv(A)
-        except np.linalg.LinAlgError:
+        cov = _regularised_cov(self.info, (1e-9, DRIFT_INFO, 1e-6, 1.0 / max(latency_std_s, 1e-3) ** 2))
+        if cov is None:
             return
         self.theta = cov @ self.rhs
         self.cov = cov
@@ -259,10 +266,8 @@ class LeverArmYCheck:
         self.info += np.outer(h, h) / var
         self.rhs += h * (z / var)
         self.n += 1
-        A = self.info + np.diag((1.0 / SCALE_STD ** 2, 1e-6, 1.0 / max(latency_std_s, 1e-3) ** 2))
-        try:
-            cov = np.linalg.inv(A)
-        except np.linalg.LinAlgError:
+        cov = _regularised_cov(self.info, (1.0 / SCALE_STD ** 2, 1e-6, 1.0 / max(latency_std_s, 1e-3) ** 2))
+        if cov is None:
             return
         self.theta = cov @ self.rhs
         self.cov = cov
