@@ -153,6 +153,27 @@ def test_single_track_model_vy_is_the_pseudo_measurements_vy_to_the_bit():
     assert st.rear.updates > 0
 
 
+def test_single_track_law_holds_while_the_steering_agrees_with_both_axles():
+    """In a GNSS outage the model's bound on the sideslip std needs the tyre law confirmed without vy:
+    L r - vx delta = front slip - rear slip (core.MODEL_BOUND). A steady 0.41 g corner steered as the
+    law says, or 30 % of the front slip off (inside the 40 % prior), holds; 5 deg more front slip (a
+    front axle at its friction limit: mu 0.5 gave 22 deg) or 5 deg less (the rear at its limit) does
+    not; nor does a missing steering angle."""
+    st = single_track()
+    vx, ay = 20.0, 4.0
+    r = ay / vx
+    n2 = (ay / 9.81) ** 2
+    y_f, _ = st.front.predict(st.regressor_front(vx, ay, 0.0), n2, True)
+    y_r, _ = st.rear.predict(st.regressor_rear(vx, ay, 0.0), n2, True)
+    delta = (st.L * r - (y_f - y_r)) / vx  # the law's steady-state road-wheel angle
+    assert st.law_holds(vx, r, ay, 0.0, delta)
+    assert st.law_holds(vx, r, ay, 0.0, delta + 0.3 * y_f / vx)
+    assert not st.law_holds(vx, r, ay, 0.0, delta + math.radians(5.0))
+    assert not st.law_holds(vx, r, ay, 0.0, delta - math.radians(5.0))
+    assert not st.law_holds(vx, r, ay, 0.0, math.nan)
+    assert not st.law_holds(0.3, 0.0, 0.0, 0.0, 0.0)
+
+
 def test_standstill_needs_the_hold_time():
     s = StandstillFusion(0.006, 0.01)
     assert not any(s.detect(0.0) for _ in range(s.hold_steps - 1))

@@ -155,6 +155,9 @@ SUBSET = {
     # a 30 s outage on mu 0.3 with a corner at the limit: sideslip 0.4-0.7 deg off while the model alone
     # holds it, within its std (0.6 deg): the honesty guard for any rule that narrows the outage std
     "mu03_outage_30s": {},
+    # the same outage on mu 0.5: the corner (~0.48 g) is the friction limit at a lateral force the model
+    # takes for linear; sideslip 0.9-1.2 deg off at up to 1.6 sigma, invalid there (std 0.73-0.90 deg)
+    "mu05_outage_30s": {"avail-b": "sideslip valid on 80 % above 5 m/s"},
     # grade +10 % with NMEA: grade rms 0.55 deg on the offset's prior alone; GGA altitude over the
     # distance travelled (estimator/altitude_grade.py) measures it now
     "grade_+10pct_nmea": {},

@@ -132,8 +132,18 @@ YAW_SCALE_STD = 0.005
 # car sliding through a yaw-rate reversal had model and filter 2 m/s off together while ay was
 # crossing zero and the model's std with it), nor while the lateral cross-check or the gyro's
 # witnesses disagree (the model is one of the voters), nor with an IMU signal substituted, nor
-# without fresh GNSS. The bound applies once none of these has happened for MODEL_STEADY_S, the
-# correlation time of the model's errors (single_track.CORNER_STEPS x 6 ms).
+# without fresh GNSS unless the steering confirms the tyre law (below). The bound applies once none
+# of these has happened for MODEL_STEADY_S, the correlation time of the model's errors
+# (single_track.CORNER_STEPS x 6 ms).
+# Without GNSS the filter's vy level is the model's own (the IMU integrates only its changes), so
+# |vy - vy_model| is ~0 and the bound is the model's word for itself: honest while its tyre law
+# holds, not at the friction limit, which a lateral force normalised by g cannot see (mu 0.5,
+# 0.48 g: rear slip 60 % above the linear law, the model 1.2 deg off against its 0.6 deg). The
+# steering sees it: L r - vx delta = front slip - rear slip needs no vy and no GNSS
+# (SingleTrackFusion.law_holds); an axle at its limit puts degrees into it (mu 0.5: 22 deg of
+# front slip beyond the law). So in an outage the bound applies only while the steering agrees
+# with the law; before, a steady circle lost the bound with the GNSS (mag_circle_outage: std
+# 0.67-0.92 deg against an error of 0.03-0.08, invalid for the outage's 20 s).
 MODEL_BOUND = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
@@ -608,7 +618,9 @@ class Estimator:
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
-                or t - self.last_gnss_fused_t > GNSS_FRESH_S or self.model_unsteady_t == math.inf):
+                or (t - self.last_gnss_fused_t > GNSS_FRESH_S
+                    and not self.single_track.law_holds(vx, r_c, ay_c, rdot, delta))
+                or self.model_unsteady_t == math.inf):
             self.model_unsteady_t = t
         if self.yaw_integral is not None:
             self.yaw_integral.step(k, r)

@@ -63,6 +63,20 @@ def _conditions() -> list[SuiteCase]:
            # past saturation -- to hold sideslip: the case a less pessimistic outage std must not break
            SuiteCase("mu03_outage_30s", "gnss", _base("mu03_outage_30s", "demo", mu=0.3,
                                                       gnss_faults=(Fault("gnss", "dropout", 25.0, 30.0),)))]
+    # harder outages, where only the single-track model knows the sideslip level (issue 7 item 3):
+    # mu 0.5: the corner's ~0.48 g is the limit (front slip ~25 deg, rear 60 % above the linear law)
+    # at a lateral force the model takes for its learned range (n < 0.6): sideslip 1.2 deg off at
+    # 1.6 sigma; the case any rule that narrows the outage std (or lets the model vouch for itself
+    # without GNSS) must not make valid while wrong
+    outage = (Fault("gnss", "dropout", 25.0, 30.0),)
+    out.append(SuiteCase("mu05_outage_30s", "gnss", _base("mu05_outage_30s", "demo", mu=0.5, gnss_faults=outage)))
+    # the configured rear stiffness 30 % off while the model alone holds the sideslip (its prior: 40 %)
+    for f in (1.3, 0.7):
+        name = f"outage_cr_{'+' if f > 1 else '-'}30pct"
+        out.append(SuiteCase(name, "gnss", _base(name, "demo", gnss_faults=outage, config_errors=(("cr", f),))))
+    # the outage mid-corner: a 5 % banked circle ramping 0.29 -> 0.57 g during it (beyond what GNSS saw)
+    out.append(SuiteCase("outage_circle_bank", "gnss", _base("outage_circle_bank", "circle_dry_bank",
+                                                             gnss_faults=(Fault("gnss", "dropout", 30.0, 20.0),))))
     for rate in (1.0, 10.0):
         out.append(SuiteCase(f"gnss_{rate:g}hz", "gnss", _base(f"gnss_{rate:g}hz", "dlc_dry", gnss_rate_hz=rate)))
     for lat in (0.1, 0.25, 0.6, 0.8):  # the config's prior is the default receiver guess, not the truth

@@ -38,6 +38,10 @@ MODEL_MIN_REL_STD = 0.05  # the law's error is never taken below this (relaxatio
 TAKE_MAX_REL_VAR = 0.25  # the drive estimate is taken once its std is half the prior's (a taught car)
 LEARNED_MAX_N = 0.6  # the regression learns the law's error up to this lateral force (its MAX_N)
 RESTORED_MIN_REL_STD = 0.03  # a restored stiffness is never trusted beyond this (wear, load, temperature)
+LAW_HOLDS_SIGMA = 3.0  # the steering confirms the tyre law while it is within this many sigmas of it
+# 1-sigma of the road-wheel angle beyond the two axles' law: the learned steering offset's residual
+# and the steering system's compliance (stiffness_regression.STEER_OFFSET_RAD is the offset's prior)
+STEER_ERR_RAD = math.radians(0.3)
 
 
 def std_keys(name: str) -> tuple[str, str, str, str]:
@@ -254,6 +258,23 @@ class SingleTrackFusion:
         y, var_par = self.rear.predict(phi, n * n, True)
         nl = 0.0 if n < 0.8 else (n - 0.8) * math.radians(3.0)
         return self.lr * r + y, math.sqrt(var_par + (nl * vx) ** 2 + (self.base_sigma_beta * vx) ** 2)
+
+    def law_holds(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> bool:
+        """Whether the steering confirms both axles' tyre law, with no vy and no GNSS: the difference
+        of the axle relations is L r - vx delta = k_f phi_f - k_r phi_r (the understeer relation),
+        within LAW_HOLDS_SIGMA of both laws' uncertainty (counted once, as :meth:`model_error`) and
+        the steering's. An axle at its friction limit (a low-friction road the lateral force
+        normalised by g does not reveal) slips degrees beyond its law: the front of an understeering
+        car first (mu 0.5 at 0.48 g: 22 deg); a rear at its limit moves the difference the other way.
+        Only both axles leaving the law alike (a neutral car at its limit) would pass unseen.
+        False without a steering angle (``delta`` NaN) or below MIN_SPEED."""
+        if not vx >= MIN_SPEED or not math.isfinite(delta):
+            return False
+        n2 = (ay / G) ** 2
+        y_r, var_r = self.rear.predict(self.regressor_rear(vx, ay, rdot), n2, True)
+        y_f, var_f = self.front.predict(self.regressor_front(vx, ay, rdot), n2, True)
+        e = self.L * r - vx * delta - (y_f - y_r)
+        return e * e <= LAW_HOLDS_SIGMA ** 2 * (var_f + var_r + (STEER_ERR_RAD * vx) ** 2)
 
     def substitute_vy_rate(self, vx: float, rdot: float) -> float:
         """|d vy / dt| the single-track model expects from the yaw acceleration ``rdot``: what an
