@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from ecu_daemon.estimator import Estimator, backend, kalman
+from ecu_daemon.estimator import latency_sensitivity as ls
 from ecu_daemon.estimator.fusion import single_track as st
 from ecu_daemon.estimator.fusion import stiffness_regression as sr
 from ecu_daemon.estimator.history import AUX_AY, AUX_R, NAUX, StepHistory, positive_definite
@@ -276,6 +277,47 @@ def test_positive_definite_check():
     assert positive_definite(good) and backend.compiled.positive_definite(good)
     for P in (bad, nan):
         assert not positive_definite(P) and not backend.compiled.positive_definite(P)
+
+
+# ------------------------------------------------------------------------------------------------
+# the latency sensitivity's kernels (latency_sensitivity.py)
+
+def test_sensitivity_step_agrees_and_may_write_over_its_input():
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(NX, NX))
+    S0 = RNG.normal(size=NX)
+    ref, out = np.zeros(NX), np.zeros(NX)
+    ls.sens_step_reference(A, S0, ref)
+    backend.compiled.sens_step(A, S0, out)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-15)
+    inplace = S0.copy()
+    backend.compiled.sens_step(A, inplace, inplace)  # S_out is S_prev: the product, not a half-updated one
+    assert np.array_equal(inplace, out)
+
+
+@pytest.mark.parametrize("m", [1, 2])
+@pytest.mark.parametrize("depth", [0, 1, 7, 99])  # 99: the whole ring, across its wrap
+def test_sensitivity_fused_agrees(m, depth):
+    """A fix fused at a stored step and carried to the present: the compiled kernel (step by step)
+    is the reference (the gain by numpy's inverse, the carry by prefix products) within 1e-12,
+    and it touches no slot before the fix's step."""
+    n, last = 100, 170
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(n, NX, NX))
+    S0 = RNG.normal(size=(n, NX))
+    P, H = spd(0.1), RNG.normal(size=(m, NX))
+    R, h = np.diag(RNG.uniform(0.1, 0.5, m)), RNG.normal(size=m)
+    s = last - depth
+    ref, out = S0.copy(), S0.copy()
+    ls.sens_fused_reference(ref, A, P, H, R, h, s, last)
+    backend.compiled.sens_fused(out, A, P, H, R, h, s, last)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
+    touched = np.arange(s, last + 1) % n
+    untouched = np.setdiff1d(np.arange(n), touched)
+    assert np.array_equal(out[untouched], S0[untouched])
+    # the fix's step itself: (I - K H) S + K h, K the textbook gain
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    np.testing.assert_allclose(out[s % n], (np.eye(NX) - K @ H) @ S0[s % n] + K @ h, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError):  # a step the ring no longer holds
+        backend.compiled.sens_fused(out, A, P, H, R, h, last - n, last)
 
 
 # ------------------------------------------------------------------------------------------------

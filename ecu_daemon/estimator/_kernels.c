@@ -978,6 +978,173 @@ static PyObject *k_rls_update(PyObject *self, PyObject *const *args, Py_ssize_t 
     return PyFloat_FromDouble(e);
 }
 
+/* ---- the latency sensitivity S of latency_sensitivity.py (one 8-vector per history slot) ---------
+ * Carried through every step's effective transition and, at each fused GNSS fix, updated at the
+ * fix's stored step and carried to the present: numpy's per-call overhead and the prefix-product
+ * copies were most of that (~100 us per fix); here it is one 8 x 8 matrix-vector product per step
+ * of delay. The sums run in index order (not BLAS's): the same math as the references, not their
+ * last bits (tests/test_kernels.py: within 1e-12). */
+
+/* sens_step(A, S_prev, S_out): S_out = A S_prev (one step's transition). */
+static PyObject *k_sens_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "sens_step(A, S_prev, S_out)");
+        return NULL;
+    }
+    Py_buffer bA, bp, bo;
+    double *A = get_doubles(args[0], &bA, N * N, "A");
+    if (!A)
+        return NULL;
+    double *sp = get_doubles(args[1], &bp, N, "S_prev");
+    if (!sp) {
+        PyBuffer_Release(&bA);
+        return NULL;
+    }
+    double *so = get_doubles(args[2], &bo, N, "S_out");
+    if (!so) {
+        PyBuffer_Release(&bp);
+        PyBuffer_Release(&bA);
+        return NULL;
+    }
+    double v[N];
+    for (int a = 0; a < N; a++) {
+        double t = 0.0;
+        for (int b = 0; b < N; b++)
+            t += A[a * N + b] * sp[b];
+        v[a] = t;
+    }
+    memcpy(so, v, sizeof(v)); /* S_out may be S_prev */
+    PyBuffer_Release(&bo);
+    PyBuffer_Release(&bp);
+    PyBuffer_Release(&bA);
+    Py_RETURN_NONE;
+}
+
+/* sens_fused(S, A, P, H, R, h, s, last): a fix of m = 1 or 2 rows fused at stored step s with
+ * Jacobian H and noise R against the covariance P it had before: with K = P H' (H P H' + R)^-1,
+ * S_s <- S_s - K (H S_s - h), then S_j = A_j S_{j-1} for every later step j up to last. */
+static PyObject *k_sens_fused(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "sens_fused(S, A, P, H, R, h, s, last)");
+        return NULL;
+    }
+    long long s = PyLong_AsLongLong(args[6]), last = PyLong_AsLongLong(args[7]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bS, bA, bP, bH, bR, bh;
+    PyObject *ret = NULL;
+    double *S = get_doubles(args[0], &bS, -N, "S");
+    if (!S)
+        return NULL;
+    Py_ssize_t n = bS.len / (Py_ssize_t)(N * sizeof(double));
+    double *A = get_doubles(args[1], &bA, n * N * N, "A");
+    if (!A)
+        goto f_s;
+    double *P = get_doubles(args[2], &bP, N * N, "P");
+    if (!P)
+        goto f_a;
+    double *H = get_doubles(args[3], &bH, -N, "H");
+    if (!H)
+        goto f_p;
+    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
+    if (m > 2) {
+        PyErr_SetString(PyExc_ValueError, "sens_fused: H must have 1 or 2 rows");
+        goto f_h;
+    }
+    double *R = get_doubles(args[4], &bR, m * m, "R");
+    if (!R)
+        goto f_h;
+    double *hv = get_doubles(args[5], &bh, m, "h");
+    if (!hv)
+        goto f_r;
+    if (last - s < 0 || last - s >= n) {
+        PyErr_SetString(PyExc_ValueError, "sens_fused: step outside the history");
+        goto f_hv;
+    }
+    double PHt[N * 2], Sm[4], Si[4], K[N * 2], innov[2];
+    for (int a = 0; a < N; a++) /* P H' */
+        for (int r = 0; r < m; r++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += P[a * N + b] * H[r * N + b];
+            PHt[a * m + r] = v;
+        }
+    for (int r = 0; r < m; r++) /* H P H' + R */
+        for (int q = 0; q < m; q++) {
+            double v = 0.0;
+            for (int a = 0; a < N; a++)
+                v += H[r * N + a] * PHt[a * m + q];
+            Sm[r * m + q] = v + R[r * m + q];
+        }
+    if (m == 1) {
+        if (Sm[0] == 0.0) {
+            PyErr_SetString(PyExc_ValueError, "sens_fused: singular innovation covariance");
+            goto f_hv;
+        }
+        Si[0] = 1.0 / Sm[0];
+    } else {
+        double det = Sm[0] * Sm[3] - Sm[1] * Sm[2];
+        if (det == 0.0) {
+            PyErr_SetString(PyExc_ValueError, "sens_fused: singular innovation covariance");
+            goto f_hv;
+        }
+        Si[0] = Sm[3] / det;
+        Si[1] = -Sm[1] / det;
+        Si[2] = -Sm[2] / det;
+        Si[3] = Sm[0] / det;
+    }
+    for (int a = 0; a < N; a++) /* K = P H' S^-1 */
+        for (int q = 0; q < m; q++) {
+            double v = 0.0;
+            for (int r = 0; r < m; r++)
+                v += PHt[a * m + r] * Si[r * m + q];
+            K[a * m + q] = v;
+        }
+    double *Ss = S + ring_row(s, n) * N;
+    for (int r = 0; r < m; r++) { /* H S_s - h */
+        double v = 0.0;
+        for (int b = 0; b < N; b++)
+            v += H[r * N + b] * Ss[b];
+        innov[r] = v - hv[r];
+    }
+    for (int a = 0; a < N; a++) {
+        double v = 0.0;
+        for (int r = 0; r < m; r++)
+            v += K[a * m + r] * innov[r];
+        Ss[a] -= v;
+    }
+    const double *prev = Ss;
+    for (long long j = s + 1; j <= last; j++) { /* S_j = A_j S_{j-1} */
+        Py_ssize_t i = ring_row(j, n);
+        const double *Aj = A + i * N * N;
+        double *Sj = S + i * N;
+        for (int a = 0; a < N; a++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += Aj[a * N + b] * prev[b];
+            Sj[a] = v;
+        }
+        prev = Sj;
+    }
+    ret = Py_None;
+    Py_INCREF(ret);
+f_hv:
+    PyBuffer_Release(&bh);
+f_r:
+    PyBuffer_Release(&bR);
+f_h:
+    PyBuffer_Release(&bH);
+f_p:
+    PyBuffer_Release(&bP);
+f_a:
+    PyBuffer_Release(&bA);
+f_s:
+    PyBuffer_Release(&bS);
+    return ret;
+}
+
 /* reduction_rank(M) -> the number of terms correct() carries M through (-1: M whole); for tests. */
 static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
 {
@@ -1021,6 +1188,10 @@ static PyMethodDef methods[] = {
      "gyro_sum(aux, r_col, X, br_col, k0, k1) -> sum of aux[k, r_col] + X[k, br_col], k0 <= k <= k1"},
     {"window_fit", (PyCFunction)(void (*)(void))k_window_fit, METH_FASTCALL,
      "window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay mean, its standard error)"},
+    {"sens_step", (PyCFunction)(void (*)(void))k_sens_step, METH_FASTCALL,
+     "sens_step(A, S_prev, S_out): S_out = A S_prev (the latency sensitivity through one step)"},
+    {"sens_fused", (PyCFunction)(void (*)(void))k_sens_fused, METH_FASTCALL,
+     "sens_fused(S, A, P, H, R, h, s, last): S_s -= K (H S_s - h), then carried to step last"},
     {NULL, NULL, 0, NULL},
 };
 
