@@ -10,6 +10,7 @@ import pytest
 
 from ecu_daemon.estimator import Estimator, backend, kalman
 from ecu_daemon.estimator import latency_sensitivity as ls
+from ecu_daemon.estimator import lever_arm_check as lac
 from ecu_daemon.estimator.fusion import single_track as st
 from ecu_daemon.estimator.fusion import stiffness_regression as sr
 from ecu_daemon.estimator.history import AUX_AY, AUX_R, NAUX, StepHistory, positive_definite
@@ -318,6 +319,41 @@ def test_sensitivity_fused_agrees(m, depth):
     np.testing.assert_allclose(out[s % n], (np.eye(NX) - K @ H) @ S0[s % n] + K @ h, rtol=1e-12, atol=1e-12)
     with pytest.raises(ValueError):  # a step the ring no longer holds
         backend.compiled.sens_fused(out, A, P, H, R, h, last - n, last)
+
+
+# ------------------------------------------------------------------------------------------------
+# the lever-arm checks' fits (lever_arm_check.py)
+
+@pytest.mark.parametrize("p", [3, 4])
+def test_lever_fit_kernels_agree(p):
+    """A fix added to a fit's information (the same bits: elementwise) and the regularised fit
+    solved again (an inverse by Gauss-Jordan against LAPACK's: within 1e-12); the gate's terms."""
+    g = RNG.normal(size=(p, p))
+    info0, rhs0 = g @ g.T, RNG.normal(size=p)
+    h, prior = RNG.normal(size=p), RNG.uniform(1e-9, 1.0, p)
+    z, var = float(RNG.normal()), float(RNG.uniform(0.01, 1.0))
+    ref = [info0.copy(), rhs0.copy(), np.zeros(p), np.zeros((p, p))]
+    out = [info0.copy(), rhs0.copy(), np.zeros(p), np.zeros((p, p))]
+    assert lac.fit_update_reference(ref[0], ref[1], h, z, var, prior, ref[2], ref[3])
+    assert backend.compiled.fit_update(out[0], out[1], h, z, var, prior, out[2], out[3])
+    assert np.array_equal(out[0], ref[0]) and np.array_equal(out[1], ref[1])
+    np.testing.assert_allclose(out[3], ref[3], rtol=1e-12, atol=1e-12 * np.abs(ref[3]).max())
+    np.testing.assert_allclose(out[2], ref[2], rtol=1e-12, atol=1e-12 * np.abs(ref[2]).max())
+    np.testing.assert_allclose(out[3] @ (info0 + np.outer(h, h) / var + np.diag(prior)), np.eye(p), atol=1e-10)
+    pr, pc = lac.fit_predict_reference(h, ref[2], ref[3]), backend.compiled.fit_predict(h, ref[2], ref[3])
+    np.testing.assert_allclose(pc, pr, rtol=1e-12)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_singular_lever_fit_keeps_its_last_solution(compiled):
+    """Information and prior that do not pin every unknown (a zero row): the fix is added, but
+    theta and cov stay as they were (the check keeps its last fit), as with numpy's LinAlgError."""
+    info, rhs = np.zeros((4, 4)), np.zeros(4)
+    theta, cov = np.full(4, 7.0), np.full((4, 4), 7.0)
+    fit = backend.compiled.fit_update if compiled else lac.fit_update_reference
+    assert not fit(info, rhs, np.array((1.0, 2.0, 0.0, 3.0)), 0.5, 0.25, np.zeros(4), theta, cov)
+    assert info[0, 1] == 8.0 and rhs[3] == 6.0
+    assert (theta == 7.0).all() and (cov == 7.0).all()
 
 
 # ------------------------------------------------------------------------------------------------

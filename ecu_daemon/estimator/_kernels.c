@@ -1145,6 +1145,147 @@ f_s:
     return ret;
 }
 
+/* ---- the lever-arm checks' fits (lever_arm_check.py): p <= 8 unknowns, information form -------
+ * At every GNSS fix each receiver's two checks add the fix to their information and solve the
+ * regularised fit again: a handful of numpy calls and a LAPACK inverse each (~100 us per fix, the
+ * largest part of a fix's fusion). The information update is the reference's elementwise
+ * arithmetic (the same bits); the inverse is Gauss-Jordan with partial pivoting and the products
+ * are summed in index order (the same math as numpy's LAPACK/BLAS, not their last bits). */
+#define FIT_MAX 8
+
+/* fit_update(info, rhs, h, z, var, prior, theta, cov) -> solved: info += h h' / var,
+ * rhs += h (z / var); then cov = (info + diag(prior))^-1, theta = cov rhs. False (theta and cov
+ * untouched) while info + diag(prior) is singular (a zero pivot, as LAPACK's getrf). */
+static PyObject *k_fit_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "fit_update(info, rhs, h, z, var, prior, theta, cov)");
+        return NULL;
+    }
+    double z = PyFloat_AsDouble(args[3]), var = PyFloat_AsDouble(args[4]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer b[6];
+    double *v[6];
+    int nb = 0;
+    PyObject *ret = NULL;
+    static const int which[6] = {2, 0, 1, 5, 6, 7}; /* h first: it gives p */
+    static const char *names[6] = {"h", "info", "rhs", "prior", "theta", "cov"};
+    int p = 0;
+    for (; nb < 6; nb++) {
+        Py_ssize_t want = nb == 0 ? -1 : (nb == 1 || nb == 5) ? (Py_ssize_t)p * p : p;
+        v[nb] = get_doubles(args[which[nb]], &b[nb], want, names[nb]);
+        if (!v[nb])
+            goto done;
+        if (nb == 0) {
+            p = (int)(b[0].len / (Py_ssize_t)sizeof(double));
+            if (p > FIT_MAX) {
+                PyErr_SetString(PyExc_ValueError, "fit_update: at most 8 unknowns");
+                nb++;
+                goto done;
+            }
+        }
+    }
+    double *h = v[0], *info = v[1], *rhs = v[2], *prior = v[3], *theta = v[4], *cov = v[5];
+    double zv = z / var;
+    for (int i = 0; i < p; i++) {
+        for (int j = 0; j < p; j++)
+            info[i * p + j] += h[i] * h[j] / var;
+        rhs[i] += h[i] * zv;
+    }
+    double a[FIT_MAX * FIT_MAX], inv[FIT_MAX * FIT_MAX];
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < p; j++) {
+            a[i * p + j] = info[i * p + j] + (i == j ? prior[i] : 0.0);
+            inv[i * p + j] = i == j ? 1.0 : 0.0;
+        }
+    int ok = 1;
+    for (int c = 0; c < p && ok; c++) {
+        int piv = c;
+        for (int r = c + 1; r < p; r++)
+            if (fabs(a[r * p + c]) > fabs(a[piv * p + c]))
+                piv = r;
+        if (a[piv * p + c] == 0.0) {
+            ok = 0;
+            break;
+        }
+        if (piv != c)
+            for (int j = 0; j < p; j++) {
+                double t = a[c * p + j];
+                a[c * p + j] = a[piv * p + j];
+                a[piv * p + j] = t;
+                t = inv[c * p + j];
+                inv[c * p + j] = inv[piv * p + j];
+                inv[piv * p + j] = t;
+            }
+        double d = a[c * p + c];
+        for (int j = 0; j < p; j++) {
+            a[c * p + j] /= d;
+            inv[c * p + j] /= d;
+        }
+        for (int r = 0; r < p; r++) {
+            double f = a[r * p + c];
+            if (r == c || f == 0.0)
+                continue;
+            for (int j = 0; j < p; j++) {
+                a[r * p + j] -= f * a[c * p + j];
+                inv[r * p + j] -= f * inv[c * p + j];
+            }
+        }
+    }
+    if (ok) {
+        memcpy(cov, inv, (size_t)p * p * sizeof(double));
+        for (int i = 0; i < p; i++) {
+            double t = 0.0;
+            for (int j = 0; j < p; j++)
+                t += inv[i * p + j] * rhs[j];
+            theta[i] = t;
+        }
+    }
+    ret = PyBool_FromLong(ok);
+done:
+    while (nb-- > 0)
+        PyBuffer_Release(&b[nb]);
+    return ret;
+}
+
+/* fit_predict(h, theta, cov) -> (h' theta, h' cov h): a fit's prediction for regressors h and
+ * its variance there (the glitch gate). */
+static PyObject *k_fit_predict(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "fit_predict(h, theta, cov)");
+        return NULL;
+    }
+    Py_buffer bh, bt, bc;
+    double *h = get_doubles(args[0], &bh, -1, "h");
+    if (!h)
+        return NULL;
+    Py_ssize_t p = bh.len / (Py_ssize_t)sizeof(double);
+    PyObject *ret = NULL;
+    double *th = get_doubles(args[1], &bt, p, "theta");
+    if (!th)
+        goto p_h;
+    double *cv = get_doubles(args[2], &bc, p * p, "cov");
+    if (!cv)
+        goto p_t;
+    double pred = 0.0, spread = 0.0;
+    for (Py_ssize_t i = 0; i < p; i++) {
+        pred += h[i] * th[i];
+        double t = 0.0;
+        for (Py_ssize_t j = 0; j < p; j++)
+            t += h[j] * cv[j * p + i]; /* (h' cov)_i */
+        spread += t * h[i];
+    }
+    ret = Py_BuildValue("(dd)", pred, spread);
+    PyBuffer_Release(&bc);
+p_t:
+    PyBuffer_Release(&bt);
+p_h:
+    PyBuffer_Release(&bh);
+    return ret;
+}
+
 /* reduction_rank(M) -> the number of terms correct() carries M through (-1: M whole); for tests. */
 static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
 {
@@ -1192,6 +1333,10 @@ static PyMethodDef methods[] = {
      "sens_step(A, S_prev, S_out): S_out = A S_prev (the latency sensitivity through one step)"},
     {"sens_fused", (PyCFunction)(void (*)(void))k_sens_fused, METH_FASTCALL,
      "sens_fused(S, A, P, H, R, h, s, last): S_s -= K (H S_s - h), then carried to step last"},
+    {"fit_update", (PyCFunction)(void (*)(void))k_fit_update, METH_FASTCALL,
+     "fit_update(info, rhs, h, z, var, prior, theta, cov) -> solved: add a fix, solve the regularised fit"},
+    {"fit_predict", (PyCFunction)(void (*)(void))k_fit_predict, METH_FASTCALL,
+     "fit_predict(h, theta, cov) -> (h' theta, h' cov h)"},
     {NULL, NULL, 0, NULL},
 };
 
