@@ -10,6 +10,7 @@ import pytest
 
 from ecu_daemon.estimator import Estimator, backend, kalman
 from ecu_daemon.estimator import latency_sensitivity as ls
+from ecu_daemon.estimator import latency
 from ecu_daemon.estimator import lever_arm_check as lac
 from ecu_daemon.estimator.fusion import single_track as st
 from ecu_daemon.estimator.fusion import stiffness_regression as sr
@@ -354,6 +355,38 @@ def test_a_singular_lever_fit_keeps_its_last_solution(compiled):
     assert not fit(info, rhs, np.array((1.0, 2.0, 0.0, 3.0)), 0.5, 0.25, np.zeros(4), theta, cov)
     assert info[0, 1] == 8.0 and rhs[3] == 6.0
     assert (theta == 7.0).all() and (cov == 7.0).all()
+
+
+# ------------------------------------------------------------------------------------------------
+# the latency identification's cost profile (latency.py)
+
+def _latency_statistics(p, n=167, fixes=60):
+    """Forgotten sufficient statistics of y ~ a x + c . e + b per candidate, as latency.py keeps them."""
+    x = RNG.normal(20.0, 3.0, size=(fixes, n))
+    e = RNG.normal(size=(fixes, p - 2))
+    z = np.concatenate((x[:, :, None], np.broadcast_to(e[:, None, :], (fixes, n, p - 2)), np.ones((fixes, n, 1))), axis=2)
+    y = 1.02 * x[:, 40] + 0.3 + 0.05 * RNG.normal(size=fixes)
+    w = 0.995 ** np.arange(fixes)[::-1]
+    zz = np.einsum("f,fki,fkj->kij", w, z, z)
+    zy = np.einsum("f,fki,f->ki", w, z, y)
+    return zz, zy, float(np.sum(w * y * y))
+
+
+@pytest.mark.parametrize("p", [2, 3])
+def test_latency_costs_agree(p):
+    """Every candidate's residual sum of squares (the compiled solves against numpy's stacked
+    LAPACK ones: within 1e-9 of the largest cost, which is a difference of large sums), the
+    best candidate the same; an uninformative regressor (its spread below the floor) leaves c alone."""
+    zz, zy, syy = _latency_statistics(p)
+    ref, out = np.zeros(len(zz)), np.zeros(len(zz))
+    assert latency.latency_costs_reference(zz, zy, syy, 1.0, ref)
+    assert backend.compiled.latency_costs(zz, zy, syy, 1.0, out)
+    np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-9 * ref.max())
+    assert np.argmin(out) == np.argmin(ref) == 40  # the candidate y was made from
+    keep = np.full(len(zz), 7.0)
+    for fn in (latency.latency_costs_reference, backend.compiled.latency_costs):
+        assert not fn(zz, zy, syy, 1e12, keep)
+        assert (keep == 7.0).all()
 
 
 # ------------------------------------------------------------------------------------------------

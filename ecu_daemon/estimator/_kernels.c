@@ -1286,6 +1286,126 @@ p_h:
     return ret;
 }
 
+/* ---- the latency identification's cost profile (latency.py) ------------------------------------
+ * At every GNSS fix each timing reference fits y ~ a x + c . extra + b for each of its ~170
+ * candidate delays from its forgotten sufficient statistics (p <= 8 regressors): two stacked
+ * numpy solves and two einsums, most of a fix's latency work. Here each candidate's systems are
+ * solved by Gaussian elimination with partial pivoting (LAPACK's dgesv does the same, in its own
+ * summation order: the same math, not its last bits). */
+#define LAT_MAX 8
+
+/* Solve a x = b (a: m x m, row stride `stride`; b, x: m) by elimination with partial pivoting on
+ * copies; 0 on an exactly zero pivot (numpy's LinAlgError: singular). */
+static int small_solve(const double *a0, int stride, const double *b0, int m, double *x)
+{
+    double a[LAT_MAX * LAT_MAX], b[LAT_MAX];
+    for (int i = 0; i < m; i++) {
+        for (int j = 0; j < m; j++)
+            a[i * m + j] = a0[i * stride + j];
+        b[i] = b0[i];
+    }
+    for (int c = 0; c < m; c++) {
+        int piv = c;
+        for (int r = c + 1; r < m; r++)
+            if (fabs(a[r * m + c]) > fabs(a[piv * m + c]))
+                piv = r;
+        if (a[piv * m + c] == 0.0)
+            return 0;
+        if (piv != c) {
+            for (int j = 0; j < m; j++) {
+                double t = a[c * m + j];
+                a[c * m + j] = a[piv * m + j];
+                a[piv * m + j] = t;
+            }
+            double t = b[c];
+            b[c] = b[piv];
+            b[piv] = t;
+        }
+        for (int r = c + 1; r < m; r++) {
+            double l = a[r * m + c] / a[c * m + c];
+            for (int j = c + 1; j < m; j++)
+                a[r * m + j] -= l * a[c * m + j];
+            b[r] -= l * b[c];
+        }
+    }
+    for (int i = m - 1; i >= 0; i--) {
+        double v = b[i];
+        for (int j = i + 1; j < m; j++)
+            v -= a[i * m + j] * x[j];
+        x[i] = v / a[i * m + i];
+    }
+    return 1;
+}
+
+/* latency_costs(zz, zy, syy, floor, c) -> informative: per candidate k, the regressor's variation
+ * the other columns do not explain, cxx_k = zz_k[0,0] - zz_k[0,1:] zz_k[1:,1:]^-1 zz_k[1:,0]; False
+ * (c untouched) unless every cxx_k > floor; else c_k = max(syy - theta_k' zy_k, 0) with
+ * theta_k = zz_k^-1 zy_k, the residual sum of squares of candidate k's fit. */
+static PyObject *k_latency_costs(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "latency_costs(zz, zy, syy, floor, c)");
+        return NULL;
+    }
+    double syy = PyFloat_AsDouble(args[2]), floor_ = PyFloat_AsDouble(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bzz, bzy, bc;
+    PyObject *ret = NULL;
+    double *c = get_doubles(args[4], &bc, -1, "c");
+    if (!c)
+        return NULL;
+    Py_ssize_t n = bc.len / (Py_ssize_t)sizeof(double);
+    double *zy = get_doubles(args[1], &bzy, -n, "zy");
+    if (!zy)
+        goto l_c;
+    Py_ssize_t p = bzy.len / (Py_ssize_t)sizeof(double) / n;
+    if (p < 2 || p > LAT_MAX) {
+        PyErr_SetString(PyExc_ValueError, "latency_costs: 2 to 8 regressors");
+        goto l_zy;
+    }
+    double *zz = get_doubles(args[0], &bzz, n * p * p, "zz");
+    if (!zz)
+        goto l_zy;
+    double sol[LAT_MAX];
+    int informative = 1;
+    for (Py_ssize_t k = 0; k < n && informative; k++) {
+        const double *z = zz + k * p * p;
+        double rhs[LAT_MAX];
+        for (int i = 1; i < p; i++)
+            rhs[i - 1] = z[i * p];
+        if (!small_solve(z + p + 1, (int)p, rhs, (int)p - 1, sol)) {
+            PyErr_SetString(PyExc_ValueError, "latency_costs: singular statistics");
+            goto l_zz;
+        }
+        double v = 0.0;
+        for (int i = 1; i < p; i++)
+            v += z[i] * sol[i - 1];
+        informative = z[0] - v > floor_;
+    }
+    if (informative) {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            if (!small_solve(zz + k * p * p, (int)p, zy + k * p, (int)p, sol)) {
+                PyErr_SetString(PyExc_ValueError, "latency_costs: singular statistics");
+                goto l_zz;
+            }
+            double v = 0.0;
+            for (int i = 0; i < p; i++)
+                v += sol[i] * zy[k * p + i];
+            double r = syy - v;
+            c[k] = r > 0.0 || r != r ? r : 0.0; /* np.maximum(r, 0): NaN stays NaN */
+        }
+    }
+    ret = PyBool_FromLong(informative);
+l_zz:
+    PyBuffer_Release(&bzz);
+l_zy:
+    PyBuffer_Release(&bzy);
+l_c:
+    PyBuffer_Release(&bc);
+    return ret;
+}
+
 /* reduction_rank(M) -> the number of terms correct() carries M through (-1: M whole); for tests. */
 static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
 {
@@ -1337,6 +1457,8 @@ static PyMethodDef methods[] = {
      "fit_update(info, rhs, h, z, var, prior, theta, cov) -> solved: add a fix, solve the regularised fit"},
     {"fit_predict", (PyCFunction)(void (*)(void))k_fit_predict, METH_FASTCALL,
      "fit_predict(h, theta, cov) -> (h' theta, h' cov h)"},
+    {"latency_costs", (PyCFunction)(void (*)(void))k_latency_costs, METH_FASTCALL,
+     "latency_costs(zz, zy, syy, floor, c) -> informative: each candidate delay's residual sum of squares"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -6,7 +6,8 @@ The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under t
 ``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``) and the
 single-track learner's ``rls_update`` (``fusion/single_track.py``) and the latency sensitivity's
 ``sens_step`` / ``sens_fused`` (``latency_sensitivity.py``) and the lever-arm checks'
-``fit_update`` / ``fit_predict`` (``lever_arm_check.py``); the pure-Python
+``fit_update`` / ``fit_predict`` (``lever_arm_check.py``) and the latency identification's
+``latency_costs`` (``latency.py``); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -15,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import logging
 
-from . import history, kalman, kinematic, latency_sensitivity, lever_arm_check
+from . import history, kalman, kinematic, latency, latency_sensitivity, lever_arm_check
 from .fusion import single_track, stiffness_regression
 
 log = logging.getLogger(__name__)
@@ -25,6 +26,7 @@ STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum"
 SINGLE_TRACK_KERNELS = ("rls_update",)
 SENSITIVITY_KERNELS = ("sens_step", "sens_fused")
 LEVER_KERNELS = ("fit_update", "fit_predict")
+LATENCY_KERNELS = ("latency_costs",)
 
 try:
     from . import _kernels as compiled
@@ -34,7 +36,7 @@ except ImportError as e:  # no compiler at install time, or a source checkout ne
     _import_error = str(e)
 if compiled is not None and not all(hasattr(compiled, name)
                                     for name in KERNELS + STIFFNESS_KERNELS + SINGLE_TRACK_KERNELS
-                                    + SENSITIVITY_KERNELS + LEVER_KERNELS):
+                                    + SENSITIVITY_KERNELS + LEVER_KERNELS + LATENCY_KERNELS):
     _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
     compiled = None
 
@@ -75,6 +77,8 @@ def select(use_compiled: bool = True) -> str:
                 getattr(compiled, name) if on else getattr(latency_sensitivity, name + "_reference"))
     for name in LEVER_KERNELS:
         setattr(lever_arm_check, name, getattr(compiled, name) if on else getattr(lever_arm_check, name + "_reference"))
+    for name in LATENCY_KERNELS:
+        setattr(latency, name, getattr(compiled, name) if on else getattr(latency, name + "_reference"))
     return active()
 
 
