@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 
 from ecu_daemon.estimator import Estimator, backend, kalman
+from ecu_daemon.estimator import latency_sensitivity as ls
+from ecu_daemon.estimator import latency
+from ecu_daemon.estimator import lever_arm_check as lac
 from ecu_daemon.estimator.fusion import single_track as st
 from ecu_daemon.estimator.fusion import stiffness_regression as sr
 from ecu_daemon.estimator.history import AUX_AY, AUX_R, NAUX, StepHistory, positive_definite
@@ -276,6 +279,114 @@ def test_positive_definite_check():
     assert positive_definite(good) and backend.compiled.positive_definite(good)
     for P in (bad, nan):
         assert not positive_definite(P) and not backend.compiled.positive_definite(P)
+
+
+# ------------------------------------------------------------------------------------------------
+# the latency sensitivity's kernels (latency_sensitivity.py)
+
+def test_sensitivity_step_agrees_and_may_write_over_its_input():
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(NX, NX))
+    S0 = RNG.normal(size=NX)
+    ref, out = np.zeros(NX), np.zeros(NX)
+    ls.sens_step_reference(A, S0, ref)
+    backend.compiled.sens_step(A, S0, out)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-15)
+    inplace = S0.copy()
+    backend.compiled.sens_step(A, inplace, inplace)  # S_out is S_prev: the product, not a half-updated one
+    assert np.array_equal(inplace, out)
+
+
+@pytest.mark.parametrize("m", [1, 2])
+@pytest.mark.parametrize("depth", [0, 1, 7, 99])  # 99: the whole ring, across its wrap
+def test_sensitivity_fused_agrees(m, depth):
+    """A fix fused at a stored step and carried to the present: the compiled kernel (step by step)
+    is the reference (the gain by numpy's inverse, the carry by prefix products) within 1e-12,
+    and it touches no slot before the fix's step."""
+    n, last = 100, 170
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(n, NX, NX))
+    S0 = RNG.normal(size=(n, NX))
+    P, H = spd(0.1), RNG.normal(size=(m, NX))
+    R, h = np.diag(RNG.uniform(0.1, 0.5, m)), RNG.normal(size=m)
+    s = last - depth
+    ref, out = S0.copy(), S0.copy()
+    ls.sens_fused_reference(ref, A, P, H, R, h, s, last)
+    backend.compiled.sens_fused(out, A, P, H, R, h, s, last)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
+    touched = np.arange(s, last + 1) % n
+    untouched = np.setdiff1d(np.arange(n), touched)
+    assert np.array_equal(out[untouched], S0[untouched])
+    # the fix's step itself: (I - K H) S + K h, K the textbook gain
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    np.testing.assert_allclose(out[s % n], (np.eye(NX) - K @ H) @ S0[s % n] + K @ h, rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError):  # a step the ring no longer holds
+        backend.compiled.sens_fused(out, A, P, H, R, h, last - n, last)
+
+
+# ------------------------------------------------------------------------------------------------
+# the lever-arm checks' fits (lever_arm_check.py)
+
+@pytest.mark.parametrize("p", [3, 4])
+def test_lever_fit_kernels_agree(p):
+    """A fix added to a fit's information (the same bits: elementwise) and the regularised fit
+    solved again (an inverse by Gauss-Jordan against LAPACK's: within 1e-12); the gate's terms."""
+    g = RNG.normal(size=(p, p))
+    info0, rhs0 = g @ g.T, RNG.normal(size=p)
+    h, prior = RNG.normal(size=p), RNG.uniform(1e-9, 1.0, p)
+    z, var = float(RNG.normal()), float(RNG.uniform(0.01, 1.0))
+    ref = [info0.copy(), rhs0.copy(), np.zeros(p), np.zeros((p, p))]
+    out = [info0.copy(), rhs0.copy(), np.zeros(p), np.zeros((p, p))]
+    assert lac.fit_update_reference(ref[0], ref[1], h, z, var, prior, ref[2], ref[3])
+    assert backend.compiled.fit_update(out[0], out[1], h, z, var, prior, out[2], out[3])
+    assert np.array_equal(out[0], ref[0]) and np.array_equal(out[1], ref[1])
+    np.testing.assert_allclose(out[3], ref[3], rtol=1e-12, atol=1e-12 * np.abs(ref[3]).max())
+    np.testing.assert_allclose(out[2], ref[2], rtol=1e-12, atol=1e-12 * np.abs(ref[2]).max())
+    np.testing.assert_allclose(out[3] @ (info0 + np.outer(h, h) / var + np.diag(prior)), np.eye(p), atol=1e-10)
+    pr, pc = lac.fit_predict_reference(h, ref[2], ref[3]), backend.compiled.fit_predict(h, ref[2], ref[3])
+    np.testing.assert_allclose(pc, pr, rtol=1e-12)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_singular_lever_fit_keeps_its_last_solution(compiled):
+    """Information and prior that do not pin every unknown (a zero row): the fix is added, but
+    theta and cov stay as they were (the check keeps its last fit), as with numpy's LinAlgError."""
+    info, rhs = np.zeros((4, 4)), np.zeros(4)
+    theta, cov = np.full(4, 7.0), np.full((4, 4), 7.0)
+    fit = backend.compiled.fit_update if compiled else lac.fit_update_reference
+    assert not fit(info, rhs, np.array((1.0, 2.0, 0.0, 3.0)), 0.5, 0.25, np.zeros(4), theta, cov)
+    assert info[0, 1] == 8.0 and rhs[3] == 6.0
+    assert (theta == 7.0).all() and (cov == 7.0).all()
+
+
+# ------------------------------------------------------------------------------------------------
+# the latency identification's cost profile (latency.py)
+
+def _latency_statistics(p, n=167, fixes=60):
+    """Forgotten sufficient statistics of y ~ a x + c . e + b per candidate, as latency.py keeps them."""
+    x = RNG.normal(20.0, 3.0, size=(fixes, n))
+    e = RNG.normal(size=(fixes, p - 2))
+    z = np.concatenate((x[:, :, None], np.broadcast_to(e[:, None, :], (fixes, n, p - 2)), np.ones((fixes, n, 1))), axis=2)
+    y = 1.02 * x[:, 40] + 0.3 + 0.05 * RNG.normal(size=fixes)
+    w = 0.995 ** np.arange(fixes)[::-1]
+    zz = np.einsum("f,fki,fkj->kij", w, z, z)
+    zy = np.einsum("f,fki,f->ki", w, z, y)
+    return zz, zy, float(np.sum(w * y * y))
+
+
+@pytest.mark.parametrize("p", [2, 3])
+def test_latency_costs_agree(p):
+    """Every candidate's residual sum of squares (the compiled solves against numpy's stacked
+    LAPACK ones: within 1e-9 of the largest cost, which is a difference of large sums), the
+    best candidate the same; an uninformative regressor (its spread below the floor) leaves c alone."""
+    zz, zy, syy = _latency_statistics(p)
+    ref, out = np.zeros(len(zz)), np.zeros(len(zz))
+    assert latency.latency_costs_reference(zz, zy, syy, 1.0, ref)
+    assert backend.compiled.latency_costs(zz, zy, syy, 1.0, out)
+    np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-9 * ref.max())
+    assert np.argmin(out) == np.argmin(ref) == 40  # the candidate y was made from
+    keep = np.full(len(zz), 7.0)
+    for fn in (latency.latency_costs_reference, backend.compiled.latency_costs):
+        assert not fn(zz, zy, syy, 1e12, keep)
+        assert (keep == 7.0).all()
 
 
 # ------------------------------------------------------------------------------------------------

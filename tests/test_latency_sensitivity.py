@@ -1,13 +1,16 @@
 """The latency sensitivity S (estimator/latency_sensitivity.py) carried through a rewind, against the
 step-by-step product it stands for."""
 import numpy as np
+import pytest
 
+from ecu_daemon.estimator import backend
 from ecu_daemon.estimator.history import StepHistory
 from ecu_daemon.estimator.kinematic import NX
 from ecu_daemon.estimator.latency_sensitivity import LatencySensitivity
 
 
-def test_a_fix_is_carried_to_the_present_as_the_steps_transitions_would():
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_fix_is_carried_to_the_present_as_the_steps_transitions_would(compiled):
     rng = np.random.default_rng(7)
     h = StepHistory(100)
     sens = LatencySensitivity(h.n)
@@ -18,11 +21,15 @@ def test_a_fix_is_carried_to_the_present_as_the_steps_transitions_would():
     S0 = rng.standard_normal(NX)
     s = 95
     sens.Sr[h.slot(s)][:] = S0
-    sens._carry(h, s)
+    H, R, P = np.zeros((1, NX)), np.ones((1, 1)), np.eye(NX)  # a fix that reads nothing: S_s stays S0
+    with backend.selected(compiled):
+        sens.fused(h, s, P, H, R, np.zeros(1))
+    np.testing.assert_array_equal(sens.Sr[h.slot(s)], S0)
     ref = S0.copy()
     for j in range(s + 1, last + 1):
         ref = h.Ar[j % h.n] @ ref
         np.testing.assert_allclose(sens.Sr[j % h.n], ref, rtol=1e-12, atol=1e-12)
     before = sens.S.copy()
-    sens._carry(h, last)  # nothing after the newest step: nothing moves
+    with backend.selected(compiled):
+        sens.fused(h, last, P, H, R, np.zeros(1))  # nothing after the newest step: nothing moves
     np.testing.assert_array_equal(sens.S, before)

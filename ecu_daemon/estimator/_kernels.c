@@ -978,6 +978,434 @@ static PyObject *k_rls_update(PyObject *self, PyObject *const *args, Py_ssize_t 
     return PyFloat_FromDouble(e);
 }
 
+/* ---- the latency sensitivity S of latency_sensitivity.py (one 8-vector per history slot) ---------
+ * Carried through every step's effective transition and, at each fused GNSS fix, updated at the
+ * fix's stored step and carried to the present: numpy's per-call overhead and the prefix-product
+ * copies were most of that (~100 us per fix); here it is one 8 x 8 matrix-vector product per step
+ * of delay. The sums run in index order (not BLAS's): the same math as the references, not their
+ * last bits (tests/test_kernels.py: within 1e-12). */
+
+/* sens_step(A, S_prev, S_out): S_out = A S_prev (one step's transition). */
+static PyObject *k_sens_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "sens_step(A, S_prev, S_out)");
+        return NULL;
+    }
+    Py_buffer bA, bp, bo;
+    double *A = get_doubles(args[0], &bA, N * N, "A");
+    if (!A)
+        return NULL;
+    double *sp = get_doubles(args[1], &bp, N, "S_prev");
+    if (!sp) {
+        PyBuffer_Release(&bA);
+        return NULL;
+    }
+    double *so = get_doubles(args[2], &bo, N, "S_out");
+    if (!so) {
+        PyBuffer_Release(&bp);
+        PyBuffer_Release(&bA);
+        return NULL;
+    }
+    double v[N];
+    for (int a = 0; a < N; a++) {
+        double t = 0.0;
+        for (int b = 0; b < N; b++)
+            t += A[a * N + b] * sp[b];
+        v[a] = t;
+    }
+    memcpy(so, v, sizeof(v)); /* S_out may be S_prev */
+    PyBuffer_Release(&bo);
+    PyBuffer_Release(&bp);
+    PyBuffer_Release(&bA);
+    Py_RETURN_NONE;
+}
+
+/* sens_fused(S, A, P, H, R, h, s, last): a fix of m = 1 or 2 rows fused at stored step s with
+ * Jacobian H and noise R against the covariance P it had before: with K = P H' (H P H' + R)^-1,
+ * S_s <- S_s - K (H S_s - h), then S_j = A_j S_{j-1} for every later step j up to last. */
+static PyObject *k_sens_fused(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "sens_fused(S, A, P, H, R, h, s, last)");
+        return NULL;
+    }
+    long long s = PyLong_AsLongLong(args[6]), last = PyLong_AsLongLong(args[7]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bS, bA, bP, bH, bR, bh;
+    PyObject *ret = NULL;
+    double *S = get_doubles(args[0], &bS, -N, "S");
+    if (!S)
+        return NULL;
+    Py_ssize_t n = bS.len / (Py_ssize_t)(N * sizeof(double));
+    double *A = get_doubles(args[1], &bA, n * N * N, "A");
+    if (!A)
+        goto f_s;
+    double *P = get_doubles(args[2], &bP, N * N, "P");
+    if (!P)
+        goto f_a;
+    double *H = get_doubles(args[3], &bH, -N, "H");
+    if (!H)
+        goto f_p;
+    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
+    if (m > 2) {
+        PyErr_SetString(PyExc_ValueError, "sens_fused: H must have 1 or 2 rows");
+        goto f_h;
+    }
+    double *R = get_doubles(args[4], &bR, m * m, "R");
+    if (!R)
+        goto f_h;
+    double *hv = get_doubles(args[5], &bh, m, "h");
+    if (!hv)
+        goto f_r;
+    if (last - s < 0 || last - s >= n) {
+        PyErr_SetString(PyExc_ValueError, "sens_fused: step outside the history");
+        goto f_hv;
+    }
+    double PHt[N * 2], Sm[4], Si[4], K[N * 2], innov[2];
+    for (int a = 0; a < N; a++) /* P H' */
+        for (int r = 0; r < m; r++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += P[a * N + b] * H[r * N + b];
+            PHt[a * m + r] = v;
+        }
+    for (int r = 0; r < m; r++) /* H P H' + R */
+        for (int q = 0; q < m; q++) {
+            double v = 0.0;
+            for (int a = 0; a < N; a++)
+                v += H[r * N + a] * PHt[a * m + q];
+            Sm[r * m + q] = v + R[r * m + q];
+        }
+    if (m == 1) {
+        if (Sm[0] == 0.0) {
+            PyErr_SetString(PyExc_ValueError, "sens_fused: singular innovation covariance");
+            goto f_hv;
+        }
+        Si[0] = 1.0 / Sm[0];
+    } else {
+        double det = Sm[0] * Sm[3] - Sm[1] * Sm[2];
+        if (det == 0.0) {
+            PyErr_SetString(PyExc_ValueError, "sens_fused: singular innovation covariance");
+            goto f_hv;
+        }
+        Si[0] = Sm[3] / det;
+        Si[1] = -Sm[1] / det;
+        Si[2] = -Sm[2] / det;
+        Si[3] = Sm[0] / det;
+    }
+    for (int a = 0; a < N; a++) /* K = P H' S^-1 */
+        for (int q = 0; q < m; q++) {
+            double v = 0.0;
+            for (int r = 0; r < m; r++)
+                v += PHt[a * m + r] * Si[r * m + q];
+            K[a * m + q] = v;
+        }
+    double *Ss = S + ring_row(s, n) * N;
+    for (int r = 0; r < m; r++) { /* H S_s - h */
+        double v = 0.0;
+        for (int b = 0; b < N; b++)
+            v += H[r * N + b] * Ss[b];
+        innov[r] = v - hv[r];
+    }
+    for (int a = 0; a < N; a++) {
+        double v = 0.0;
+        for (int r = 0; r < m; r++)
+            v += K[a * m + r] * innov[r];
+        Ss[a] -= v;
+    }
+    const double *prev = Ss;
+    for (long long j = s + 1; j <= last; j++) { /* S_j = A_j S_{j-1} */
+        Py_ssize_t i = ring_row(j, n);
+        const double *Aj = A + i * N * N;
+        double *Sj = S + i * N;
+        for (int a = 0; a < N; a++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += Aj[a * N + b] * prev[b];
+            Sj[a] = v;
+        }
+        prev = Sj;
+    }
+    ret = Py_None;
+    Py_INCREF(ret);
+f_hv:
+    PyBuffer_Release(&bh);
+f_r:
+    PyBuffer_Release(&bR);
+f_h:
+    PyBuffer_Release(&bH);
+f_p:
+    PyBuffer_Release(&bP);
+f_a:
+    PyBuffer_Release(&bA);
+f_s:
+    PyBuffer_Release(&bS);
+    return ret;
+}
+
+/* ---- the lever-arm checks' fits (lever_arm_check.py): p <= 8 unknowns, information form -------
+ * At every GNSS fix each receiver's two checks add the fix to their information and solve the
+ * regularised fit again: a handful of numpy calls and a LAPACK inverse each (~100 us per fix, the
+ * largest part of a fix's fusion). The information update is the reference's elementwise
+ * arithmetic (the same bits); the inverse is Gauss-Jordan with partial pivoting and the products
+ * are summed in index order (the same math as numpy's LAPACK/BLAS, not their last bits). */
+#define FIT_MAX 8
+
+/* fit_update(info, rhs, h, z, var, prior, theta, cov) -> solved: info += h h' / var,
+ * rhs += h (z / var); then cov = (info + diag(prior))^-1, theta = cov rhs. False (theta and cov
+ * untouched) while info + diag(prior) is singular (a zero pivot, as LAPACK's getrf). */
+static PyObject *k_fit_update(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError, "fit_update(info, rhs, h, z, var, prior, theta, cov)");
+        return NULL;
+    }
+    double z = PyFloat_AsDouble(args[3]), var = PyFloat_AsDouble(args[4]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer b[6];
+    double *v[6];
+    int nb = 0;
+    PyObject *ret = NULL;
+    static const int which[6] = {2, 0, 1, 5, 6, 7}; /* h first: it gives p */
+    static const char *names[6] = {"h", "info", "rhs", "prior", "theta", "cov"};
+    int p = 0;
+    for (; nb < 6; nb++) {
+        Py_ssize_t want = nb == 0 ? -1 : (nb == 1 || nb == 5) ? (Py_ssize_t)p * p : p;
+        v[nb] = get_doubles(args[which[nb]], &b[nb], want, names[nb]);
+        if (!v[nb])
+            goto done;
+        if (nb == 0) {
+            p = (int)(b[0].len / (Py_ssize_t)sizeof(double));
+            if (p > FIT_MAX) {
+                PyErr_SetString(PyExc_ValueError, "fit_update: at most 8 unknowns");
+                nb++;
+                goto done;
+            }
+        }
+    }
+    double *h = v[0], *info = v[1], *rhs = v[2], *prior = v[3], *theta = v[4], *cov = v[5];
+    double zv = z / var;
+    for (int i = 0; i < p; i++) {
+        for (int j = 0; j < p; j++)
+            info[i * p + j] += h[i] * h[j] / var;
+        rhs[i] += h[i] * zv;
+    }
+    double a[FIT_MAX * FIT_MAX], inv[FIT_MAX * FIT_MAX];
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < p; j++) {
+            a[i * p + j] = info[i * p + j] + (i == j ? prior[i] : 0.0);
+            inv[i * p + j] = i == j ? 1.0 : 0.0;
+        }
+    int ok = 1;
+    for (int c = 0; c < p && ok; c++) {
+        int piv = c;
+        for (int r = c + 1; r < p; r++)
+            if (fabs(a[r * p + c]) > fabs(a[piv * p + c]))
+                piv = r;
+        if (a[piv * p + c] == 0.0) {
+            ok = 0;
+            break;
+        }
+        if (piv != c)
+            for (int j = 0; j < p; j++) {
+                double t = a[c * p + j];
+                a[c * p + j] = a[piv * p + j];
+                a[piv * p + j] = t;
+                t = inv[c * p + j];
+                inv[c * p + j] = inv[piv * p + j];
+                inv[piv * p + j] = t;
+            }
+        double d = a[c * p + c];
+        for (int j = 0; j < p; j++) {
+            a[c * p + j] /= d;
+            inv[c * p + j] /= d;
+        }
+        for (int r = 0; r < p; r++) {
+            double f = a[r * p + c];
+            if (r == c || f == 0.0)
+                continue;
+            for (int j = 0; j < p; j++) {
+                a[r * p + j] -= f * a[c * p + j];
+                inv[r * p + j] -= f * inv[c * p + j];
+            }
+        }
+    }
+    if (ok) {
+        memcpy(cov, inv, (size_t)p * p * sizeof(double));
+        for (int i = 0; i < p; i++) {
+            double t = 0.0;
+            for (int j = 0; j < p; j++)
+                t += inv[i * p + j] * rhs[j];
+            theta[i] = t;
+        }
+    }
+    ret = PyBool_FromLong(ok);
+done:
+    while (nb-- > 0)
+        PyBuffer_Release(&b[nb]);
+    return ret;
+}
+
+/* fit_predict(h, theta, cov) -> (h' theta, h' cov h): a fit's prediction for regressors h and
+ * its variance there (the glitch gate). */
+static PyObject *k_fit_predict(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "fit_predict(h, theta, cov)");
+        return NULL;
+    }
+    Py_buffer bh, bt, bc;
+    double *h = get_doubles(args[0], &bh, -1, "h");
+    if (!h)
+        return NULL;
+    Py_ssize_t p = bh.len / (Py_ssize_t)sizeof(double);
+    PyObject *ret = NULL;
+    double *th = get_doubles(args[1], &bt, p, "theta");
+    if (!th)
+        goto p_h;
+    double *cv = get_doubles(args[2], &bc, p * p, "cov");
+    if (!cv)
+        goto p_t;
+    double pred = 0.0, spread = 0.0;
+    for (Py_ssize_t i = 0; i < p; i++) {
+        pred += h[i] * th[i];
+        double t = 0.0;
+        for (Py_ssize_t j = 0; j < p; j++)
+            t += h[j] * cv[j * p + i]; /* (h' cov)_i */
+        spread += t * h[i];
+    }
+    ret = Py_BuildValue("(dd)", pred, spread);
+    PyBuffer_Release(&bc);
+p_t:
+    PyBuffer_Release(&bt);
+p_h:
+    PyBuffer_Release(&bh);
+    return ret;
+}
+
+/* ---- the latency identification's cost profile (latency.py) ------------------------------------
+ * At every GNSS fix each timing reference fits y ~ a x + c . extra + b for each of its ~170
+ * candidate delays from its forgotten sufficient statistics (p <= 8 regressors): two stacked
+ * numpy solves and two einsums, most of a fix's latency work. Here each candidate's systems are
+ * solved by Gaussian elimination with partial pivoting (LAPACK's dgesv does the same, in its own
+ * summation order: the same math, not its last bits). */
+#define LAT_MAX 8
+
+/* Solve a x = b (a: m x m, row stride `stride`; b, x: m) by elimination with partial pivoting on
+ * copies; 0 on an exactly zero pivot (numpy's LinAlgError: singular). */
+static int small_solve(const double *a0, int stride, const double *b0, int m, double *x)
+{
+    double a[LAT_MAX * LAT_MAX], b[LAT_MAX];
+    for (int i = 0; i < m; i++) {
+        for (int j = 0; j < m; j++)
+            a[i * m + j] = a0[i * stride + j];
+        b[i] = b0[i];
+    }
+    for (int c = 0; c < m; c++) {
+        int piv = c;
+        for (int r = c + 1; r < m; r++)
+            if (fabs(a[r * m + c]) > fabs(a[piv * m + c]))
+                piv = r;
+        if (a[piv * m + c] == 0.0)
+            return 0;
+        if (piv != c) {
+            for (int j = 0; j < m; j++) {
+                double t = a[c * m + j];
+                a[c * m + j] = a[piv * m + j];
+                a[piv * m + j] = t;
+            }
+            double t = b[c];
+            b[c] = b[piv];
+            b[piv] = t;
+        }
+        for (int r = c + 1; r < m; r++) {
+            double l = a[r * m + c] / a[c * m + c];
+            for (int j = c + 1; j < m; j++)
+                a[r * m + j] -= l * a[c * m + j];
+            b[r] -= l * b[c];
+        }
+    }
+    for (int i = m - 1; i >= 0; i--) {
+        double v = b[i];
+        for (int j = i + 1; j < m; j++)
+            v -= a[i * m + j] * x[j];
+        x[i] = v / a[i * m + i];
+    }
+    return 1;
+}
+
+/* latency_costs(zz, zy, syy, floor, c) -> informative: per candidate k, the regressor's variation
+ * the other columns do not explain, cxx_k = zz_k[0,0] - zz_k[0,1:] zz_k[1:,1:]^-1 zz_k[1:,0]; False
+ * (c untouched) unless every cxx_k > floor; else c_k = max(syy - theta_k' zy_k, 0) with
+ * theta_k = zz_k^-1 zy_k, the residual sum of squares of candidate k's fit. */
+static PyObject *k_latency_costs(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "latency_costs(zz, zy, syy, floor, c)");
+        return NULL;
+    }
+    double syy = PyFloat_AsDouble(args[2]), floor_ = PyFloat_AsDouble(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bzz, bzy, bc;
+    PyObject *ret = NULL;
+    double *c = get_doubles(args[4], &bc, -1, "c");
+    if (!c)
+        return NULL;
+    Py_ssize_t n = bc.len / (Py_ssize_t)sizeof(double);
+    double *zy = get_doubles(args[1], &bzy, -n, "zy");
+    if (!zy)
+        goto l_c;
+    Py_ssize_t p = bzy.len / (Py_ssize_t)sizeof(double) / n;
+    if (p < 2 || p > LAT_MAX) {
+        PyErr_SetString(PyExc_ValueError, "latency_costs: 2 to 8 regressors");
+        goto l_zy;
+    }
+    double *zz = get_doubles(args[0], &bzz, n * p * p, "zz");
+    if (!zz)
+        goto l_zy;
+    double sol[LAT_MAX];
+    int informative = 1;
+    for (Py_ssize_t k = 0; k < n && informative; k++) {
+        const double *z = zz + k * p * p;
+        double rhs[LAT_MAX];
+        for (int i = 1; i < p; i++)
+            rhs[i - 1] = z[i * p];
+        if (!small_solve(z + p + 1, (int)p, rhs, (int)p - 1, sol)) {
+            PyErr_SetString(PyExc_ValueError, "latency_costs: singular statistics");
+            goto l_zz;
+        }
+        double v = 0.0;
+        for (int i = 1; i < p; i++)
+            v += z[i] * sol[i - 1];
+        informative = z[0] - v > floor_;
+    }
+    if (informative) {
+        for (Py_ssize_t k = 0; k < n; k++) {
+            if (!small_solve(zz + k * p * p, (int)p, zy + k * p, (int)p, sol)) {
+                PyErr_SetString(PyExc_ValueError, "latency_costs: singular statistics");
+                goto l_zz;
+            }
+            double v = 0.0;
+            for (int i = 0; i < p; i++)
+                v += sol[i] * zy[k * p + i];
+            double r = syy - v;
+            c[k] = r > 0.0 || r != r ? r : 0.0; /* np.maximum(r, 0): NaN stays NaN */
+        }
+    }
+    ret = PyBool_FromLong(informative);
+l_zz:
+    PyBuffer_Release(&bzz);
+l_zy:
+    PyBuffer_Release(&bzy);
+l_c:
+    PyBuffer_Release(&bc);
+    return ret;
+}
+
 /* reduction_rank(M) -> the number of terms correct() carries M through (-1: M whole); for tests. */
 static PyObject *k_reduction_rank(PyObject *self, PyObject *arg)
 {
@@ -1021,6 +1449,16 @@ static PyMethodDef methods[] = {
      "gyro_sum(aux, r_col, X, br_col, k0, k1) -> sum of aux[k, r_col] + X[k, br_col], k0 <= k <= k1"},
     {"window_fit", (PyCFunction)(void (*)(void))k_window_fit, METH_FASTCALL,
      "window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay mean, its standard error)"},
+    {"sens_step", (PyCFunction)(void (*)(void))k_sens_step, METH_FASTCALL,
+     "sens_step(A, S_prev, S_out): S_out = A S_prev (the latency sensitivity through one step)"},
+    {"sens_fused", (PyCFunction)(void (*)(void))k_sens_fused, METH_FASTCALL,
+     "sens_fused(S, A, P, H, R, h, s, last): S_s -= K (H S_s - h), then carried to step last"},
+    {"fit_update", (PyCFunction)(void (*)(void))k_fit_update, METH_FASTCALL,
+     "fit_update(info, rhs, h, z, var, prior, theta, cov) -> solved: add a fix, solve the regularised fit"},
+    {"fit_predict", (PyCFunction)(void (*)(void))k_fit_predict, METH_FASTCALL,
+     "fit_predict(h, theta, cov) -> (h' theta, h' cov h)"},
+    {"latency_costs", (PyCFunction)(void (*)(void))k_latency_costs, METH_FASTCALL,
+     "latency_costs(zz, zy, syy, floor, c) -> informative: each candidate delay's residual sum of squares"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -4,7 +4,10 @@ The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under t
 ``kinematic.KinematicModel.predict`` / ``predict_from``, ``kalman.scalar_update`` / ``index_update`` /
 ``late_update`` / ``symmetrize``, ``history.StepHistory.correct`` and the stiffness regression's
 ``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``) and the
-single-track learner's ``rls_update`` (``fusion/single_track.py``); the pure-Python
+single-track learner's ``rls_update`` (``fusion/single_track.py``) and the latency sensitivity's
+``sens_step`` / ``sens_fused`` (``latency_sensitivity.py``) and the lever-arm checks'
+``fit_update`` / ``fit_predict`` (``lever_arm_check.py``) and the latency identification's
+``latency_costs`` (``latency.py``); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -13,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import logging
 
-from . import history, kalman, kinematic
+from . import history, kalman, kinematic, latency, latency_sensitivity, lever_arm_check
 from .fusion import single_track, stiffness_regression
 
 log = logging.getLogger(__name__)
@@ -21,6 +24,9 @@ log = logging.getLogger(__name__)
 KERNELS = ("predict", "predict_from", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
 STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum", "window_fit")
 SINGLE_TRACK_KERNELS = ("rls_update",)
+SENSITIVITY_KERNELS = ("sens_step", "sens_fused")
+LEVER_KERNELS = ("fit_update", "fit_predict")
+LATENCY_KERNELS = ("latency_costs",)
 
 try:
     from . import _kernels as compiled
@@ -29,7 +35,8 @@ except ImportError as e:  # no compiler at install time, or a source checkout ne
     compiled = None
     _import_error = str(e)
 if compiled is not None and not all(hasattr(compiled, name)
-                                    for name in KERNELS + STIFFNESS_KERNELS + SINGLE_TRACK_KERNELS):
+                                    for name in KERNELS + STIFFNESS_KERNELS + SINGLE_TRACK_KERNELS
+                                    + SENSITIVITY_KERNELS + LEVER_KERNELS + LATENCY_KERNELS):
     _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
     compiled = None
 
@@ -65,6 +72,13 @@ def select(use_compiled: bool = True) -> str:
                 getattr(compiled, name) if on else getattr(stiffness_regression, name + "_reference"))
     for name in SINGLE_TRACK_KERNELS:
         setattr(single_track, name, getattr(compiled, name) if on else getattr(single_track, name + "_reference"))
+    for name in SENSITIVITY_KERNELS:
+        setattr(latency_sensitivity, name,
+                getattr(compiled, name) if on else getattr(latency_sensitivity, name + "_reference"))
+    for name in LEVER_KERNELS:
+        setattr(lever_arm_check, name, getattr(compiled, name) if on else getattr(lever_arm_check, name + "_reference"))
+    for name in LATENCY_KERNELS:
+        setattr(latency, name, getattr(compiled, name) if on else getattr(latency, name + "_reference"))
     return active()
 
 

@@ -249,13 +249,10 @@ class LatencyEstimator:
             return None
         zz = self.zz
         n = zz[0, -1, -1]
-        # the regressor's variation that the offset (and the extras: a ramp) do not explain
-        cxx = zz[:, 0, 0] - np.einsum("ki,ki->k", zz[:, 0, 1:], np.linalg.solve(zz[:, 1:, 1:], zz[:, 1:, 0:1])[:, :, 0])
-        if not (cxx.min() > self.min_spread ** 2 * n * 0.1):
+        c = np.empty(len(zz))
+        if not latency_costs(np.ascontiguousarray(zz), np.ascontiguousarray(self.zy), self.syy,
+                             self.min_spread ** 2 * n * 0.1, c):
             return None  # the regressor has hardly varied: no timing information
-        # residual sum of squares of the least-squares fit per candidate
-        theta = np.linalg.solve(zz, self.zy[:, :, None])[:, :, 0]
-        c = np.maximum(self.syy - np.einsum("ki,ki->k", theta, self.zy), 0.0)
         self.cost = c
         i = int(np.argmin(c))
         # RSS excess over the residual variance per fix
@@ -333,6 +330,23 @@ class LatencyEstimator:
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
         self.std_s = max(std, STD_FALL * self.std_s)
+
+
+def latency_costs_reference(zz: np.ndarray, zy: np.ndarray, syy: float, floor: float, c: np.ndarray) -> bool:
+    """Each candidate's residual sum of squares into c (``zz``, ``zy``, ``syy``: the sufficient
+    statistics per candidate); False (c untouched) unless the regressor's variation that the offset
+    (and the extras: a ramp) do not explain exceeds ``floor`` at every candidate. ``backend.select``
+    swaps in the compiled one (``_kernels.c``: the same math, each candidate's solves by elimination)."""
+    cxx = zz[:, 0, 0] - np.einsum("ki,ki->k", zz[:, 0, 1:], np.linalg.solve(zz[:, 1:, 1:], zz[:, 1:, 0:1])[:, :, 0])
+    if not (cxx.min() > floor):
+        return False
+    # residual sum of squares of the least-squares fit per candidate
+    theta = np.linalg.solve(zz, zy[:, :, None])[:, :, 0]
+    c[:] = np.maximum(syy - np.einsum("ki,ki->k", theta, zy), 0.0)
+    return True
+
+
+latency_costs = latency_costs_reference
 
 
 HEADING_SPREAD_RAD = 0.01  # heading change between samples: turning, not straight-line noise

@@ -43,7 +43,7 @@ class LatencySensitivity:
     def step(self, i: int, ip: int, A: np.ndarray, predict: bool) -> None:
         """Carry S through step i's effective transition (after its updates)."""
         if predict:
-            np.dot(A, self.Sr[ip], out=self.Sr[i])
+            sens_step(A, self.Sr[ip], self.Sr[i])
         else:  # a fresh start: the initial state owes nothing to the latency
             self.Sr[i].fill(0.0)
 
@@ -55,11 +55,7 @@ class LatencySensitivity:
               h: np.ndarray) -> None:
         """A fix was fused at stored step s with Jacobian H and noise R against the covariance
         P it had before the fix; h = dz/dd. S at s becomes (I - K H) S + K h, carried to the present."""
-        S = H @ P @ H.T + R
-        K = P @ H.T @ np.linalg.inv(S)
-        i = hist.slot(s)
-        self.Sr[i][:] = self.Sr[i] - K @ (H @ self.Sr[i] - h)
-        self._carry(hist, s)
+        sens_fused(self.S, hist.A, P, H, R, h, s, hist.last)
 
     def set_heading(self, hist: StepHistory, idx: np.ndarray, J: np.ndarray, r: float) -> None:
         """The heading was set from a course at every slot idx as course + J x: the course's
@@ -70,16 +66,42 @@ class LatencySensitivity:
         """The heading was set from a source independent of the latency error (a dual-antenna align)."""
         self.S[np.arange(hist.oldest(), hist.last + 1) % hist.n, PSI] = 0.0
 
-    def _carry(self, hist: StepHistory, s: int) -> None:
-        """S at every step after s from S at s: S_j = A_j ... A_{s+1} S_s, the prefix products by
-        doubling as StepHistory.correct does (log2(count) whole-array matmuls instead of a rewind's
-        ~80 small ones: a fusing step's _on_gnss 645 -> ~400 us; the same bits every run)."""
-        idx = np.arange(s + 1, hist.last + 1) % hist.n
-        if len(idx) == 0:
-            return
-        phis = hist.A[idx]
-        d = 1
-        while d < len(phis):
-            phis[d:] = phis[d:] @ phis[:-d]
-            d *= 2
-        self.S[idx] = phis @ self.S[hist.slot(s)]
+
+# The kernels: numpy references here, swapped for the compiled ones (``_kernels.c``: ``sens_step``,
+# ``sens_fused``; the same math, summed in index order) by ``backend.select``.
+
+def sens_step_reference(A: np.ndarray, S_prev: np.ndarray, S_out: np.ndarray) -> None:
+    """S_out = A S_prev: the sensitivity through one step's effective transition."""
+    np.dot(A, S_prev, out=S_out)
+
+
+def sens_fused_reference(S: np.ndarray, A: np.ndarray, P: np.ndarray, H: np.ndarray, R: np.ndarray,
+                         h: np.ndarray, s: int, last: int) -> None:
+    """S (one row per history slot, ring of len(S)) after a fix fused at step s with Jacobian H and
+    noise R against the covariance P it had before: S_s <- S_s - K (H S_s - h), K the standard
+    gain, then carried through the stored transitions A to step ``last``."""
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    n = len(S)
+    i = s % n
+    S[i] = S[i] - K @ (H @ S[i] - h)
+    carry_reference(S, A, s, last)
+
+
+def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
+    """S at every step after s from S at s: S_j = A_j ... A_{s+1} S_s, the prefix products by
+    doubling as StepHistory.correct_reference does (log2(count) whole-array matmuls instead of a
+    rewind's ~80 small ones; the same bits every run)."""
+    n = len(S)
+    idx = np.arange(s + 1, last + 1) % n
+    if len(idx) == 0:
+        return
+    phis = A[idx]
+    d = 1
+    while d < len(phis):
+        phis[d:] = phis[d:] @ phis[:-d]
+        d *= 2
+    S[idx] = phis @ S[s % n]
+
+
+sens_step = sens_step_reference
+sens_fused = sens_fused_reference

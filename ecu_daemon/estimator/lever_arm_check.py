@@ -80,6 +80,33 @@ def _regularised_cov(info: np.ndarray, prior_info: tuple[float, ...]) -> np.ndar
     except np.linalg.LinAlgError:
         return None
 
+
+# The two kernels every fix runs: numpy references here, swapped for the compiled ones
+# (``_kernels.c``: the same math in one call each, the inverse by Gauss-Jordan) by ``backend.select``.
+
+def fit_update_reference(info: np.ndarray, rhs: np.ndarray, h: np.ndarray, z: float, var: float,
+                         prior: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> bool:
+    """Add a fix (regressors h, value z, noise variance var) to the information and solve the
+    regularised fit into theta and cov, in place; False (theta, cov untouched) while singular."""
+    info += np.outer(h, h) / var
+    rhs += h * (z / var)
+    c = _regularised_cov(info, prior)
+    if c is None:
+        return False
+    theta[:] = c @ rhs
+    cov[:] = c
+    return True
+
+
+def fit_predict_reference(h: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
+    """The fit's prediction at regressors h and its variance there."""
+    return float(h @ theta), float(h @ cov @ h)
+
+
+fit_update = fit_update_reference
+fit_predict = fit_predict_reference
+
+
 class LeverArmCheck:
     """One receiver's lever-arm consistency fit (information form, exponentially forgotten):
     unknowns [offset of the current run, drift, dx, latency error]."""
@@ -97,6 +124,8 @@ class LeverArmCheck:
         self.dx_std = math.inf
         self.theta = np.zeros(4)
         self.cov = None  # of the last solve (None: no fit yet, or a new run since)
+        self._cov = np.zeros((4, 4))  # where the solves write it
+        self._prior = np.array((1e-9, DRIFT_INFO, 1e-6, 0.0))  # the last: the latency std's (_solve)
         self.gated = 0  # fixes left out as glitches
         self.flagged = False  # the lever arm is wrong (sticky: a configuration does not fix itself)
         self.suspected = False  # the fit has been heading for a flag (sticky; set before flagged)
@@ -138,14 +167,13 @@ class LeverArmCheck:
         var = ((sigma_v / speed) ** 2 + COURSE_NOISE_RAD ** 2) * CORR_FIXES
         h = np.array((1.0, (t - self.t0) / WINDOW_S, ratio, -r))
         if not new_run and self.cov is not None:
-            e = z - float(h @ self.theta)
-            if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
+            pred, spread = fit_predict(h, self.theta, self.cov)
+            e = z - pred
+            if e * e > GATE_SIGMA ** 2 * (var + spread):
                 self.gated += 1
                 return
-        self.info += np.outer(h, h) / var
-        self.rhs += h * (z / var)
         self.n += 1
-        self._solve(latency_std_s)
+        self._solve(latency_std_s, h, z, var)
 
     def _shift_origin(self, t: float) -> None:
         """Move the drift's time origin to t (a long drive keeps its regressor near 1, the fit well
@@ -172,14 +200,16 @@ class LeverArmCheck:
         self.info[:, 0] = 0.0
         self.rhs[0] = 0.0
 
-    def _solve(self, latency_std_s: float) -> None:
+    def _solve(self, latency_std_s: float, h: np.ndarray | None = None, z: float = 0.0, var: float = 1.0) -> None:
+        """Add a fix (regressors h, value z, noise variance var; None: none) and solve the fit again."""
+        if h is None:
+            h = np.zeros(4)  # adds exact zeros: the information as it stands
         # tiny priors keep a not-yet-excited fit invertible; the latency error's is the latency
         # estimator's std (latency.py): what a corner at one speed cannot tell from dx
-        cov = _regularised_cov(self.info, (1e-9, DRIFT_INFO, 1e-6, 1.0 / max(latency_std_s, 1e-3) ** 2))
-        if cov is None:
+        self._prior[3] = 1.0 / max(latency_std_s, 1e-3) ** 2
+        if not fit_update(self.info, self.rhs, h, z, var, self._prior, self.theta, self._cov):
             return
-        self.theta = cov @ self.rhs
-        self.cov = cov
+        cov = self.cov = self._cov
         self.dx = float(self.theta[2])
         self.dx_std = math.sqrt(max(cov[2, 2], 0.0))
         if self.dx_std > MAX_FLAG_STD_FACTOR * LEVER_TOL_M:
@@ -233,6 +263,8 @@ class LeverArmYCheck:
         self.dy_std = math.inf
         self.theta = np.zeros(3)
         self.cov = None
+        self._cov = np.zeros((3, 3))  # where the solves write it
+        self._prior = np.array((1.0 / SCALE_STD ** 2, 1e-6, 0.0))  # the last: the latency std's
         self.gated = 0
         self.flagged = False
         self.suspected = False
@@ -259,18 +291,16 @@ class LeverArmYCheck:
         self.t_last = t
         h = np.array((wheel, r, ax))
         if self.cov is not None:
-            e = z - float(h @ self.theta)
-            if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
+            pred, spread = fit_predict(h, self.theta, self.cov)
+            e = z - pred
+            if e * e > GATE_SIGMA ** 2 * (var + spread):
                 self.gated += 1
                 return
-        self.info += np.outer(h, h) / var
-        self.rhs += h * (z / var)
         self.n += 1
-        cov = _regularised_cov(self.info, (1.0 / SCALE_STD ** 2, 1e-6, 1.0 / max(latency_std_s, 1e-3) ** 2))
-        if cov is None:
+        self._prior[2] = 1.0 / max(latency_std_s, 1e-3) ** 2
+        if not fit_update(self.info, self.rhs, h, z, var, self._prior, self.theta, self._cov):
             return
-        self.theta = cov @ self.rhs
-        self.cov = cov
+        cov = self.cov = self._cov
         self.dy = float(self.theta[1])
         self.dy_std = math.sqrt(max(cov[1, 1], 0.0))
         if self.dy_std > MAX_FLAG_STD_FACTOR * LEVER_Y_TOL_M:
