@@ -963,7 +963,9 @@ class Estimator:
         if t - self.model_t > (MODEL_EVERY + 0.5) * self.dt or t - self.model_unsteady_t < MODEL_STEADY_S:
             return math.inf
         vy_m, s_m = self.single_track.model_error(vx, r, self.model_ay, self.rdot)
-        return s_m + abs(vy - vy_m) / 3.0
+        # a Python float (vy_m is a numpy scalar): it may become the published vy std, a float in
+        # both the compiled _estimate (a C double, core.pxd) and the plain-Python one
+        return float(s_m + abs(vy - vy_m) / 3.0)
 
     def _published_delay(self) -> float:
         """The primary receiver's latency: ``latency.py``'s, plus the filter's estimate of its
