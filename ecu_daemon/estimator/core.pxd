@@ -7,6 +7,9 @@
 # ``__dict__`` keeps instances open to any other attribute (a new one needs no edit here; list it
 # when it is on the hot path). An extension type's methods cannot be replaced on the class: wrap
 # them on the instance or in a subclass (tools/bench_replay.py does).
+cimport cython
+
+
 cdef class Estimator:
     cdef dict __dict__
     cdef public object _learned0, _lp_r, _lp_rdot, _lp_turn, _reset_flag, _slip_decay
@@ -22,3 +25,12 @@ cdef class Estimator:
     cdef public object single_track, slip_hold, speed_integral, speed_latencies, standstill
     cdef public object steer_learner, steer_offset, steer_ratio, stiffness, timeouts, turn_lp
     cdef public object uses_velocity, wheel_new, wheel_reject_t, wheels, yaw_integral
+
+    # The published fields of every step: floating-point locals as C doubles (the same IEEE
+    # operations as Python floats, -ffp-contract=off; an expression with an object operand is still
+    # evaluated by Python in the same order; division keeps Python's ZeroDivisionError). The
+    # validity flags stay Python objects (the Estimate carries bools exactly as before).
+    @cython.locals(vx=double, vy=double, sp2=double, beta=double, var_b=double, beta_std=double,
+                   vy_std=double, b=double, c=double, floor=double, turn=double, turn_var=double,
+                   e=double, psi_std=double, vx_std=double)
+    cpdef _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok, iso)

@@ -4,6 +4,9 @@
 # (the per-step checks read and write ~80 of them, ~40 % of the step's cost was these look-ups).
 # Every slot is a Python ``object``: the values, their types and every operation on them stay
 # exactly those of the .py (the same bits). ``__dict__`` keeps instances open to any other attribute.
+cimport cython
+
+
 cdef class FaultDetector:
     cdef dict __dict__
     cdef public object _a_lr, _a_slow, _a_yaw, _ax_jump_k, _ax_prev, _cum_a, _gnss_wheel_verdict
@@ -18,3 +21,33 @@ cdef class FaultDetector:
     cdef public object wheel_latches, wheel_mask, wheel_z, wheel_z_excess_var, wheels_back
     cdef public object wheels_isolated, wheels_stuck, wheels_vouch_gyro, witnesses_agree
     cdef public object yaw_catch_up, yaw_disagreement, yaw_suspect
+    # The yaw vote (~half of the detector's per-step cost): its floating-point locals are C doubles
+    # and its verdicts C flags. A Python float is an IEEE double and each of its operators is the
+    # same C operation (+ - * / on two doubles, compiled with -ffp-contract=off: no fused
+    # multiply-add), so the values are bit for bit those of the .py; only boxing is skipped. An
+    # expression that mixes in an attribute, argument or module constant (all objects) is still
+    # evaluated as Python, in the same order. Division keeps Python's ZeroDivisionError (no
+    # cdivision), abs() is fabs(), max() of doubles compares as Python's (the first on ties and NaN).
+    @cython.locals(a_slow=double, a_yaw=double, rdot_abs=double, wide=double, vx=double, kw=double,
+                   r_g=double, v_rear=double, e_w=double, e_ws=double, r_wheels=double, rw_lp=double,
+                   d=double, ay=double, e_a=double, e_as=double, ref=double, tol_w=double, slow=double,
+                   catch_up=double, wheels_yaw=bint, have_w=bint, have_a=bint, w_fail=bint, a_fail=bint,
+                   scale_fail=bint, jump=bint, gyro_suspect=bint)
+    cpdef _yaw(self, k, rl, rr, wheels_ok, r_m, ay_m, imu_ok, x, rdot, braking=*)
+    # the same for the wheel vote, the longitudinal window and the lateral window
+    @cython.locals(h=double, c=double, s=double, lat=double, med=double, tol=double, others=double,
+                   should=double, dev=double, d=double)
+    cpdef _each_wheel(self, w, r, delta, vy)
+    @cython.locals(cum_a=double, v_old=double, a_old=double, dv=double, res=double)
+    cpdef _longitudinal(self, k, v, ax, ax_raw)
+    @cython.locals(dt=double, lat_cum=double, lat_abs=double, vy_m=double, w=double, res=double,
+                   unexplained=double)
+    cpdef _lateral(self, vx, r, ay, rdot)
+
+
+# the hysteresis counters (a dozen latches updated every step): C ints and a C flag, so a latch's
+# update is integer arithmetic on its struct, not ~10 generic attribute look-ups through __slots__.
+# Python sees the same values (ints, a bool); counts of 6 ms steps stay far inside a C long.
+cdef class _Latch:
+    cdef public long on, off, bad, good, events
+    cdef public bint active

@@ -1,10 +1,17 @@
 # Cython declarations augmenting road.py when setup.py compiles it (see fault_detection.pxd: why);
 # plain Python ignores this file. Instance attributes as object slots: same objects, same bits.
+cimport cython
+
+
 cdef class RoadAttitude:
     cdef dict __dict__
     cdef public object _k, _lp, _ring, altitude, altitude_fused, altitude_rejected, bank, baselines, dt
     cdef public object elevation_fused, elevation_rejected, fy_lp, grade, gyro, roll, roll_bias0
     cdef public object roll_gyro_params, roll_std, vertical_fused, vertical_zero
+    # every step: the lateral force and its low-pass as C doubles (the same IEEE operations as the
+    # .py's floats and numpy float64 scalars; fabs/pow(x, 2.0) as Python's; see fault_detection.pxd)
+    @cython.locals(fy=double, lp=double, k2=double)
+    cpdef set_roll(self, ay_m, g_ay, var_gay, ay_doubt=*)
 
 
 # one [angle, offset] filter (grade, bank): read for the published fields and validity every step
