@@ -12,8 +12,8 @@ recorded candump + its u-blox fixes) and reports per cut point:
   the daemon's state file (:mod:`ecu_daemon.io.state_store`), then the logs from the cut on;
 * per run: worst sideslip / heading error while valid, share of valid rows within 3 reported
   sigma, time to valid after the first GNSS fix received after the cut (above 5 m/s), and the
-  RMS from that fix to ``--window`` seconds after the cut against the RMS of the uncut run's
-  estimate over the same rows (what the cut costs);
+  RMS from that fix (the heading: from its first course) to ``--window`` seconds after the cut
+  against the RMS of the uncut run's estimate over the same rows (what the cut costs);
 * ``full``: the uncut run over the same span (how the estimator does there when it has run
   all along).
 
@@ -154,14 +154,17 @@ def score(est: dict, truth: Truth, t_fix: float, window_s: float, full: dict | N
              "beyond_3sigma": int(np.sum(a[v] > 3 * s[v]))}
         after = t >= t_fix
         r["ttv_s"] = float(t[after & v][0] - t_fix) if (after & v).any() else math.nan
-        # from the first fix on (before it the heading is unknown: published with a std of pi)
+        # from the first fix on, and only where the quantity is known at all (before the first
+        # course the heading is published with a std of pi: its value means nothing)
         t_end = t[0] + window_s
-        w = (t >= t_fix) & (t < t_end)
+        known = s < math.pi / 2
+        t_known = t[known & (t >= t_fix)][0] if (known & (t >= t_fix)).any() else math.inf
+        w = (t >= t_known) & (t < t_end)
         r["rms_window_deg"] = float(np.sqrt(np.mean(e[w] ** 2)) * DEG) if w.any() else math.nan
         r["valid_window"] = float(np.mean(v[w])) if w.any() else math.nan
         if ferrs is not None:
             ft, fe = ferrs[name][0], ferrs[name][1]
-            fw = (ft >= t_fix) & (ft < t_end)
+            fw = (ft >= t_known) & (ft < t_end)
             r["rms_window_full_deg"] = float(np.sqrt(np.mean(fe[fw] ** 2)) * DEG) if fw.any() else math.nan
         res[name] = r
     return res
