@@ -162,6 +162,12 @@ MODEL_STEADY_RDOT = 0.2  # rad/s^2
 AUGMENT_MAX_STD_S = 0.05
 LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step over this
 
+# BEFORE_START: a GNSS sample whose time of validity (receive time - latency) precedes the
+# filter's first step (a flying start, a daemon restart while driving, a re-initialisation) is
+# left out. The history holds no state of that time; clamped to the first step, its course was
+# the heading of up to one latency earlier: r x 0.4 s = 5-7 deg at 13-19 deg/s. On Revs cut
+# mid-corner and restarted with a learned (tight) latency std, that heading was valid 5.2 deg off
+# (tools/cut_starts.py revs, cut 420 s). It costs at most one latency before the first fix is used.
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
 LEARNED_BOUNDS_LIST = tuple((j, lo, hi) for j, (lo, hi) in LEARNED_BOUNDS.items())
 
@@ -1041,7 +1047,11 @@ class Estimator:
             return
         speed = g.speed_mps  # NaN course: speed only (GnssSample.course_known)
         delay = lat.delay_s if self.delay_compensation else 0.0
-        s, late = h.clamp_step(round((g.t - delay) / self.dt))
+        k_tv = round((g.t - delay) / self.dt)
+        if k_tv < h.first:  # measured before the filter started: see BEFORE_START
+            fus.late += 1
+            return
+        s, late = h.clamp_step(k_tv)
         self.fix_steps[g.source] = (g.fix_time_utc_s, s)
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
@@ -1181,7 +1191,11 @@ class Estimator:
             s, _ = h.clamp_step(same[1])  # the velocity fix of its epoch: the same time of validity
             stagger = 0.0
         else:  # received a few ms after its epoch's velocity: its own receive time
-            s, _ = h.clamp_step(round((g.t - delay) / self.dt))
+            k_tv = round((g.t - delay) / self.dt)
+            if k_tv < h.first:  # measured before the filter started: see BEFORE_START
+                fus.rejected += 1
+                return
+            s, _ = h.clamp_step(k_tv)
             stagger = STAGGER_S
         if self.road.baselines and not self.fdi.isolated & ACCEL_Y:  # the baseline's tilt: road.py
             self.road.fuse_elevation(s, g)

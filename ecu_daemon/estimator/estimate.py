@@ -53,7 +53,7 @@ class Estimate(NamedTuple):
     status: int
     gnss_fused: int  # cumulative count of GNSS samples fused
     gnss_rejected: int  # cumulative count rejected (quality or gate)
-    gnss_late: int  # cumulative count older than the ring buffer (clamped to its oldest step)
+    gnss_late: int  # cumulative count older than the ring buffer (clamped to its oldest step; older than the filter's first step: left out)
     # road and body attitude (estimator/road.py); rad, ISO signs: bank left side up, grade uphill
     # ahead, roll = the body on its suspension relative to the road plane, left side up
     bank_rad: float = 0.0
