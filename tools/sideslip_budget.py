@@ -48,7 +48,7 @@ from ecu_daemon.evaluate import CONVERGE_S, VALID_SPEED_MPS, first_good_fix, rea
 from ecu_daemon.replay import run_replay  # noqa: E402
 
 #: per-row record columns
-COLUMNS = ("t", "vx", "r", "filter_std", "bound_vy", "bound_k1", "bound_k3", "bound_floor", "bound_dev",
+COLUMNS = ("t", "sideslip", "vx", "r", "filter_std", "bound_vy", "bound_k1", "bound_k3", "bound_floor", "bound_dev",
            "published_std", "valid", "latency_std", "lever_flagged", "augmented")
 CLASSES = ("valid", "no bound (transient / GNSS stale)", "model-limited (bound < filter)",
            "filter-limited (filter <= bound)", "other")
@@ -89,7 +89,7 @@ def record(folder: Path, latency_std_scale: float = 1.0) -> dict:
             parts = _bound_parts(self, t, vx, vy, r, iso)
         else:
             var_b, parts = math.pi ** 2, (math.inf,) + (math.nan,) * 4
-        rows.append((t, vx, r, math.sqrt(max(var_b, 0.0)), *parts, e.sideslip_std_rad, float(e.sideslip_valid),
+        rows.append((t, e.sideslip_rad, vx, r, math.sqrt(max(var_b, 0.0)), *parts, e.sideslip_std_rad, float(e.sideslip_valid),
                      self._latency_std(), float(self.lever_flagged), float(self.augmented)))
         return e
 
@@ -175,6 +175,18 @@ def summary(rec: dict, mask: np.ndarray) -> list[str]:
     return lines
 
 
+def accuracy(rec: dict, truth: dict, mask: np.ndarray) -> str:
+    """What a what-if must not lose: the sideslip error over the counted rows and the promise of the
+    valid ones (within 3 sigma, worst)."""
+    err = rec["sideslip"] - np.interp(rec["t"], truth["t"], np.unwrap(truth["sideslip_rad"]))
+    err = (err + math.pi) % (2.0 * math.pi) - math.pi
+    v = mask & (rec["valid"] > 0.5)
+    cov = float(np.mean(np.abs(err[v]) <= 3.0 * rec["published_std"][v])) if v.any() else math.nan
+    worst = math.degrees(float(np.max(np.abs(err[v])))) if v.any() else math.nan
+    rms = math.degrees(float(np.sqrt(np.mean(err[mask] ** 2)))) if mask.any() else math.nan
+    return f"  sideslip rms {rms:.3f} deg; valid rows within 3 sigma {cov:.4f}, worst {worst:.3f} deg"
+
+
 def table(rec: dict, every_s: float = 1.0) -> list[str]:
     """The budget once per ``every_s`` (rows above 3 m/s)."""
     lines = ["      t     vx      r  filter  bound_vy     k1     k3  floor    dev  published  valid  lat_std"]
@@ -213,6 +225,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.folder.name} {' '.join(args.set)}"
           + (f" latency std x{args.latency_std_scale:g}" if args.latency_std_scale != 1.0 else ""))
     print("\n".join(summary(rec, mask)))
+    if truth is not None and "sideslip_rad" in truth:
+        print(accuracy(rec, truth, mask))
     if args.table:
         print("\n".join(table(rec)))
     return 0
