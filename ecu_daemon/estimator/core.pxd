@@ -22,3 +22,4 @@ cdef class Estimator:
     cdef public object single_track, slip_hold, speed_integral, speed_latencies, standstill
     cdef public object steer_learner, steer_offset, steer_ratio, stiffness, timeouts, turn_lp
     cdef public object uses_velocity, wheel_new, wheel_reject_t, wheels, yaw_integral
+    cdef public object yaw_scale_checks, yaw_scale_std
