@@ -1122,9 +1122,14 @@ class Estimator:
         else:
             k1 = ysc.k_last + 1
             r_steps = h.aux[np.arange(k1, s + 1) % h.n, AUX_R] if ysc.k_last >= 0 and h.oldest() <= k1 <= s else None
+            # the sideslip it reads the course against is the single-track model's, not the
+            # filter's: the filter's vy takes part of a scale error (the fit saw a third of it)
+            a = h.aux[i]
+            vx_s = float(x[VX])
+            vy_m, vy_m_std = self.single_track.model_error(vx_s, float(a[AUX_R]), float(a[AUX_AY]), float(a[AUX_RDOT]))
             ysc.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
-                        float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s,
-                        math.sqrt(max(h.P[i][BR, BR], 0.0)))
+                        vx_s, vy_m, float(a[AUX_R]), fus.lever_y, lat.std_s,
+                        math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std)
             self.yaw_scale_std = min(c.scale_std() for c in self.yaw_scale_checks)
         if chk.suspected:
             self.lever_flagged = True

@@ -8,9 +8,11 @@ sideslip is about constant, the course changes by the true heading change, and t
 (1 + s)^-1 times the integrated gyro. A constant GNSS latency error does not change that (the
 course change over a whole turn is the same, only later), a residual gyro bias does (by bias x
 time), which the filter's own yaw-bias state bounds (its std, learned at standstill and on
-straights). So the residual of the heading a course implies against the gyro's heading,
+straights). So the residual of the heading a course implies (with the single-track model's sideslip: the
+filter's own vy takes part of the scale error, and a fit against it saw a third of a 1 % error)
+against the gyro's heading,
 
-    z = course + beta_pred - psi_gyro = c0 + db (t - t_run) + s I + dx (r / vx) - dd r + noise,
+    z = course + beta_model - psi_gyro = c0 + db (t - t_run) + s I + dx (r / vx) - dd r + noise,
 
 with t_run the run's start (a new offset after a gap) and I the bias-corrected yaw rate integrated since the run's start (rad, counterclockwise), is
 fitted for [c0 (per run), db (residual bias), s, dx (antenna lever arm x error), dd (latency
@@ -81,8 +83,11 @@ class YawScaleCheck:
         self.k_last = -1
 
     def observe(self, t: float, k: int, dt: float, r_steps, course: float, sigma_v: float, speed: float,
-                vx: float, vy: float, r: float, lever_y: float, latency_std_s: float, bias_std: float) -> None:
-        """As ``LeverArmCheck.observe``, plus ``bias_std``: the filter's yaw-rate bias std (rad/s)."""
+                vx: float, vy: float, r: float, lever_y: float, latency_std_s: float, bias_std: float,
+                vy_std: float = 0.0) -> None:
+        """As ``LeverArmCheck.observe``, plus ``bias_std``: the filter's yaw-rate bias std (rad/s);
+        ``vy`` is the single-track model's (not the filter's, which takes part of a scale error into
+        its sideslip, so that a fit against it saw a third of a 1 % error) and ``vy_std`` its error."""
         if speed < MIN_SPEED or vx < MIN_SPEED:
             self.k_last = -1
             return
@@ -107,7 +112,9 @@ class YawScaleCheck:
         # unwrapped about the fit's prediction: a 3 % scale error turns the gyro heading by more
         # than pi over 17 laps of a circle
         z = pred + math.remainder(course + beta - self.psi_gyro - pred, 2.0 * math.pi)
-        var = ((sigma_v / speed) ** 2 + COURSE_NOISE_RAD ** 2) * CORR_FIXES
+        # the model's error is a bias over a corner (its offset and, as the speed changes, part of
+        # its slope are the fit's own columns): counted as fix noise correlated like the course's
+        var = ((sigma_v / speed) ** 2 + COURSE_NOISE_RAD ** 2 + (vy_std / vx) ** 2) * CORR_FIXES
         if not new_run and self.cov is not None:
             e = z - pred
             if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
