@@ -16,9 +16,9 @@ against the gyro's heading,
 
 with t_run the run's start (a new offset after a gap) and I the bias-corrected yaw rate integrated since the run's start (rad, counterclockwise), is
 fitted for [c0 (per run), db (residual bias), s, dx (antenna lever arm x error), dd (latency
-error)]. The fit's s is the heading error per radian the gyro integrates: s / (1 + s) for a gyro
-reading (1 + s) r, which is also what the core's s |r_gyro vx| needs: the same residual ``lever_arm_check.LeverArmCheck`` fits, with the integral as a fifth
-column. It is a separate fit, not a fifth column of that one, because the lever-arm flag's timing
+error)]: the residual ``lever_arm_check.LeverArmCheck`` fits, with the integral as a fifth
+column. The fit's s is the heading error per radian the gyro integrates: s / (1 + s) for a gyro
+reading (1 + s) r, which is also what the core's s |r_gyro vx| needs. It is a separate fit, not a fifth column of that one, because the lever-arm flag's timing
 was sized on a four-unknown fit (one more unknown widens its dx std and delays its flag), and
 because the two need different priors: here the bias column is held by the filter's yaw-bias std
 (the lever-arm fit allows a wide 0.3 deg/s drift, which on a steady circle at 0.3 rad/s would leave
