@@ -41,7 +41,7 @@ sys.path.insert(0, str(REPO))
 # .py (the same rules and bits, compiled_python.py; only slower)
 os.environ["ECU_DAEMON_PURE_PYTHON"] = "1"
 from ecu_daemon import config as config_mod  # noqa: E402
-from ecu_daemon.estimator import core  # noqa: E402
+from ecu_daemon.estimator import core, yaw_scale_check  # noqa: E402
 from ecu_daemon.estimator.fusion import gnss_velocity, single_track  # noqa: E402
 from ecu_daemon.estimator.kinematic import VX, VY  # noqa: E402
 from ecu_daemon.evaluate import CONVERGE_S, VALID_SPEED_MPS, first_good_fix, read_csv  # noqa: E402
@@ -52,7 +52,7 @@ COLUMNS = ("t", "sideslip", "vx", "r", "filter_std", "bound_vy", "bound_k1", "bo
            "published_std", "valid", "latency_std", "lever_flagged", "augmented")
 CLASSES = ("valid", "no bound (transient / GNSS stale)", "model-limited (bound < filter)",
            "filter-limited (filter <= bound)", "other")
-MODULES = {"core": core, "single_track": single_track, "gnss_velocity": gnss_velocity}
+MODULES = {"core": core, "single_track": single_track, "gnss_velocity": gnss_velocity, "yaw_scale_check": yaw_scale_check}
 
 
 def _bound_parts(est, t: float, vx: float, vy: float, r: float, iso: int) -> tuple:

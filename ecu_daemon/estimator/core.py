@@ -55,6 +55,7 @@ from .latency_consider import LatencyConsider, antenna_acceleration_ned
 from .latency_sensitivity import LatencySensitivity
 from .lateral_noise import LateralNoise
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
+from .yaw_scale_check import YawScaleCheck
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
 from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
@@ -117,7 +118,8 @@ IMU_LEVER_STD_M = 0.3
 # r / cos(bank)) turns the heading by scale x r. In a steady corner GNSS course cannot tell that
 # from sideslip, and the filter takes it into vy through the accelerometer states (a 6 % banked
 # circle: heading and sideslip 1.4 deg off together with a white vy noise of 0.05): vy may drift
-# by this fraction of r vx.
+# by this fraction of r vx. This is the prior: the courses against the integrated gyro learn the
+# scale over the turns (yaw_scale_check.py) and the term follows what they allow.
 YAW_SCALE_STD = 0.005
 # The single-track model anchors vy wherever GNSS course cannot (a steady corner: course is
 # heading + sideslip, and the yaw rate x latency std turns it by degrees on a tight circle). Its
@@ -216,6 +218,9 @@ class Estimator:
         # each antenna's configured lever arm x checked against its courses and the gyro
         self.lever_checks = [LeverArmCheck(rx.lever_arm_m[0]) for rx in receivers]
         self.lever_y_checks = [LeverArmYCheck(*rx.lever_arm_m) for rx in receivers]
+        # ... and the gyro's scale against each antenna's course changes: vy's std grows by the best
+        self.yaw_scale_checks = [YawScaleCheck(rx.lever_arm_m[0]) for rx in receivers]
+        self.yaw_scale_std = YAW_SCALE_STD
         self.lever_flagged = False  # a lever arm found wrong: its course error goes into the heading std
         self.latency = self.latencies[0]
         # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
@@ -523,6 +528,8 @@ class Estimator:
         self.heading.consecutive_rejects = 0
         for chk in self.lever_checks:
             chk.restart()
+        for chk in self.yaw_scale_checks:
+            chk.restart()
         self._learned0 = self._check_learned(self.learned_state()) if self.initialized else self._learned0
         self.initialized = False
 
@@ -604,7 +611,7 @@ class Estimator:
                 self.model.predict_from(xp, x, Pp, P, A, xp[BR], xp[BAX], xp[BAY])
             if imu_ok:
                 # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
-                e = IMU_LEVER_STD_M * abs(self.rdot) + YAW_SCALE_STD * abs(self.r_lp * x[VX])
+                e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * x[VX])
                 P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * self.dt) ** 2
         if iso:
             self._widen(iso, P, x[VX])
@@ -1144,6 +1151,21 @@ class Estimator:
         was = chk.flagged
         chk.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
                     float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s)
+        ysc = self.yaw_scale_checks[g.source]
+        if self.fdi.isolated & YAW_RATE:  # a substituted yaw rate says nothing of the gyro's scale
+            ysc.restart()
+        else:
+            k1 = ysc.k_last + 1
+            r_steps = h.aux[np.arange(k1, s + 1) % h.n, AUX_R] if ysc.k_last >= 0 and h.oldest() <= k1 <= s else None
+            # the sideslip it reads the course against is the single-track model's, not the
+            # filter's: the filter's vy takes part of a scale error (the fit saw a third of it)
+            a = h.aux[i]
+            vx_s = float(x[VX])
+            vy_m, vy_m_std = self.single_track.model_error(vx_s, float(a[AUX_R]), float(a[AUX_AY]), float(a[AUX_RDOT]))
+            ysc.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
+                        vx_s, vy_m, float(a[AUX_R]), fus.lever_y, lat.std_s,
+                        math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std)
+            self.yaw_scale_std = min(c.scale_std() for c in self.yaw_scale_checks)
         if chk.suspected:
             self.lever_flagged = True
         if chk.flagged and not was:

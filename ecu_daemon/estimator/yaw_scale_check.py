@@ -1,0 +1,157 @@
+"""How well is the gyro's scale known? A fit of GNSS course changes against the integrated yaw rate.
+
+A yaw-rate scale error s (sensor sensitivity; on a banked road also the tilt: the heading turns at
+r / cos(bank)) turns the filter's heading by s x r per second. In a steady corner GNSS course cannot
+tell that from sideslip, so the core grows vy's std by s x |r vx| per second (core.YAW_SCALE_STD,
+the prior 0.5 %). The scale is observable all the same: over a turn, or a long circle where the
+sideslip is about constant, the course changes by the true heading change, and that is
+(1 + s)^-1 times the integrated gyro. A constant GNSS latency error does not change that (the
+course change over a whole turn is the same, only later), a residual gyro bias does (by bias x
+time), which the filter's own yaw-bias state bounds (its std, learned at standstill and on
+straights). So the residual of the heading a course implies (with the single-track model's sideslip: the
+filter's own vy takes part of the scale error, and a fit against it saw a third of a 1 % error)
+against the gyro's heading,
+
+    z = course + beta_model - psi_gyro = c0 + db (t - t_run) + s I + dx (r / vx) - dd r + noise,
+
+with t_run the run's start (a new offset after a gap) and I the bias-corrected yaw rate integrated since the run's start (rad, counterclockwise), is
+fitted for [c0 (per run), db (residual bias), s, dx (antenna lever arm x error), dd (latency
+error)]: the residual ``lever_arm_check.LeverArmCheck`` fits, with the integral as a fifth
+column. The fit's s is the heading error per radian the gyro integrates: s / (1 + s) for a gyro
+reading (1 + s) r, which is also what the core's s |r_gyro vx| needs. It is a separate fit, not a fifth column of that one, because the lever-arm flag's timing
+was sized on a four-unknown fit (one more unknown widens its dx std and delays its flag), and
+because the two need different priors: here the bias column is held by the filter's yaw-bias std
+(the lever-arm fit allows a wide 0.3 deg/s drift, which on a steady circle at 0.3 rad/s would leave
+s unresolved below 1.7 %), and the scale, a sensor constant, is remembered longer.
+
+``scale_std()`` is what the core grows vy's std by instead of the constant prior: |s_hat| + std_s
+(the scale is not applied to the gyro, so the filter still suffers the whole of s, not only its
+uncertainty; and the prior pulls s_hat towards 0 by up to about std_s), never below the tilt of a 6 % banked road
+(BANK_TILT_SCALE: a bank the window has not seen yet), and not capped: a gyro learned to be 3 % off
+widens the std beyond the prior. Unobserved (no turning yet) it is the prior, so a drive
+without corners publishes what it did before.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .lever_arm_check import COURSE_NOISE_RAD, CORR_FIXES, GATE_SIGMA, LEVER_TOL_M, MAX_GAP_S, MIN_SPEED, \
+    _regularised_cov
+
+#: prior std of the scale error: the core's constant before this fit existed (core.YAW_SCALE_STD),
+#: an automotive MEMS gyro's sensitivity tolerance after calibration; a drive without corners
+#: keeps publishing it (the term is s |r vx|, zero where r is)
+SCALE_PRIOR = 0.005
+#: a road's cross slope: 6 % (the usual maximum superelevation of urban roads) turns the heading at
+#: r / cos(atan 0.06), 0.18 % faster than a level gyro reads; the floor of the published scale,
+#: since a bank can start after the window the fit learned the scale in
+BANK_TILT_SCALE = 1.0 / math.cos(math.atan(0.06)) - 1.0
+#: forgetting time: the scale is a sensor constant (temperature moves it by tenths of a per cent over
+#: minutes), the bias the fit's other column holds is bounded by the filter's std at each solve
+WINDOW_S = 300.0
+#: rad/s: the filter's yaw-bias std is the residual bias prior, but never tighter than this (the
+#: filter's bias state is itself corrected during the window, by up to its std at any time)
+BIAS_FLOOR = math.radians(0.005)
+
+
+class YawScaleCheck:
+    """One receiver's course-against-gyro scale fit (information form, exponentially forgotten):
+    unknowns [offset of the current run, residual bias (rad/s), scale error, dx, latency error]."""
+
+    N = 5
+
+    def __init__(self, lever_x: float):
+        self.lever_x = lever_x
+        self.info = np.zeros((self.N, self.N))
+        self.rhs = np.zeros(self.N)
+        self.t_run = 0.0
+        self.t_last = -math.inf
+        self.psi_gyro = 0.0
+        self.yaw_int = 0.0
+        self.k_last = -1
+        self.n = 0
+        self.gated = 0
+        self.theta = np.zeros(self.N)
+        self.cov = None
+        self.scale = 0.0
+        self.scale_sd = SCALE_PRIOR
+
+    def restart(self) -> None:
+        """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
+        self.k_last = -1
+
+    def observe(self, t: float, k: int, dt: float, r_steps, course: float, sigma_v: float, speed: float,
+                vx: float, vy: float, r: float, lever_y: float, latency_std_s: float, bias_std: float,
+                vy_std: float = 0.0) -> None:
+        """As ``LeverArmCheck.observe``, plus ``bias_std``: the filter's yaw-rate bias std (rad/s);
+        ``vy`` is the single-track model's (not the filter's, which takes part of a scale error into
+        its sideslip, so that a fit against it saw a third of a 1 % error) and ``vy_std`` its error."""
+        if speed < MIN_SPEED or vx < MIN_SPEED:
+            self.k_last = -1
+            return
+        ratio = r / vx
+        beta = math.atan2(vy + r * self.lever_x, vx - r * lever_y)
+        new_run = self.k_last < 0 or r_steps is None or t - self.t_last > MAX_GAP_S or k <= self.k_last
+        if new_run:
+            self._new_run(course + beta)
+            self.t_run = t
+        else:
+            turned = float(np.sum(r_steps)) * dt
+            self.psi_gyro -= turned  # clockwise, as the heading
+            self.yaw_int += turned
+        if self.n and t > self.t_last:
+            f = math.exp(-(t - self.t_last) / WINDOW_S)
+            self.info *= f
+            self.rhs *= f
+        self.k_last = k
+        self.t_last = t
+        h = np.array((1.0, t - self.t_run, self.yaw_int, ratio, -r))
+        pred = float(h @ self.theta) if self.cov is not None else 0.0
+        # unwrapped about the fit's prediction: a 3 % scale error turns the gyro heading by more
+        # than pi over 17 laps of a circle
+        z = pred + math.remainder(course + beta - self.psi_gyro - pred, 2.0 * math.pi)
+        # the model's error is a bias over a corner (its offset and, as the speed changes, part of
+        # its slope are the fit's own columns): counted as fix noise correlated like the course's
+        var = ((sigma_v / speed) ** 2 + COURSE_NOISE_RAD ** 2 + (vy_std / vx) ** 2) * CORR_FIXES
+        if not new_run and self.cov is not None:
+            e = z - pred
+            if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
+                self.gated += 1
+                return
+        self.info += np.outer(h, h) / var
+        self.rhs += h * (z / var)
+        self.n += 1
+        self._solve(latency_std_s, bias_std)
+
+    def _new_run(self, psi0: float) -> None:
+        """A new gyro integral and offset: the old offset is marginalised out (Schur complement),
+        the bias, scale, dx and latency information is kept across the break."""
+        self.psi_gyro = psi0
+        self.yaw_int = 0.0
+        self.cov = None
+        a = self.info[0, 0]
+        if a > 0.0:
+            c = self.info[0].copy()
+            self.info -= np.outer(c, c) / a
+            self.rhs -= c * (self.rhs[0] / a)
+        self.info[0, :] = 0.0
+        self.info[:, 0] = 0.0
+        self.rhs[0] = 0.0
+        self.theta[0] = 0.0
+
+    def _solve(self, latency_std_s: float, bias_std: float) -> None:
+        sb = max(bias_std, BIAS_FLOOR)
+        cov = _regularised_cov(self.info, (1e-9, 1.0 / (sb * sb), 1.0 / SCALE_PRIOR ** 2, 1.0 / LEVER_TOL_M ** 2,
+                                           1.0 / max(latency_std_s, 1e-3) ** 2))
+        if cov is None:
+            return
+        self.theta = cov @ self.rhs
+        self.cov = cov
+        self.scale = float(self.theta[2])
+        self.scale_sd = math.sqrt(max(cov[2, 2], 0.0))
+
+    def scale_std(self) -> float:
+        """The scale error the core grows vy's std by (see the module docstring)."""
+        return max(abs(self.scale) + self.scale_sd, BANK_TILT_SCALE)
