@@ -98,6 +98,19 @@ def fit_update_reference(info: np.ndarray, rhs: np.ndarray, h: np.ndarray, z: fl
     return True
 
 
+def marginalise_offset(info: np.ndarray, rhs: np.ndarray) -> None:
+    """Forget the fit's first unknown (a run's offset) in place, keeping what the data said about
+    the others: the Schur complement of info[0, 0], then a zero row and column for the next run's."""
+    a = info[0, 0]
+    if a > 0.0:
+        c = info[0].copy()
+        info -= np.outer(c, c) / a
+        rhs -= c * (rhs[0] / a)
+    info[0, :] = 0.0
+    info[:, 0] = 0.0
+    rhs[0] = 0.0
+
+
 def fit_predict_reference(h: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
     """The fit's prediction at regressors h and its variance there."""
     return float(h @ theta), float(h @ cov @ h)
@@ -191,14 +204,7 @@ class LeverArmCheck:
         fit keeps its drift and dx information across the break."""
         self.psi_gyro = psi0
         self.cov = None
-        a = self.info[0, 0]
-        if a > 0.0:
-            c = self.info[0].copy()
-            self.info -= np.outer(c, c) / a
-            self.rhs -= c * (self.rhs[0] / a)
-        self.info[0, :] = 0.0
-        self.info[:, 0] = 0.0
-        self.rhs[0] = 0.0
+        marginalise_offset(self.info, self.rhs)
 
     def _solve(self, latency_std_s: float, h: np.ndarray | None = None, z: float = 0.0, var: float = 1.0) -> None:
         """Add a fix (regressors h, value z, noise variance var; None: none) and solve the fit again."""

@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from .lever_arm_check import COURSE_NOISE_RAD, CORR_FIXES, GATE_SIGMA, LEVER_TOL_M, MAX_GAP_S, MIN_SPEED, \
-    _regularised_cov
+    _regularised_cov, marginalise_offset
 
 #: prior std of the scale error: the core's constant before this fit existed (core.YAW_SCALE_STD),
 #: an automotive MEMS gyro's sensitivity tolerance after calibration; a drive without corners
@@ -131,14 +131,7 @@ class YawScaleCheck:
         self.psi_gyro = psi0
         self.yaw_int = 0.0
         self.cov = None
-        a = self.info[0, 0]
-        if a > 0.0:
-            c = self.info[0].copy()
-            self.info -= np.outer(c, c) / a
-            self.rhs -= c * (self.rhs[0] / a)
-        self.info[0, :] = 0.0
-        self.info[:, 0] = 0.0
-        self.rhs[0] = 0.0
+        marginalise_offset(self.info, self.rhs)
         self.theta[0] = 0.0
 
     def _solve(self, latency_std_s: float, bias_std: float) -> None:
