@@ -1215,7 +1215,7 @@ class Estimator:
         else:  # received a few ms after its epoch's velocity: its own receive time
             k_tv = round((g.t - delay) / self.dt)
             if k_tv < h.first:  # measured before the filter started: see BEFORE_START
-                fus.rejected += 1
+                fus.late += 1
                 return
             s, _ = h.clamp_step(k_tv)
             stagger = STAGGER_S

@@ -55,6 +55,7 @@ class GnssHeadingFusion:
         self.gate_sigma = gate_sigma
         self.fused = 0
         self.rejected = 0
+        self.late = 0  # measured before the filter's first step: left out, never judged (core.BEFORE_START)
         self.consecutive_rejects = 0
         self.last_reason = ""
         self.state = STATE_NONE
