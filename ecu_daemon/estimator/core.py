@@ -1137,15 +1137,22 @@ class Estimator:
                 # an altitude (NMEA GGA): grade from the climb over the distance travelled
                 self.road.fuse_altitude(g, speed, h.X[h.slot(h.last), VX] > 0)
 
+    def _yaw_rates_since(self, k_last: int, s: int):
+        """The stored bias-corrected yaw rates of steps k_last+1 .. s, the gyro turn a course check
+        integrates between two fixes (None if there is no previous fix or the history no longer holds it)."""
+        h = self.hist
+        k0 = k_last + 1
+        if k_last >= 0 and h.oldest() <= k0 <= s:
+            return h.aux[np.arange(k0, s + 1) % h.n, AUX_R]
+        return None
+
     def _check_lever_arm(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Feed this fix's course to its receiver's lever-arm check (lever_arm_check.py) with the
         gyro's yaw rates since that receiver's previous fix; one log line when it finds the lever arm wrong."""
         h = self.hist
         chk = self.lever_checks[g.source]
-        k0 = chk.k_last + 1
-        r_steps = None
-        if chk.k_last >= 0 and h.oldest() <= k0 <= s:
-            r_steps = h.aux[np.arange(k0, s + 1) % h.n, AUX_R]
+        k_prev = chk.k_last  # observe() moves it to s
+        r_steps = self._yaw_rates_since(k_prev, s)
         i = h.slot(s)
         x = h.X[i]
         was = chk.flagged
@@ -1155,8 +1162,8 @@ class Estimator:
         if self.fdi.isolated & YAW_RATE:  # a substituted yaw rate says nothing of the gyro's scale
             ysc.restart()
         else:
-            k1 = ysc.k_last + 1
-            r_steps = h.aux[np.arange(k1, s + 1) % h.n, AUX_R] if ysc.k_last >= 0 and h.oldest() <= k1 <= s else None
+            if ysc.k_last != k_prev:  # the lever check's window unless one of them restarted
+                r_steps = self._yaw_rates_since(ysc.k_last, s)
             # the sideslip it reads the course against is the single-track model's, not the
             # filter's: the filter's vy takes part of a scale error (the fit saw a third of it)
             a = h.aux[i]
