@@ -389,6 +389,42 @@ def test_latency_costs_agree(p):
         assert (keep == 7.0).all()
 
 
+@pytest.mark.parametrize("p", [2, 3, 4])
+def test_accumulate_is_bit_exact(p):
+    """One fix into the statistics: the compiled in-place update gives numpy's bits (elementwise,
+    no reduction), with x a strided column of a history array as observe passes it, and the
+    statistics of whole runs of fixes (forgetting on) stay byte-equal."""
+    zz, zy, _ = _latency_statistics(p, n=83, fixes=5)
+    ref = (zz.copy(), zy.copy())
+    out = (zz.copy(), zy.copy())
+    for _ in range(40):
+        aux = RNG.normal(15.0, 4.0, size=(83, 9))
+        extra = tuple(float(v) for v in RNG.normal(size=p - 2))
+        y = np.float64(RNG.normal(15.0, 4.0))
+        latency.accumulate_reference(*ref, aux[:, 4], extra, y, 0.995)
+        backend.compiled.accumulate(*out, aux[:, 4], extra, y, 0.995)
+        assert ref[0].tobytes() == out[0].tobytes() and ref[1].tobytes() == out[1].tobytes()
+    # the textbook form of one update: lam Z'Z + z z'
+    z = np.concatenate(([3.0], [0.5] * (p - 2), [1.0]))
+    zz1, zy1 = np.zeros((1, p, p)), np.zeros((1, p))
+    backend.compiled.accumulate(zz1, zy1, np.array([3.0]), (0.5,) * (p - 2), 2.0, 0.9)
+    np.testing.assert_array_equal(zz1[0], np.outer(z, z))
+    np.testing.assert_array_equal(zy1[0], 2.0 * z)
+    with pytest.raises(ValueError):  # a statistics array of the wrong size is refused, not overrun
+        backend.compiled.accumulate(np.zeros((2, p, p)), np.zeros((2, p)), np.zeros(3), (0.0,) * (p - 2), 1.0, 1.0)
+
+
+@pytest.mark.parametrize("n", [1, 2, 83, 84, 167])
+def test_median_matches_numpy(n):
+    """The profile's median: numpy's value bit for bit (odd and even counts, ties, a strided
+    view), NaN when the profile holds one."""
+    for c in (RNG.gamma(2.0, 3.0, size=n), np.round(RNG.gamma(2.0, 3.0, size=n)), RNG.normal(size=2 * n)[::2]):
+        assert np.float64(backend.compiled.median(c)).tobytes() == np.float64(latency.median_reference(c)).tobytes()
+    c = RNG.gamma(2.0, 3.0, size=n)
+    c[n // 2] = np.nan
+    assert np.isnan(backend.compiled.median(c)) and np.isnan(latency.median_reference(c))
+
+
 # ------------------------------------------------------------------------------------------------
 # the stiffness regression's kernels (fusion/stiffness_regression.py)
 

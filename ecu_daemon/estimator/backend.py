@@ -7,7 +7,7 @@ The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under t
 single-track learner's ``rls_update`` (``fusion/single_track.py``) and the latency sensitivity's
 ``sens_step`` / ``sens_fused`` (``latency_sensitivity.py``) and the lever-arm checks'
 ``fit_update`` / ``fit_predict`` (``lever_arm_check.py``) and the latency identification's
-``latency_costs`` (``latency.py``); the pure-Python
+``latency_costs`` / ``accumulate`` / ``median`` (``latency.py``); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -26,7 +26,7 @@ STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum"
 SINGLE_TRACK_KERNELS = ("rls_update",)
 SENSITIVITY_KERNELS = ("sens_step", "sens_fused")
 LEVER_KERNELS = ("fit_update", "fit_predict")
-LATENCY_KERNELS = ("latency_costs",)
+LATENCY_KERNELS = ("latency_costs", "accumulate", "median")
 
 try:
     from . import _kernels as compiled

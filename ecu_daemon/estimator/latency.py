@@ -194,10 +194,8 @@ class LatencyEstimator:
         self._refine()
 
     def _accumulate(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
-        z = np.stack((x, *(np.full_like(x, e) for e in extra), np.ones_like(x)), axis=1)
         lam = self.forgetting
-        self.zz = lam * self.zz + z[:, :, None] * z[:, None, :]
-        self.zy = lam * self.zy + z * y
+        accumulate(self.zz, self.zy, x, extra, y, lam)
         self.syy = lam * self.syy + y * y
         self.updates += 1
 
@@ -206,8 +204,9 @@ class LatencyEstimator:
         integral and a time that would otherwise grow without bound); the fit is unchanged."""
         m = np.eye(self.p)
         m[:-1, -1] = -np.asarray(offsets, dtype=float)
-        self.zz = np.einsum("ij,kjl,ml->kim", m, self.zz, m)
-        self.zy = np.einsum("ij,kj->ki", m, self.zy)
+        # C order, as accumulate() updates them in place (the same values, copied if einsum chose another layout)
+        self.zz = np.ascontiguousarray(np.einsum("ij,kjl,ml->kim", m, self.zz, m))
+        self.zy = np.ascontiguousarray(np.einsum("ij,kj->ki", m, self.zy))
 
     def forget(self) -> None:
         """Drop the statistics (the reference broke off); the delay and its std stand."""
@@ -257,7 +256,7 @@ class LatencyEstimator:
         i = int(np.argmin(c))
         # RSS excess over the residual variance per fix
         s2 = max(c[i], 1e-12) / max(n - self.p, 1.0)
-        return (c - c[i]) / s2, bool(c[i] < 0.2 * float(np.median(c)))
+        return (c - c[i]) / s2, bool(c[i] < 0.2 * median(c))
 
     def _refine(self) -> None:
         if self.owner is not None:
@@ -347,6 +346,29 @@ def latency_costs_reference(zz: np.ndarray, zy: np.ndarray, syy: float, floor: f
 
 
 latency_costs = latency_costs_reference
+
+
+def accumulate_reference(zz: np.ndarray, zy: np.ndarray, x: np.ndarray, extra: tuple[float, ...], y: float,
+                         lam: float) -> None:
+    """One observation into the forgotten sufficient statistics, in place: per candidate k with
+    regressors z_k = [x_k, extra..., 1], zz_k <- lam zz_k + z_k z_k' and zy_k <- lam zy_k + z_k y.
+    ``backend.select`` swaps in the compiled one (``_kernels.c``: the same elementwise operations,
+    so the same bits, without the per-fix temporaries)."""
+    z = np.stack((x, *(np.full_like(x, e) for e in extra), np.ones_like(x)), axis=1)
+    zz[...] = lam * zz + z[:, :, None] * z[:, None, :]
+    zy[...] = lam * zy + z * y
+
+
+accumulate = accumulate_reference
+
+
+def median_reference(c: np.ndarray) -> float:
+    """numpy's median of the cost profile, as a float (``_kernels.c``'s ``median``: the same value
+    by a sort in C, without numpy.median's ~10 us of Python per profile)."""
+    return float(np.median(c))
+
+
+median = median_reference
 
 
 HEADING_SPREAD_RAD = 0.01  # heading change between samples: turning, not straight-line noise
