@@ -43,6 +43,11 @@ cdef class FaultDetector:
     @cython.locals(dt=double, lat_cum=double, lat_abs=double, vy_m=double, w=double, res=double,
                    unexplained=double)
     cpdef _lateral(self, vx, r, ay, rdot)
+    # the stuck-value test, ten calls a step (from _each_wheel, _yaw, _all_wheels_stuck): as cpdef
+    # those are C calls instead of Python method calls with their argument tuples (~1.3 k
+    # instructions each). Untyped: every operation on the values stays the .py's.
+    cpdef _unchanged(self, key, k, value, witness, tol)
+    cpdef _all_wheels_stuck(self, k, wheels, wheels_ok, r)
 
 
 # the hysteresis counters (a dozen latches updated every step): C ints and a C flag, so a latch's
