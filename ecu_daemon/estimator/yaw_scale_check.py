@@ -24,12 +24,19 @@ because the two need different priors: here the bias column is held by the filte
 (the lever-arm fit allows a wide 0.3 deg/s drift, which on a steady circle at 0.3 rad/s would leave
 s unresolved below 1.7 %), and the scale, a sensor constant, is remembered longer.
 
-``scale_std()`` is what the core grows vy's std by instead of the constant prior: |s_hat| + std_s
-(the scale is not applied to the gyro, so the filter still suffers the whole of s, not only its
-uncertainty; and the prior pulls s_hat towards 0 by up to about std_s), never below the tilt of a 6 % banked road
-(BANK_TILT_SCALE: a bank the window has not seen yet), and not capped: a gyro learned to be 3 % off
-widens the std beyond the prior. Unobserved (no turning yet) it is the prior, so a drive
-without corners publishes what it did before.
+The core applies s_hat to the gyro (r = r_m (1 - s_applied)) once the fit resolves it
+(``applied()``: |s_hat| beyond APPLY_SIGMA of its std); it feeds the fit the *raw* gyro (the stored
+corrected rates divided by the (1 - s_applied) of their step), so the fit keeps estimating the
+whole scale, not the residual of its own correction (no feedback loop). ``scale_std(applied)`` is
+what the core grows vy's and the heading's std by: |s_hat - applied| + std_s (what the filter still
+suffers: all of s_hat while nothing is applied, the fit's uncertainty once it is), never below the
+tilt of a 6 % banked road (BANK_TILT_SCALE: a bank the window has not seen yet), and not capped.
+Unobserved (no turning yet) it is the prior, so a drive without corners publishes what it did
+before and its gyro is left untouched.
+
+The scale is a sensor constant: the learned-state file keeps s_hat and its std, and a restart
+starts the fit from them as its prior (``prior``: never tighter than RESTORE_FLOOR, the
+temperature drift of a MEMS gyro's sensitivity between drives).
 """
 from __future__ import annotations
 
@@ -54,6 +61,16 @@ WINDOW_S = 300.0
 #: rad/s: the filter's yaw-bias std is the residual bias prior, but never tighter than this (the
 #: filter's bias state is itself corrected during the window, by up to its std at any time)
 BIAS_FLOOR = math.radians(0.005)
+#: the fit's scale is applied to the gyro once it is this many of its stds from zero: beyond one
+#: std the posterior mean is a better guess of the sensor than 0, and the published term carries
+#: the residual |s_hat - applied| + std either way; within it (a drive without corners: s_hat = 0)
+#: the gyro is left as it reads and the term keeps the whole |s_hat| + std, as before. (Applied only
+#: at 3 std, an unresolved tilt of a banked circle kept the wider unapplied term for the whole
+#: drive: bank_circle's sideslip availability 0.59 instead of 0.69, the gyro_scale cases the same.)
+APPLY_SIGMA = 1.0
+#: a restored scale's std is never below this: a MEMS gyro's sensitivity moves by about 0.1 %
+#: with temperature between drives (the fit narrows it again within minutes of turning)
+RESTORE_FLOOR = 0.001
 
 
 class YawScaleCheck:
@@ -62,8 +79,12 @@ class YawScaleCheck:
 
     N = 5
 
-    def __init__(self, lever_x: float):
+    def __init__(self, lever_x: float, prior: tuple[float, float] | None = None):
         self.lever_x = lever_x
+        # the scale's prior (mean, std): 0 +- SCALE_PRIOR, or what the learned-state file restored
+        s0, sd0 = prior if prior is not None else (0.0, SCALE_PRIOR)
+        self.prior_mean = float(s0)
+        self.prior_sd = max(float(sd0), RESTORE_FLOOR) if prior is not None else SCALE_PRIOR
         self.info = np.zeros((self.N, self.N))
         self.rhs = np.zeros(self.N)
         self.t_run = 0.0
@@ -75,8 +96,8 @@ class YawScaleCheck:
         self.gated = 0
         self.theta = np.zeros(self.N)
         self.cov = None
-        self.scale = 0.0
-        self.scale_sd = SCALE_PRIOR
+        self.scale = self.prior_mean
+        self.scale_sd = self.prior_sd
 
     def restart(self) -> None:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
@@ -136,15 +157,25 @@ class YawScaleCheck:
 
     def _solve(self, latency_std_s: float, bias_std: float) -> None:
         sb = max(bias_std, BIAS_FLOOR)
-        cov = _regularised_cov(self.info, (1e-9, 1.0 / (sb * sb), 1.0 / SCALE_PRIOR ** 2, 1.0 / LEVER_TOL_M ** 2,
+        ps = 1.0 / self.prior_sd ** 2
+        cov = _regularised_cov(self.info, (1e-9, 1.0 / (sb * sb), ps, 1.0 / LEVER_TOL_M ** 2,
                                            1.0 / max(latency_std_s, 1e-3) ** 2))
         if cov is None:
             return
-        self.theta = cov @ self.rhs
+        rhs = self.rhs
+        if self.prior_mean:  # a restored scale: the prior's information pulls towards it, not 0
+            rhs = rhs.copy()
+            rhs[2] += ps * self.prior_mean
+        self.theta = cov @ rhs
         self.cov = cov
         self.scale = float(self.theta[2])
         self.scale_sd = math.sqrt(max(cov[2, 2], 0.0))
 
-    def scale_std(self) -> float:
-        """The scale error the core grows vy's std by (see the module docstring)."""
-        return max(abs(self.scale) + self.scale_sd, BANK_TILT_SCALE)
+    def applied(self) -> float:
+        """The scale the core applies to the gyro: s_hat once resolved (APPLY_SIGMA), else 0."""
+        return self.scale if abs(self.scale) > APPLY_SIGMA * self.scale_sd else 0.0
+
+    def scale_std(self, applied: float = 0.0) -> float:
+        """The scale error the core grows vy's and the heading's std by, with ``applied`` on the
+        gyro (see the module docstring)."""
+        return max(abs(self.scale - applied) + self.scale_sd, BANK_TILT_SCALE)
