@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator.yaw_scale_check import BANK_TILT_SCALE, SCALE_PRIOR, YawScaleCheck
+from ecu_daemon.estimator.yaw_scale_check import BANK_TILT_SCALE, RESTORE_FLOOR, SCALE_PRIOR, YawScaleCheck
 
 DT = 0.006
 STEPS = 17  # ~0.1 s between fixes
@@ -68,3 +68,134 @@ def test_many_laps_with_a_large_scale_error_do_not_wrap():
     # 3 % over ~30 laps: the gyro's heading is > pi off the course
     chk = _drive(0.03, lambda t: 0.6, 330.0)
     assert abs(chk.scale - 0.03 / 1.03) < 3.0 * chk.scale_sd
+
+
+# --- the applied scale (core: r = r_m (1 - applied), the fit fed the raw gyro back) ---------------
+
+def _drive_applied(scale: float, r_of_t, duration: float, feed_raw: bool = True, seed: int = 2):
+    """As ``_drive``, with the core's loop around the fit: the gyro is corrected by the scale the fit
+    resolved (``applied()``) at every step, the corrected rates are stored, and the fit is fed them
+    divided by the (1 - applied) of their step (``feed_raw``) or as stored (the feedback loop)."""
+    rng = np.random.default_rng(seed)
+    chk = YawScaleCheck(0.0)
+    psi, k, t = 0.3, 0, 0.0
+    trace = []
+    while t < duration:
+        stored, ring = [], []
+        for _ in range(STEPS):
+            k += 1
+            t = k * DT
+            r_true = r_of_t(t)
+            psi -= r_true * DT
+            a = chk.applied()
+            stored.append((1.0 + scale) * r_true * (1.0 - a))
+            ring.append(a)
+        rs = np.array(stored) / (1.0 - np.array(ring)) if feed_raw else np.array(stored)
+        chk.observe(t, k, DT, rs, psi + math.radians(0.3) * rng.standard_normal(), 0.05, 10.0, 10.0, 0.0,
+                    stored[-1], 0.0, 0.02, math.radians(0.01))
+        trace.append((t, chk.scale, chk.scale_sd, chk.applied()))
+    return chk, trace
+
+
+@pytest.mark.parametrize("scale", [-0.03, 0.01, 0.03])
+def test_the_applied_scale_does_not_run_away_on_a_long_circle(scale):
+    # 10 minutes on a circle (twice the fit's memory): the fit reads the raw gyro, so what it applies
+    # tracks the sensor's s / (1 + s) and the residual stays within the published term
+    chk, trace = _drive_applied(scale, _circle_with_speed_changes, 600.0)
+    truth = scale / (1.0 + scale)
+    assert chk.applied() == chk.scale
+    for t, s, sd, a in trace:
+        if t > 60.0:
+            assert abs(s - truth) < 3.0 * sd, (t, s, sd)
+            assert a == s  # resolved for good: applied, not toggled
+    assert abs(truth - chk.applied()) <= chk.scale_std(chk.applied())
+    assert chk.scale_std(chk.applied()) < 0.5 * chk.scale_std(0.0)  # the residual, not the whole scale
+
+
+def test_feeding_the_corrected_gyro_back_would_learn_only_the_residual():
+    # what the raw read-back prevents: fed the corrected rates, the fit sees a fraction of the scale
+    # at each moment and the applied scale ends far from the sensor's (the loop the core avoids)
+    truth = 0.03 / 1.03
+    raw, _ = _drive_applied(0.03, _circle_with_speed_changes, 120.0)
+    loop, _ = _drive_applied(0.03, _circle_with_speed_changes, 120.0, feed_raw=False)
+    assert abs(raw.applied() - truth) < 3.0 * raw.scale_sd
+    assert abs(loop.applied() - truth) > 3.0 * raw.scale_sd
+
+
+def test_straight_driving_leaves_the_gyro_untouched():
+    chk, trace = _drive_applied(0.03, lambda t: 0.0, 120.0)
+    assert all(a == 0.0 for _, _, _, a in trace)
+    assert chk.scale_std(chk.applied()) == pytest.approx(SCALE_PRIOR, rel=1e-3)
+
+
+def test_a_restored_scale_is_applied_from_the_start_and_kept_on_straights():
+    chk = YawScaleCheck(0.0, prior=(0.0095, 0.0008))
+    # the restored information (std at RESTORE_FLOOR) combined with the 0.5 % prior
+    assert chk.scale_sd == pytest.approx(1.0 / math.sqrt(1.0 / RESTORE_FLOOR ** 2 + 1.0 / SCALE_PRIOR ** 2))
+    assert chk.scale == pytest.approx(0.0095 * (chk.scale_sd / RESTORE_FLOOR) ** 2)
+    assert chk.applied() == chk.scale > 0.008
+    # ten seconds of straight driving: the restored scale holds (fading only over WINDOW_S)
+    rs = np.full(STEPS, 0.0)
+    for i in range(1, 100):
+        chk.observe(i * STEPS * DT, i * STEPS, DT, rs if i > 1 else None, 0.3, 0.05, 10.0, 10.0, 0.0, 0.0, 0.0,
+                    0.02, math.radians(0.01))
+    assert chk.scale > 0.0075
+    assert chk.applied() == chk.scale
+
+
+def test_a_restored_scale_is_relearned_when_the_gyro_changed():
+    # a restored +1 % on a gyro that now reads -1 % (sensor replaced): the circle overrides the prior
+    chk = YawScaleCheck(0.0, prior=(0.0099, 0.0008))
+    psi, k, t = 0.3, 0, 0.0
+    while t < 90.0:
+        rs = []
+        for _ in range(STEPS):
+            k += 1
+            t = k * DT
+            r_true = _circle_with_speed_changes(t)
+            psi -= r_true * DT
+            rs.append(0.99 * r_true)
+        chk.observe(t, k, DT, np.array(rs), psi, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02, math.radians(0.01))
+    assert abs(chk.scale - (-0.01 / 0.99)) < 3.0 * chk.scale_sd
+    assert chk.r_info == 0.0  # the restored scale was dropped: this drive disagreed with it
+    assert max(chk.scale_sd, BANK_TILT_SCALE) >= abs(-0.01 / 0.99 - chk.applied())  # the term covers the rest
+
+
+def test_the_learned_state_file_carries_the_scale(tmp_path):
+    # saved and loaded as the daemon does (estimator key check, JSON file): the restored estimator
+    # applies the scale from its first step and saves it again even before a new fix
+    from ecu_daemon.config import Config
+    from ecu_daemon.estimator.core import LEARNED_VERSION, Estimator
+    from ecu_daemon.io.state_store import load_state, save_state
+
+    save_state(tmp_path / "state.json", {"version": LEARNED_VERSION, "yaw_rate_scale": 0.0095,
+                                         "yaw_rate_scale_std": 0.0008})
+    restored = Estimator._check_learned(load_state(tmp_path / "state.json"))
+    assert restored["yaw_rate_scale"] == 0.0095 and restored["yaw_rate_scale_std"] == 0.0008
+    est = Estimator(Config(), restored)
+    chk = est.yaw_scale_checks[0]
+    assert est.yaw_scale_applied == chk.scale > 0.008
+    assert est.yaw_scale_std == pytest.approx(chk.scale + chk.scale_sd)  # the whole scale (core: yaw_scale_std)
+    assert est._yaw_scale_learned() == {"yaw_rate_scale": chk.scale, "yaw_rate_scale_std": chk.scale_sd}
+    # without a file: the gyro as it reads, the prior term, nothing learned to save
+    fresh = Estimator(Config(), None)
+    assert fresh.yaw_scale_applied == 0.0 and fresh.yaw_scale_std == pytest.approx(SCALE_PRIOR)
+    assert fresh._yaw_scale_learned() == {}
+    # an implausible file value (10 % and beyond) is not restored
+    assert "yaw_rate_scale" not in Estimator._check_learned({"version": LEARNED_VERSION, "yaw_rate_scale": 0.2})
+
+
+@pytest.mark.parametrize("name", ["gyro_scale_+1pct", "gyro_scale_-1pct"])
+def test_a_real_gyro_scale_error_is_not_wrong_while_valid(tmp_path, name):
+    # end to end (simulate -> files -> replay -> evaluate): the 40 m circle to 0.65 g with the yaw
+    # rate x1.01 / x0.99; before the scale was applied (and published on the heading): sideslip
+    # within 3 sigma 93 %, up to 3.2 deg off while valid, heading 30-38 %, up to 4.5 deg.
+    # (+-3 % is not yet: heading within 3 sigma 54-71 %, the suite's gyro_scale_+-3pct)
+    from ecu_daemon.sim.suite import SUITE
+    from ecu_daemon.suite import run_case
+
+    row = run_case({c.name: c for c in SUITE}[name], tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["sideslip_coverage_3sigma"] >= 0.99 and row["heading_coverage_3sigma"] >= 0.99
+    assert row["sideslip_worst_valid_deg"] < 2.0 and row["heading_worst_valid_deg"] < 5.0
+    assert row["sideslip_valid_above_5mps"] > 0.5  # not bought by never promising it

@@ -219,8 +219,14 @@ class Estimator:
         self.lever_checks = [LeverArmCheck(rx.lever_arm_m[0]) for rx in receivers]
         self.lever_y_checks = [LeverArmYCheck(*rx.lever_arm_m) for rx in receivers]
         # ... and the gyro's scale against each antenna's course changes: vy's std grows by the best
-        self.yaw_scale_checks = [YawScaleCheck(rx.lever_arm_m[0]) for rx in receivers]
-        self.yaw_scale_std = YAW_SCALE_STD
+        # (the scale is a sensor constant: one learned before a restart is the fit's prior)
+        scale_prior = ((learned["yaw_rate_scale"], learned.get("yaw_rate_scale_std", YAW_SCALE_STD))
+                       if "yaw_rate_scale" in learned else None)
+        self.yaw_scale_checks = [YawScaleCheck(rx.lever_arm_m[0], scale_prior) for rx in receivers]
+        # the scale applied to the gyro (r = r_m (1 - applied)) and, per history slot, the one each
+        # step ran with: the fit reads the raw gyro back from the stored corrected rates
+        self.yaw_scale_ring = np.zeros(self.hist.n)
+        self._set_yaw_scale()
         self.lever_flagged = False  # a lever arm found wrong: its course error goes into the heading std
         self.latency = self.latencies[0]
         # each receiver's latency error as the one unknown its fixes share (latency_consider.py)
@@ -408,9 +414,18 @@ class Estimator:
             **self.stiffness.learned(),
             "steering_offset_rad": float(self.steer_offset),
             **self.road.learned(),
+            **self._yaw_scale_learned(),
             **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
                for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
         }
+
+    def _yaw_scale_learned(self) -> dict:
+        """The gyro's scale error and its std, once a fit has seen a fix or was restored (the bare
+        prior is not learned: a drive without GNSS keeps what the file had)."""
+        best = min(self.yaw_scale_checks, key=lambda c: c.scale_sd)
+        if not (best.n or best.restored):
+            return {}
+        return {"yaw_rate_scale": float(best.scale), "yaw_rate_scale_std": float(best.scale_sd)}
 
     def learned_std(self) -> dict:
         """1-sigma of the learned values, from what already carries it: the filter covariance
@@ -444,7 +459,8 @@ class Estimator:
                   "gnss_delay_std_s": (0.0, 1.0),
                   "accel_x_offset_mps2": 2.0, "accel_y_offset_mps2": 2.0,
                   "accel_x_offset_std_mps2": (0.0, 10.0), "accel_y_offset_std_mps2": (0.0, 10.0),
-                  "roll_rate_bias_radps": 0.1, "roll_rate_bias_std_radps": (0.0, 1.0)}
+                  "roll_rate_bias_radps": 0.1, "roll_rate_bias_std_radps": (0.0, 1.0),
+                  "yaw_rate_scale": 0.1, "yaw_rate_scale_std": (0.0, 0.1)}
         for i in range(1, MAX_RECEIVERS):
             limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
             limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]
@@ -540,6 +556,9 @@ class Estimator:
         held = self.held
         held_t = self.held_t
         r_m = held[I_YAW]
+        ysa = self.yaw_scale_applied
+        if ysa:  # the learned scale error, off the raw gyro (yaw_scale_check.py)
+            r_m *= 1.0 - ysa
         ax_m = held[I_AX]
         ay_m = held[I_AY]
         tmo = self.timeouts
@@ -563,6 +582,7 @@ class Estimator:
             self.model_inputs.start(self.r_lp, ay_m - xk[BAY] - xk[GAY] * ay_m)
         n = h.n
         i = k % n
+        self.yaw_scale_ring[i] = ysa
         predict = h.last >= h.first
         ip = (k - 1) % n if predict else i
         xp = h.Xr[ip]
@@ -940,7 +960,12 @@ class Estimator:
             for chk in self.lever_checks:
                 e = chk.heading_std(t)
                 turn_var += e * e
-        psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor ** 2)
+        # A yaw-rate scale error turns the heading by scale x r until GNSS courses correct it: as
+        # the latency error's, for TURN_MEMORY_S after a turn (yaw_scale_check.py; published, not
+        # grown in P: grown there with vy along the direction course cannot see, the single-track
+        # model's errors reached the heading through the correlation, Revs heading RMS 0.153 -> 0.33)
+        e = self.yaw_scale_std * self.turn_lp * TURN_MEMORY_S
+        psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor ** 2 + e * e)
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
@@ -1162,8 +1187,11 @@ class Estimator:
         if self.fdi.isolated & YAW_RATE:  # a substituted yaw rate says nothing of the gyro's scale
             ysc.restart()
         else:
-            if ysc.k_last != k_prev:  # the lever check's window unless one of them restarted
-                r_steps = self._yaw_rates_since(ysc.k_last, s)
+            k_from = ysc.k_last
+            if k_from != k_prev:  # the lever check's window unless one of them restarted
+                r_steps = self._yaw_rates_since(k_from, s)
+            if r_steps is not None:  # the raw gyro (each step / its applied 1 - scale): no feedback loop
+                r_steps = r_steps / (1.0 - self.yaw_scale_ring[np.arange(k_from + 1, s + 1) % h.n])
             # the sideslip it reads the course against is the single-track model's, not the
             # filter's: the filter's vy takes part of a scale error (the fit saw a third of it)
             a = h.aux[i]
@@ -1172,13 +1200,24 @@ class Estimator:
             ysc.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
                         vx_s, vy_m, float(a[AUX_R]), fus.lever_y, lat.std_s,
                         math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std)
-            self.yaw_scale_std = min(c.scale_std() for c in self.yaw_scale_checks)
+            self._set_yaw_scale()
         if chk.suspected:
             self.lever_flagged = True
         if chk.flagged and not was:
             log.warning("GNSS receiver %d: courses against the gyro say the configured antenna lever arm x = %.2f m "
                         "is %.2f m (+- %.2f) off, or the latency (%.2f s) is far off: heading not promised in corners",
                         g.source, fus.lever_x, chk.dx, chk.dx_std, lat.delay_s)
+
+    def _set_yaw_scale(self) -> None:
+        """The receiver whose fit knows the scale best sets what is applied to the gyro and the
+        residual term vy's and the heading's std grow by (yaw_scale_check.py)."""
+        best = min(self.yaw_scale_checks, key=lambda c: c.scale_sd)
+        self.yaw_scale_applied = best.applied()
+        # the whole |s_hat| + std, not the residual of what is applied: what the scale put into
+        # heading and vy before it was applied stays in the state until courses and the model
+        # have separated it, and the fit reads ~10 % low (the filter's bias state takes a part of
+        # s r). Narrowed to the residual, the 3 % cases were 50 % within 3 sigma after applying.
+        self.yaw_scale_std = best.scale_std()
 
     def _check_lever_arm_y(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Feed this fix's speed to its receiver's lever-arm y check (against the wheels)."""

@@ -24,12 +24,22 @@ because the two need different priors: here the bias column is held by the filte
 (the lever-arm fit allows a wide 0.3 deg/s drift, which on a steady circle at 0.3 rad/s would leave
 s unresolved below 1.7 %), and the scale, a sensor constant, is remembered longer.
 
-``scale_std()`` is what the core grows vy's std by instead of the constant prior: |s_hat| + std_s
-(the scale is not applied to the gyro, so the filter still suffers the whole of s, not only its
-uncertainty; and the prior pulls s_hat towards 0 by up to about std_s), never below the tilt of a 6 % banked road
-(BANK_TILT_SCALE: a bank the window has not seen yet), and not capped: a gyro learned to be 3 % off
-widens the std beyond the prior. Unobserved (no turning yet) it is the prior, so a drive
-without corners publishes what it did before.
+The core applies s_hat to the gyro (r = r_m (1 - s_applied)) once the fit resolves it
+(``applied()``: |s_hat| beyond APPLY_SIGMA of its std); it feeds the fit the *raw* gyro (the stored
+corrected rates divided by the (1 - s_applied) of their step), so the fit keeps estimating the
+whole scale, not the residual of its own correction (no feedback loop). ``scale_std()`` is what the
+core grows vy's std by and publishes on the heading: |s_hat| + std_s, the whole scale even once it
+is applied (what the scale put into heading and vy before it was resolved stays in the state until
+courses and the model have separated it, and the fit reads ~10 % low while the filter's yaw-bias
+state takes a part of s r; narrowed to the residual |s_hat - applied| + std_s the 3 % suite cases
+fell to 50 % within 3 sigma), never below the tilt of a 6 % banked road (BANK_TILT_SCALE: a bank
+the window has not seen yet), and not capped. Unobserved (no turning yet) it is the prior, so a
+drive without corners publishes what it did before and its gyro is left untouched.
+
+The scale is a sensor constant: the learned-state file keeps s_hat and its std, and a restart
+starts the fit from them (``prior``): as information the fit had gathered, forgotten over WINDOW_S
+like the rest (a gyro replaced or re-mounted between drives is relearned, not held by a fixed
+prior), never tighter than RESTORE_FLOOR.
 """
 from __future__ import annotations
 
@@ -54,6 +64,18 @@ WINDOW_S = 300.0
 #: rad/s: the filter's yaw-bias std is the residual bias prior, but never tighter than this (the
 #: filter's bias state is itself corrected during the window, by up to its std at any time)
 BIAS_FLOOR = math.radians(0.005)
+#: the fit's scale is applied to the gyro once it is this many of its stds from zero: resolved at
+#: 3 sigma it is a property of the sensor, not the fit's noise (on Revs, whose gyro has no scale
+#: error, applying the fit from one std on -- +0.3 +- 0.16 % for a while -- took the heading RMS
+#: from 0.153 to 0.22 deg); below it the gyro is left as it reads and the term keeps the whole
+#: |s_hat| + std, as before
+APPLY_SIGMA = 3.0
+
+#: a restored scale's std is never below this: a MEMS gyro's sensitivity moves by about 0.1 %
+#: with temperature between drives, and the restored value is itself the fit's estimate, biased low
+#: by ~10 % of the scale where the filter's yaw-bias state took part of it; 0.2 % also lets a
+#: circle's courses (std ~0.1 % within a minute) override it when the sensor changed
+RESTORE_FLOOR = 0.002
 
 
 class YawScaleCheck:
@@ -62,10 +84,23 @@ class YawScaleCheck:
 
     N = 5
 
-    def __init__(self, lever_x: float):
+    def __init__(self, lever_x: float, prior: tuple[float, float] | None = None):
         self.lever_x = lever_x
         self.info = np.zeros((self.N, self.N))
         self.rhs = np.zeros(self.N)
+        self.scale = 0.0
+        self.scale_sd = SCALE_PRIOR
+        # what the learned-state file restored: the scale's information, forgotten as the fixes' is
+        # (kept apart: dropped at once if this drive's own fixes disagree with it, a changed sensor)
+        self.restored = prior is not None
+        self.r_info = self.r_rhs = 0.0
+        if self.restored:
+            s0, sd0 = float(prior[0]), max(float(prior[1]), RESTORE_FLOOR)
+            self.r_info = 1.0 / sd0 ** 2
+            self.r_rhs = s0 / sd0 ** 2
+            info = self.r_info + 1.0 / SCALE_PRIOR ** 2  # with the prior, as _solve combines them
+            self.scale = float(self.r_rhs / info)
+            self.scale_sd = math.sqrt(1.0 / info)
         self.t_run = 0.0
         self.t_last = -math.inf
         self.psi_gyro = 0.0
@@ -75,8 +110,6 @@ class YawScaleCheck:
         self.gated = 0
         self.theta = np.zeros(self.N)
         self.cov = None
-        self.scale = 0.0
-        self.scale_sd = SCALE_PRIOR
 
     def restart(self) -> None:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
@@ -101,10 +134,12 @@ class YawScaleCheck:
             turned = float(np.sum(r_steps)) * dt
             self.psi_gyro -= turned  # clockwise, as the heading
             self.yaw_int += turned
-        if self.n and t > self.t_last:
+        if (self.n or self.restored) and t > self.t_last > -math.inf:
             f = math.exp(-(t - self.t_last) / WINDOW_S)
             self.info *= f
             self.rhs *= f
+            self.r_info *= f
+            self.r_rhs *= f
         self.k_last = k
         self.t_last = t
         h = np.array((1.0, t - self.t_run, self.yaw_int, ratio, -r))
@@ -140,11 +175,28 @@ class YawScaleCheck:
                                            1.0 / max(latency_std_s, 1e-3) ** 2))
         if cov is None:
             return
-        self.theta = cov @ self.rhs
+        theta = cov @ self.rhs
+        if self.r_info:
+            # the restored scale as one more observation of s (information form: a rank-1 update);
+            # dropped for good where this drive's own fit disagrees with it beyond 3 sigma
+            s0 = self.r_rhs / self.r_info
+            if (theta[2] - s0) ** 2 > 9.0 * (cov[2, 2] + 1.0 / self.r_info):
+                self.r_info = self.r_rhs = 0.0
+            else:
+                c = cov[:, 2].copy()
+                g = c / (cov[2, 2] + 1.0 / self.r_info)
+                theta = theta + g * (s0 - theta[2])
+                cov = cov - np.outer(g, c)
+        self.theta = theta
         self.cov = cov
         self.scale = float(self.theta[2])
         self.scale_sd = math.sqrt(max(cov[2, 2], 0.0))
 
-    def scale_std(self) -> float:
-        """The scale error the core grows vy's std by (see the module docstring)."""
-        return max(abs(self.scale) + self.scale_sd, BANK_TILT_SCALE)
+    def applied(self) -> float:
+        """The scale the core applies to the gyro: s_hat once resolved (APPLY_SIGMA), else 0."""
+        return self.scale if abs(self.scale) > APPLY_SIGMA * self.scale_sd else 0.0
+
+    def scale_std(self, applied: float = 0.0) -> float:
+        """The scale error left with ``applied`` on the gyro (the core uses the whole, applied = 0:
+        see the module docstring)."""
+        return max(abs(self.scale - applied) + self.scale_sd, BANK_TILT_SCALE)
