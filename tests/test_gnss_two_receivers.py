@@ -48,6 +48,9 @@ def test_replay_identifies_each_receivers_latency_on_its_own(drive):
     assert rows_both["samples"] > 1.9 * rows_one["samples"]  # both captures read, both parsed
     assert rows_both["fused"] > 1.8 * rows_one["fused"]  # and both fused
     assert one["learned"]["gnss_delay_s_1"] == 0.3  # the second receiver: nothing to learn from
+    # the per-drive stiffness regression considers one latency: the first receiver's, never the
+    # other's (fed both, it jumped by 0.07 s at every other fix and moved its estimate with it)
+    assert both["learned_std"]["kappa_drive_latency_s"] == pytest.approx(learned["gnss_delay_s"], abs=1e-9)
 
 
 def test_a_heading_only_receiver_gives_no_velocity(drive):

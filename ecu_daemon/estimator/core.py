@@ -204,6 +204,8 @@ class Estimator:
         # time of validity through the same history; the first is the primary one (published latency)
         receivers = gn.receivers()
         self.uses_velocity = [rx.role == "velocity" for rx in receivers]
+        # the receiver whose fixes teach the per-drive stiffness regression (one latency: see _on_gnss)
+        self.stiffness_source = self.uses_velocity.index(True)
         self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
                                            gn.max_delay_s, gn.estimate_delay,
                                            prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf),
@@ -1144,8 +1146,13 @@ class Estimator:
                 xs = h.X[i]
                 self.single_track.adapt_from(xs[VX], xs[VY], h.P[i][VY, VY], a[AUX_R], a[AUX_AY],
                                              a[AUX_RDOT], a[AUX_DELTA])
-                self.stiffness.observe(h, s, fus.course(g), speed, fus.sigma(g), fus.lever_x, lat.delay_s, lat.std_s,
-                                       self.steer_offset / self.steer_ratio)
+                # The first velocity receiver's samples only: the regression considers one latency (a
+                # state every estimate moves with, S per second of it), and each receiver has its own
+                # clock. Fed by two (two_rx_slalom: 0.33 s and 0.39 s identified), every other fix
+                # moved the estimate by S x 0.06 s and back: k_r 16 % (lat13) or 31 % (main) off.
+                if g.source == self.stiffness_source:
+                    self.stiffness.observe(h, s, fus.course(g), speed, fus.sigma(g), fus.lever_x, lat.delay_s,
+                                           lat.std_s, self.steer_offset / self.steer_ratio)
                 if self.delay_compensation:  # the regression is only right where samples sit at their time
                     self.single_track.take_drive_estimate(self.stiffness.model_parameters())
         self.last_gnss_rejected = not ok
