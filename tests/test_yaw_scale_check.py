@@ -199,3 +199,70 @@ def test_a_real_gyro_scale_error_is_not_wrong_while_valid(tmp_path, name):
     assert row["sideslip_coverage_3sigma"] >= 0.99 and row["heading_coverage_3sigma"] >= 0.99
     assert row["sideslip_worst_valid_deg"] < 2.0 and row["heading_worst_valid_deg"] < 5.0
     assert row["sideslip_valid_above_5mps"] > 0.5  # not bought by never promising it
+
+
+def _drive_step(scale_after: float, t_step: float, r_of_t, duration: float, course_noise: float = 0.0,
+                seed: int = 3):
+    """As ``_drive`` (no bias), the gyro reading exact until t_step and (1 + scale_after) r from then
+    on (a temperature jump, a swapped sensor); returns the check and its scale_std() over time."""
+    rng = np.random.default_rng(seed)
+    chk = YawScaleCheck(0.0)
+    psi = 0.3
+    k = 0
+    t = 0.0
+    trace = []
+    while t < duration:
+        rs = []
+        for _ in range(STEPS):
+            k += 1
+            t = k * DT
+            r_true = r_of_t(t)
+            psi -= r_true * DT
+            rs.append((1.0 + (scale_after if t >= t_step else 0.0)) * r_true)
+        course = psi + course_noise * rng.standard_normal()
+        chk.observe(t, k, DT, np.array(rs), course, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02,
+                    math.radians(0.01))
+        trace.append((t, chk.scale, chk.scale_std()))
+    return chk, trace
+
+
+@pytest.mark.parametrize("scale_after", [-0.03, 0.02])
+def test_a_scale_step_mid_drive_is_detected_and_relearned(scale_after):
+    # 60 s of an exact gyro (the fit is sure of 0 % within ~0.1 %), then a step: the 300 s window
+    # alone would hold the old scale for minutes (on integ 546e586 its scale_std stayed near 0.2 %
+    # while the gyro was 2-3 % off); the detector forgets it within seconds and the refit learns the new one
+    chk, trace = _drive_step(scale_after, 60.0, _circle_with_speed_changes, 150.0,
+                             course_noise=math.radians(0.3))
+    true = scale_after / (1.0 + scale_after)
+    assert chk.changes >= 1
+    # from 10 s after the step on, the published scale covers the new error
+    after = [sd for t, _, sd in trace if t > 70.0]
+    assert min(after) >= abs(true) * 0.9
+    # and the fit has relearned the new scale by the end
+    assert abs(chk.scale - true) < 3.0 * chk.scale_sd + 0.002
+
+
+@pytest.mark.parametrize("scale", [0.0, 0.01, -0.03])
+def test_a_constant_scale_does_not_trigger_the_change_detector(scale):
+    # 5 minutes of a circle with speed changes and course noise: a constant scale (learned or not)
+    # is no change
+    chk = _drive(scale, _circle_with_speed_changes, 300.0, course_noise=math.radians(0.3))
+    assert chk.changes == 0
+
+
+@pytest.mark.parametrize("name,at_s,factor", [("gyro_step_+2pct_at35", 35.0, 1.02), ("gyro_step_-3pct_at45", 45.0, 0.97)])
+def test_a_gyro_scale_step_mid_drive_is_not_wrong_while_valid(tmp_path, name, at_s, factor):
+    # end to end: the suite's 40 m circle (circle_dry) with an exact gyro that steps to x1.02 at 35 s
+    # / x0.97 at 45 s. On integ 546e586 (the 300 s fit holding the old scale, nothing detecting the
+    # step): sideslip within 3 sigma 87.9 / 83.2 %, heading 91.4 / 81.3 %, worst valid 2.95 / 5.31 deg
+    # sideslip and 4.02 / 6.20 deg heading.
+    from ecu_daemon.sim.sensors import Fault
+    from ecu_daemon.sim.suite import SuiteCase, _base
+    from ecu_daemon.suite import run_case
+
+    case = SuiteCase(name, "gyro_scale", _base(name, "circle_dry",
+                                               sensor_faults=(Fault("yaw_rate", "scaled", at_s, 1e4, factor),)))
+    row = run_case(case, tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["sideslip_coverage_3sigma"] >= 0.99 and row["heading_coverage_3sigma"] >= 0.99
+    assert row["sideslip_worst_valid_deg"] < 2.0 and row["heading_worst_valid_deg"] < 5.0

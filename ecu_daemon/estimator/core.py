@@ -228,6 +228,7 @@ class Estimator:
         # the scale applied to the gyro (r = r_m (1 - applied)) and, per history slot, the one each
         # step ran with: the fit reads the raw gyro back from the stored corrected rates
         self.yaw_scale_ring = np.zeros(self.hist.n)
+        self.yaw_scale_changes = 0
         self._set_yaw_scale()
         self.lever_flagged = False  # a lever arm found wrong: its course error goes into the heading std
         self.latency = self.latencies[0]
@@ -1207,6 +1208,9 @@ class Estimator:
             ysc.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
                         vx_s, vy_m, float(a[AUX_R]), fus.lever_y, lat.std_s,
                         math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std)
+            e = ysc.take_change()
+            if e:  # the gyro's scale changed (yaw_scale_check.py): what it turned wrong is in the state
+                self._widen_for_scale_change(s, e, vx_s)
             self._set_yaw_scale()
         if chk.suspected:
             self.lever_flagged = True
@@ -1214,6 +1218,19 @@ class Estimator:
             log.warning("GNSS receiver %d: courses against the gyro say the configured antenna lever arm x = %.2f m "
                         "is %.2f m (+- %.2f) off, or the latency (%.2f s) is far off: heading not promised in corners",
                         g.source, fus.lever_x, chk.dx, chk.dx_std, lat.delay_s)
+
+    def _widen_for_scale_change(self, s: int, e: float, vx: float) -> None:
+        """A detected scale change left a heading error of about e (rad, the fit's residual) in
+        heading and vy together: a yaw-rate error moves psi by -d dt and vy by -d vx dt, the
+        direction a steady corner's course cannot see. Grown once along it at the fix's step (and
+        carried to the present); later courses and the single-track model take it out again."""
+        u = np.zeros(NX)
+        u[PSI] = e
+        u[VY] = e * vx
+        self.hist.correct(s, np.zeros(NX), -np.outer(u, u))
+        self.yaw_scale_changes += 1
+        log.warning("gyro: courses say the yaw-rate scale changed (heading %.2f deg off): relearning it",
+                    math.degrees(e))
 
     def _set_yaw_scale(self) -> None:
         """The receiver whose fit knows the scale best sets what is applied to the gyro and the

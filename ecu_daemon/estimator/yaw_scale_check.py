@@ -40,6 +40,16 @@ The scale is a sensor constant: the learned-state file keeps s_hat and its std, 
 starts the fit from them (``prior``): as information the fit had gathered, forgotten over WINDOW_S
 like the rest (a gyro replaced or re-mounted between drives is relearned, not held by a fixed
 prior), never tighter than RESTORE_FLOOR.
+
+A scale that *changes* mid-drive (a temperature jump, a sensor swap, the start of a bank) is not
+followed by a 300 s memory: the fit keeps the old scale and its residuals run away in one direction
+(a 2 % step on a 0.3 rad/s circle turns the heading 0.34 deg/s away), until the 5-sigma gate drops
+every fix. A two-sided CUSUM on the normalised residuals (gated fixes included: they are the
+signal) detects it (``changed``). The response: the scale's information is forgotten (marginalised
+out like a run's offset, the bias, dx and latency information kept), a restored scale dropped, a
+new run opened, and the step's size (the residual over the yaw integrated since the CUSUM last
+sat at zero, the change point's estimate) is published on the scale until the refit resolves it.
+The core widens vy's and the heading's std by the heading error found at once (``take_change``).
 """
 from __future__ import annotations
 
@@ -77,6 +87,19 @@ APPLY_SIGMA = 3.0
 #: circle's courses (std ~0.1 % within a minute) override it when the sensor changed
 RESTORE_FLOOR = 0.002
 
+#: CUSUM drift per fix, in residual stds: the fix variance is already inflated by CORR_FIXES for
+#: the correlated course noise, so a fit with no change has |e| / std around 1 / sqrt(CORR_FIXES)
+#: (0.45); the single-track model's bias over a corner can hold it near that for seconds, so 0.75
+#: std per fix is subtracted and only a residual beyond that accumulates
+CUSUM_DRIFT = 0.75
+#: CUSUM alarm: 15 residual stds accumulated beyond the drift (about 20 fixes, 2 s at 10 Hz, of a
+#: residual at 1.5 std: a heading ~1.5 course stds off for seconds); on synthetic circles with course
+#: noise up to 1 deg and constant scales up to 3 % it never fired in 300 s, a drift of 0.5 with an
+#: alarm of 10 did
+CUSUM_ALARM = 15.0
+#: a residual counts at most this many stds: one wild fix (a multipath course) must not alarm alone
+CUSUM_CLIP = 8.0
+
 
 class YawScaleCheck:
     """One receiver's course-against-gyro scale fit (information form, exponentially forgotten):
@@ -110,6 +133,14 @@ class YawScaleCheck:
         self.gated = 0
         self.theta = np.zeros(self.N)
         self.cov = None
+        # scale-change detection (module docstring): CUSUM sums, the yaw integral where each last
+        # sat at zero (the change point's estimate), alarms, the step's size, the heading error
+        # found at the alarm (rad) for the core to take once
+        self.cusum_hi = self.cusum_lo = 0.0
+        self.int_hi = self.int_lo = 0.0
+        self.changes = 0
+        self.step = 0.0
+        self.change_heading = 0.0
 
     def restart(self) -> None:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
@@ -150,15 +181,52 @@ class YawScaleCheck:
         # the model's error is a bias over a corner (its offset and, as the speed changes, part of
         # its slope are the fit's own columns): counted as fix noise correlated like the course's
         var = ((sigma_v / speed) ** 2 + COURSE_NOISE_RAD ** 2 + (vy_std / vx) ** 2) * CORR_FIXES
+        if new_run:
+            self.cusum_hi = self.cusum_lo = 0.0
+            self.int_hi = self.int_lo = 0.0
         if not new_run and self.cov is not None:
             e = z - pred
-            if e * e > GATE_SIGMA ** 2 * (var + float(h @ self.cov @ h)):
+            sv = var + float(h @ self.cov @ h)
+            if self._cusum(e, sv, course + beta):
+                return
+            if e * e > GATE_SIGMA ** 2 * sv:
                 self.gated += 1
                 return
         self.info += np.outer(h, h) / var
         self.rhs += h * (z / var)
         self.n += 1
         self._solve(latency_std_s, bias_std)
+
+    def _cusum(self, e: float, sv: float, psi0: float) -> bool:
+        """Accumulate the normalised residual; on an alarm forget the scale and open a new run
+        (True: this fix starts it and is not fitted against the old scale)."""
+        u = max(-CUSUM_CLIP, min(CUSUM_CLIP, e / math.sqrt(sv)))
+        self.cusum_hi = max(0.0, self.cusum_hi + u - CUSUM_DRIFT)
+        self.cusum_lo = max(0.0, self.cusum_lo - u - CUSUM_DRIFT)
+        if self.cusum_hi == 0.0:
+            self.int_hi = self.yaw_int
+        if self.cusum_lo == 0.0:
+            self.int_lo = self.yaw_int
+        if max(self.cusum_hi, self.cusum_lo) < CUSUM_ALARM:
+            return False
+        turned = abs(self.yaw_int - (self.int_hi if self.cusum_hi >= CUSUM_ALARM else self.int_lo))
+        self.changes += 1
+        # the heading error the old scale left since the change, and the step (its size per radian
+        # turned since the change point; at least the prior: a step too small to size is not zero)
+        self.change_heading = max(self.change_heading, abs(e))
+        self.step = max(abs(e) / max(turned, 1e-3), SCALE_PRIOR)
+        forget_column(self.info, self.rhs, 2)
+        self.r_info = self.r_rhs = 0.0
+        self.restored = False
+        self._new_run(psi0)
+        self.cusum_hi = self.cusum_lo = 0.0
+        self.int_hi = self.int_lo = 0.0
+        return True
+
+    def take_change(self) -> float:
+        """The heading error (rad) an alarm found, once (the core widens its covariance by it)."""
+        e, self.change_heading = self.change_heading, 0.0
+        return e
 
     def _new_run(self, psi0: float) -> None:
         """A new gyro integral and offset: the old offset is marginalised out (Schur complement),
@@ -198,5 +266,21 @@ class YawScaleCheck:
 
     def scale_std(self, applied: float = 0.0) -> float:
         """The scale error left with ``applied`` on the gyro (the core uses the whole, applied = 0:
-        see the module docstring)."""
-        return max(abs(self.scale - applied) + self.scale_sd, BANK_TILT_SCALE)
+        see the module docstring); after a detected change at least the step until the refit
+        resolves the new scale."""
+        if self.step and self.applied():
+            self.step = 0.0
+        return max(abs(self.scale - applied) + self.scale_sd, BANK_TILT_SCALE, self.step)
+
+
+def forget_column(info: np.ndarray, rhs: np.ndarray, j: int) -> None:
+    """Forget unknown j of an information-form fit in place (its Schur complement), keeping what the
+    data said about the others; it restarts from its prior (the solve's regularisation)."""
+    a = info[j, j]
+    if a > 0.0:
+        c = info[j].copy()
+        info -= np.outer(c, c) / a
+        rhs -= c * (rhs[j] / a)
+    info[j, :] = 0.0
+    info[:, j] = 0.0
+    rhs[j] = 0.0
