@@ -144,3 +144,26 @@ def test_learning_never_widens_the_model_error_and_residuals_can():
     # residuals that show the law worse than its prior (twice its std) count on top of the prior
     st.rear.rel_var = 4.0 * st.rear.rel_var0
     assert _var(st, 20.0, 3.0)[0] > untaught
+
+
+def test_live_rls_learns_only_where_the_data_saw_vy():
+    """learn14: in a steady single-antenna corner only the model holds vy (a heading error, vy off
+    by vx d_psi and a body-fixed accelerometer bias explain the same fixes): no RLS step there; a
+    transient (the lateral load changed by half within the window) or a fresh dual-antenna heading
+    lets it learn."""
+    from ecu_daemon import config as config_mod
+    from ecu_daemon.estimator.core import LEARN_EXCITE_FIXES
+    est = Estimator(config_mod.Config())
+    k, dt = 100_000, est.dt
+    steady = [est._vy_seen_by_data(k + 33 * i, 15.0, 3.0, 0.0) for i in range(3 * LEARN_EXCITE_FIXES)]
+    assert not any(steady)
+    assert est._vy_seen_by_data(k + 33 * 3 * LEARN_EXCITE_FIXES, 15.0, 6.0, 0.0)  # a transient
+    est.learn_phi.clear()
+    est.last_heading_fused_t = (k + 1000) * dt  # a second antenna measures the heading
+    assert est._vy_seen_by_data(k + 1000, 15.0, 3.0, 0.0)
+    st = _fusion()
+    vx, ay = 20.0, 3.0
+    st.adapt_from(vx, 0.01, 0.05 ** 2, ay / vx, ay, 0.0, math.nan, False)
+    assert st.rear.updates == 0
+    st.adapt_from(vx, 0.01, 0.05 ** 2, ay / vx, ay, 0.0, math.nan, True)
+    assert st.rear.updates == 1

@@ -105,6 +105,18 @@ GNSS_CONFLICT_S = 8.0
 TURN_MEMORY_S = 5.0  # how long a heading error from a latency error outlives the turn (GNSS corrects it)
 SLIP_MEMORY_S = 1.0  # how long a slip bias outlives the braking (the wheels pull vx back)
 COURSE_FLOOR_RAD = math.radians(0.3)  # course errors the speed accuracy does not cover (multipath)
+# The live stiffness RLS learns from the filter's vy only where the data, not the single-track
+# model, told vy (issue 7, learn14). With one antenna in a steady corner GNSS does not see vy: a
+# heading error d_psi, vy off by vx d_psi and a body-fixed accelerometer bias explain the same fixes,
+# and only the model's pseudo-measurement holds vy there, so the RLS fitted the model to itself
+# (mu03_circle with an honest 0.013 s latency std: 121 correlated updates counted as independent,
+# C_r +22 %). That mode breaks when the body-frame acceleration turns (a heading error then rotates a
+# different vector than the bias is): learn only if the rear regressor (~ the lateral load, ay and
+# vx) changed by half its size over the last LEARN_EXCITE_FIXES fused fixes (2 s at 5 Hz, the
+# length of a transient), or a dual-antenna heading (which measures d_psi) was fused within
+# GNSS_FRESH_S.
+LEARN_EXCITE_FIXES = 10
+LEARN_EXCITE_REL = 0.5
 HEADING_FRESH_S = 2.0  # a dual-antenna heading this recent, not the course, sets the heading std
 MAG_LEARN_SPEED = 5.0  # m/s: the GNSS course (so the filter's heading) is good enough to learn the offset from
 MAG_LEARN_STD = math.radians(1.0)  # ... and the filter's heading std is below this
@@ -253,6 +265,7 @@ class Estimator:
                                          gn.baseline_tol_m, gn.max_heading_acc_deg, gn.nmea_heading_acc_deg,
                                          es.gnss_gate_sigma)
         self.last_heading_fused_t = -math.inf
+        self.learn_phi = deque(maxlen=LEARN_EXCITE_FIXES)  # the rear regressor at the last fused fixes
         # the optional magnetometer ([inputs.mag_x/y/z]): None when not mapped
         self.mag = None
         if all(n in cfg.inputs for n in ("mag_x", "mag_y", "mag_z")):
@@ -1052,6 +1065,15 @@ class Estimator:
             return vel[0].std_s
         return max(lat.std_s for lat in vel)
 
+    def _vy_seen_by_data(self, k: int, vx: float, ay: float, rdot: float) -> bool:
+        """Whether this fix's vy is the data's rather than the model's (LEARN_EXCITE_FIXES)."""
+        phi = self.single_track.regressor_rear(vx, ay, rdot)
+        hist = self.learn_phi
+        hist.append(phi)
+        if k * self.dt - self.last_heading_fused_t <= GNSS_FRESH_S:
+            return True
+        return len(hist) == hist.maxlen and max(hist) - min(hist) >= LEARN_EXCITE_REL * abs(phi)
+
     def _consider(self, rx: int, lat: LatencyEstimator) -> LatencyConsider | None:
         """Receiver rx's latency-error state, synchronised with its latency estimate (None without
         delay compensation: then the error is the whole latency, not a small unknown)."""
@@ -1146,7 +1168,8 @@ class Estimator:
                 a = h.aux[i]
                 xs = h.X[i]
                 self.single_track.adapt_from(xs[VX], xs[VY], h.P[i][VY, VY], a[AUX_R], a[AUX_AY],
-                                             a[AUX_RDOT], a[AUX_DELTA])
+                                             a[AUX_RDOT], a[AUX_DELTA],
+                                             self._vy_seen_by_data(k, xs[VX], a[AUX_AY], a[AUX_RDOT]))
                 # The first velocity receiver's samples only: the regression considers one latency (a
                 # state every estimate moves with, S per second of it), and each receiver has its own
                 # clock. Fed by two (two_rx_slalom: 0.33 s and 0.39 s identified), every other fix

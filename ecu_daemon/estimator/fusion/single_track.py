@@ -305,11 +305,14 @@ class SingleTrackFusion:
         return kalman.index_update(x, P, vy_m + shift - x[VY], VY, var * var_scale / every, 0.0, A)
 
     def adapt_from(self, vx: float, vy: float, var_vy: float, r: float, ay: float, rdot: float,
-                   delta: float) -> None:
-        """RLS step for both axles from a well-estimated (GNSS-fused) kinematic vy."""
+                   delta: float, seen_by_data: bool = True) -> None:
+        """RLS step for both axles from a well-estimated (GNSS-fused) kinematic vy;
+        ``seen_by_data``: the caller's word that the data, not this model, told vy (core.py
+        LEARN_EXCITE_FIXES): the variance alone cannot say, as this model's pseudo-measurement
+        narrows it too."""
         # Learn only from a sideslip the kinematic filter really observes: a steady circle with
         # free accelerometer biases is not (heading error and rotated biases trade off).
-        if not self.adapt or vx < 8.0 or var_vy > 0.06 ** 2:
+        if not self.adapt or not seen_by_data or vx < 8.0 or var_vy > 0.06 ** 2:
             return
         n2 = (ay / G) ** 2
         rv = var_vy + 0.05 ** 2
