@@ -981,7 +981,7 @@ class Estimator:
         # grown in P: grown there with vy along the direction course cannot see, the single-track
         # model's errors reached the heading through the correlation, Revs heading RMS 0.153 -> 0.33)
         e = self.yaw_scale_std * self.turn_lp * TURN_MEMORY_S
-        psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor ** 2 + e * e)
+        psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))

@@ -9,8 +9,10 @@ cdef class RoadAttitude:
     cdef public object elevation_fused, elevation_rejected, fy_lp, grade, gyro, roll, roll_bias0
     cdef public object roll_gyro_params, roll_std, vertical_fused, vertical_zero
     # every step: the lateral force and its low-pass as C doubles (the same IEEE operations as the
-    # .py's floats and numpy float64 scalars; fabs/pow(x, 2.0) as Python's; see fault_detection.pxd)
-    @cython.locals(fy=double, lp=double, k2=double)
+    # .py's floats and numpy float64 scalars; fabs as Python's; see fault_detection.pxd). Never
+    # x ** 2 of a C double: gcc makes pow(x, 2.0) x * x, Python's libm pow differs in the last bit
+    # for ~0.1 % of x (dlc_dry once: roll_std 1 ulp off at one step); write x * x in the .py
+    @cython.locals(fy=double, lp=double, k2=double, d=double)
     cpdef set_roll(self, ay_m, g_ay, var_gay, ay_doubt=*)
 
 

@@ -273,7 +273,9 @@ class RoadAttitude:
         lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
         self.roll = g_ay / G * lp
         k2 = (g_ay * g_ay + var_gay) / (G * G)  # the roll gradient's square, its uncertainty included
-        self.roll_std = math.sqrt((lp / G) ** 2 * (var_gay + GAIN_FLOOR ** 2) + k2 * (fy - lp) ** 2
+        d = fy - lp  # squared as d * d: compiled, gcc turns pow(d, 2.0) into d * d, which differs
+        # from Python's d ** 2 (libm pow) in the last bit for ~1 in 1000 values
+        self.roll_std = math.sqrt((lp / G) ** 2 * (var_gay + GAIN_FLOOR ** 2) + k2 * (d * d)
                                   + k2 * (self.bank.P[1, 1] + ay_doubt * ay_doubt))
         if self._ring is not None:
             self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
