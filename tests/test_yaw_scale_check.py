@@ -10,11 +10,12 @@ DT = 0.006
 STEPS = 17  # ~0.1 s between fixes
 
 
-def _drive(scale: float, r_of_t, duration: float, bias: float = 0.0, course_noise: float = 0.0, seed: int = 1):
+def _drive(scale: float, r_of_t, duration: float, bias: float = 0.0, course_noise: float = 0.0, seed: int = 1,
+           chk: YawScaleCheck | None = None):
     """A car at 10 m/s with zero sideslip turning at r_of_t(t); the gyro reads (1 + scale) r + bias and
     the filter's bias correction is exact up to ``bias`` (the residual the fit must not read as scale)."""
     rng = np.random.default_rng(seed)
-    chk = YawScaleCheck(0.0)
+    chk = YawScaleCheck(0.0) if chk is None else chk
     psi = 0.3
     k = 0
     t = 0.0
@@ -145,17 +146,7 @@ def test_a_restored_scale_is_applied_from_the_start_and_kept_on_straights():
 
 def test_a_restored_scale_is_relearned_when_the_gyro_changed():
     # a restored +1 % on a gyro that now reads -1 % (sensor replaced): the circle overrides the prior
-    chk = YawScaleCheck(0.0, prior=(0.0099, 0.0008))
-    psi, k, t = 0.3, 0, 0.0
-    while t < 90.0:
-        rs = []
-        for _ in range(STEPS):
-            k += 1
-            t = k * DT
-            r_true = _circle_with_speed_changes(t)
-            psi -= r_true * DT
-            rs.append(0.99 * r_true)
-        chk.observe(t, k, DT, np.array(rs), psi, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02, math.radians(0.01))
+    chk = _drive(-0.01, _circle_with_speed_changes, 90.0, chk=YawScaleCheck(0.0, prior=(0.0099, 0.0008)))
     assert abs(chk.scale - (-0.01 / 0.99)) < 3.0 * chk.scale_sd
     assert chk.r_info == 0.0  # the restored scale was dropped: this drive disagreed with it
     assert max(chk.scale_sd, BANK_TILT_SCALE) >= abs(-0.01 / 0.99 - chk.applied())  # the term covers the rest

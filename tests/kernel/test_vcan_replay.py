@@ -130,6 +130,17 @@ def _diag_pages(capture, out_db, t_from: float) -> dict:
     return first, last
 
 
+def _diag_values(capture, out_db, t_from: float, t_to: float) -> dict:
+    """Every value each diagnostics signal took between two capture times (multiplexed pages)."""
+    diag = out_db.get_message_by_name("EST_DIAG")
+    values: dict[str, list] = {}
+    for t, m in capture.of(diag.frame_id):
+        if t_from <= t <= t_to:
+            for k, v in diag.decode(bytes(m.data), decode_choices=False).items():
+                values.setdefault(k, []).append(v)
+    return values
+
+
 def test_diagnostics_clean(run, capture, out_db):
     t0 = run.results["playback_start_realtime"] + 3.0  # inputs and GNSS flowing by then
     first, last = _diag_pages(capture, out_db, t0)
@@ -144,11 +155,17 @@ def test_diagnostics_clean(run, capture, out_db):
     assert last.get("GNSS_SERIAL_CONNECTED") == 1, last
     assert last.get("GNSS_FIX_TYPE") == 3, last
     assert last.get("CAN_BUS_STATE") == 0, last
-    # every input fresh at the end of the drive: received, not merely "no errors counted"
-    ages = {k: v for k, v in last.items() if k.endswith("_AGE") and k != "GNSS_RX_AGE"}
-    assert len(ages) == 8 and all(v < 1000 * harness.GUEST_INPUT_TIMEOUT_S for v in ages.values()), ages
-    rates = {k: v for k, v in last.items() if k.endswith("_RATE") and k != "YAW_RATE"}
-    assert rates and all(v > 50 for v in rates.values()), rates
+    # every input received fresh through the second half of the drive, not merely "no errors counted".
+    # A starved guest runs late (CI once: 39 % of output slots, inputs stale 11 times), so one page
+    # may show an input older than the timeout; an input that stopped decoding is old on every page.
+    end = run.results["playback_start_realtime"] + run.results["playback_s"]
+    values = _diag_values(capture, out_db, t0 + (end - t0) / 2, end)
+    age_keys = sorted(k for k in last if k.endswith("_AGE") and k != "GNSS_RX_AGE")
+    freshest = {k: min(values.get(k, [math.inf])) for k in age_keys}
+    assert len(freshest) == 8 and all(v < 1000 * harness.GUEST_INPUT_TIMEOUT_S for v in freshest.values()), freshest
+    rate_keys = sorted(k for k in last if k.endswith("_RATE") and k != "YAW_RATE")
+    best_rate = {k: max(values.get(k, [0])) for k in rate_keys}
+    assert best_rate and all(v > 50 for v in best_rate.values()), best_rate
     diag = out_db.get_message_by_name("EST_DIAG")
     shown = ("TICK_LATE_P50", "TICK_LATE_P99", "TICK_LATE_MAX", "TICK_OVERRUNS", "CPU_LOAD")
     FACTS.append("vcan replay diagnostics (in UML): " + ", ".join(
