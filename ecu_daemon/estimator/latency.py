@@ -432,6 +432,11 @@ class SpeedIntegral:
         self.n = int(math.ceil(max_delay_s / dt)) + 4
         self.v = np.zeros(self.n)
         self.vel = np.zeros((self.n, 3))  # the filter's vx, vy and the yaw rate: the lever arm's share
+        # the same two arrays as the per-step writer sees them: compiled, typed memoryviews
+        # (latency.pxd), so each step stores four C doubles instead of making two numpy
+        # assignments (one from a tuple); in plain Python just the arrays again
+        self._vm = self.v
+        self._velm = self.vel
         self.total = 0.0
         self.last = -1
         self.first = 0
@@ -451,9 +456,14 @@ class SpeedIntegral:
             self.anchor.clear()
         # the speed's rate d|v|/dt = (vx ax + vy ay) / |v| (turning does not change |v|)
         v = math.hypot(vx, vy)
-        self.total += ((vx * ax + vy * ay) / v if v > 1.0 else ax) * self.dt
-        self.v[k % self.n] = self.total
-        self.vel[k % self.n] = (vx, vy, r)
+        total = self.total + ((vx * ax + vy * ay) / v if v > 1.0 else ax) * self.dt
+        self.total = total
+        i = k % self.n
+        self._vm[i] = total
+        velm = self._velm
+        velm[i, 0] = vx
+        velm[i, 1] = vy
+        velm[i, 2] = r
         self.last = k
 
     def observe(self, receiver: int, k_rx: int, speed: float, lat: LatencyEstimator,

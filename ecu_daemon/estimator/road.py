@@ -90,6 +90,11 @@ class _Channel:
     def __init__(self, offset: float, offset_std: float):
         self.x = np.array([0.0, offset])
         self.P = np.diag([ANGLE_PRIOR ** 2, offset_std ** 2])
+        # the same arrays for the every-step readers (std, RoadAttitude.set_roll): compiled, typed
+        # memoryviews (road.pxd) whose reads are C doubles instead of numpy scalars; plain Python:
+        # the arrays again. x and P are only ever changed in place, never rebound
+        self._xm = self.x
+        self._Pm = self.P
         self.updates = 0
         self.floor2 = 0.0  # variance of a bias under the angle no update removes (a mounting elevation)
 
@@ -116,8 +121,8 @@ class _Channel:
     @property
     def std(self) -> float:
         if self.floor2:
-            return math.sqrt(max(self.P[0, 0], 0.0) + self.floor2)
-        return math.sqrt(max(self.P[0, 0], 0.0))
+            return math.sqrt(max(self._Pm[0, 0], 0.0) + self.floor2)
+        return math.sqrt(max(self._Pm[0, 0], 0.0))
 
 
 class BaselineMount:
@@ -269,14 +274,14 @@ class RoadAttitude:
         """Body roll from the measured lateral acceleration ``ay_m`` and the gain state;
         ``ay_doubt`` (m/s^2): how far ``ay_m`` disagrees with its witness (yaw rate x speed), a
         possible error of the force the roll is computed from (a sensor fault not yet isolated)."""
-        fy = (ay_m - self.bank.x[1]) / (1.0 + g_ay)
+        fy = (ay_m - self.bank._xm[1]) / (1.0 + g_ay)
         lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
         self.roll = g_ay / G * lp
         k2 = (g_ay * g_ay + var_gay) / (G * G)  # the roll gradient's square, its uncertainty included
         d = fy - lp  # squared as d * d: compiled, gcc turns pow(d, 2.0) into d * d, which differs
         # from Python's d ** 2 (libm pow) in the last bit for ~1 in 1000 values
         self.roll_std = math.sqrt((lp / G) ** 2 * (var_gay + GAIN_FLOOR ** 2) + k2 * (d * d)
-                                  + k2 * (self.bank.P[1, 1] + ay_doubt * ay_doubt))
+                                  + k2 * (self.bank._Pm[1, 1] + ay_doubt * ay_doubt))
         if self._ring is not None:
             self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
 
