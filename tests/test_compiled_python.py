@@ -2,7 +2,9 @@
 built, the same bytes as the plain-Python run on whole drives, and never a stale rule."""
 from __future__ import annotations
 
+import ast
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -113,8 +115,6 @@ def test_a_module_without_its_source_keeps_its_compiled_code(tmp_path, pure):
 
 def _c_locals(pxd: Path) -> dict[str, set[str]]:
     """Function name -> its locals typed as C numbers by ``@cython.locals`` in a .pxd."""
-    import re
-
     found = {}
     for m in re.finditer(r"@cython\.locals\((.*?)\)\s*\n\s*(?:cp?def)\s+(?:\w+\s+)?(\w+)\(", pxd.read_text(), re.S):
         found[m.group(2)] = {n for n, t in re.findall(r"(\w+)\s*=\s*(\w+)", m.group(1))
@@ -127,8 +127,6 @@ def test_no_c_double_is_squared_with_the_power_operator():
     ``**`` calls libm pow, which differs from x * x in the last bit for ~0.1 % of x. The
     byte-identity test above meets such a value only by chance (it once did: roll_std, 1 ulp, one
     step in 8000), so every power of an expression holding a C-typed local is refused here."""
-    import ast
-
     bad, seen = [], []
     for rel in compiled_python.MODULES:
         py = ROOT / rel
@@ -148,17 +146,17 @@ def test_no_c_double_is_squared_with_the_power_operator():
 
 
 def _is_c(expr, typed: set) -> bool:
-    """Whether Cython evaluates ``expr`` in C: typed locals and number literals joined by
-    arithmetic (an operand that is a Python object, a global or an attribute, makes it Python's)."""
-    import ast
-
-    if isinstance(expr, ast.Name):
-        return expr.id in typed
-    if isinstance(expr, ast.Constant):
-        return isinstance(expr.value, (int, float))
-    if isinstance(expr, ast.UnaryOp):
-        return _is_c(expr.operand, typed)
-    if isinstance(expr, ast.BinOp):
-        return _is_c(expr.left, typed) and _is_c(expr.right, typed) and (
-            not isinstance(expr.left, ast.Constant) or not isinstance(expr.right, ast.Constant))
-    return False
+    """Whether Cython evaluates ``expr`` in C: arithmetic on typed locals and number literals, at
+    least one of them a typed local (a Python object, global or attribute makes it Python's)."""
+    leaves, stack = [], [expr]
+    while stack:
+        e = stack.pop()
+        if isinstance(e, ast.BinOp):
+            stack += [e.left, e.right]
+        elif isinstance(e, ast.UnaryOp):
+            stack.append(e.operand)
+        else:
+            leaves.append(e)
+    names = [e.id for e in leaves if isinstance(e, ast.Name)]
+    numbers = [e for e in leaves if isinstance(e, ast.Constant) and isinstance(e.value, (int, float))]
+    return bool(names) and len(names) + len(numbers) == len(leaves) and all(n in typed for n in names)

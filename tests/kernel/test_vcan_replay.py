@@ -117,21 +117,9 @@ def test_cantools_decode_reads_every_output(run, out_db):
     assert all(int(ln.split("#")[0].split()[-1], 16) in INPUT_IDS for ln in unknown), unknown[:3]
 
 
-def _diag_pages(capture, out_db, t_from: float) -> dict:
-    """Last value of every diagnostics signal seen after ``t_from`` (capture clock)."""
-    diag = out_db.get_message_by_name("EST_DIAG")
-    first, last = {}, {}
-    for t, m in capture.of(diag.frame_id):
-        if t < t_from:
-            continue
-        for k, v in diag.decode(bytes(m.data), decode_choices=False).items():
-            first.setdefault(k, v)
-            last[k] = v
-    return first, last
-
-
-def _diag_values(capture, out_db, t_from: float, t_to: float) -> dict:
-    """Every value each diagnostics signal took between two capture times (multiplexed pages)."""
+def _diag_values(capture, out_db, t_from: float, t_to: float = math.inf) -> dict:
+    """Every value each diagnostics signal took between two capture times, in order (the
+    multiplexed pages each carry some of the signals)."""
     diag = out_db.get_message_by_name("EST_DIAG")
     values: dict[str, list] = {}
     for t, m in capture.of(diag.frame_id):
@@ -143,7 +131,8 @@ def _diag_values(capture, out_db, t_from: float, t_to: float) -> dict:
 
 def test_diagnostics_clean(run, capture, out_db):
     t0 = run.results["playback_start_realtime"] + 3.0  # inputs and GNSS flowing by then
-    first, last = _diag_pages(capture, out_db, t0)
+    after = _diag_values(capture, out_db, t0)
+    first, last = {k: v[0] for k, v in after.items()}, {k: v[-1] for k, v in after.items()}
     assert last, "no diagnostics frames after playback started"
     grew = {k: (first[k], last[k]) for k in last if k.endswith("_ERRORS") and last[k] != first[k]}
     assert not grew, f"error counters grew during a clean drive: {grew}"
