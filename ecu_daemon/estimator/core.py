@@ -50,9 +50,9 @@ from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
-from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
+from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
-from .latency_sensitivity import LatencySensitivity
+from .latency_sensitivity import LatencySensitivity, timing_secant
 from .lateral_noise import LateralNoise
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .yaw_scale_check import YawScaleCheck
@@ -1352,6 +1352,18 @@ class Estimator:
         sp = math.hypot(vn, ve)
         u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)
         across = u1 * an - u0 * ae
+        # the secant over the instants the fix may be from (``timing_secant``), not the tangent
+        # (the velocity change integrated from the stored accelerations: the stored velocities
+        # step where earlier fixes corrected them, which is no motion)
+        lo, hi, span = self._timing_window(s, g, self.latencies[g.source])
+        rows = np.arange(lo, hi + 1) % h.n
+        A = h.aux[rows]
+        rr, rd = A[:, AUX_R], A[:, AUX_RDOT]
+        bx = A[:, AUX_AX] - rd * fus.lever_y - rr * rr * fus.lever_x
+        by = A[:, AUX_AY] + rd * fus.lever_x - rr * rr * fus.lever_y
+        c, sn = np.cos(h.X[rows, PSI]), np.sin(h.X[rows, PSI])
+        a_across = u1 * (bx * c + by * sn) - u0 * (bx * sn - by * c)
+        across = timing_secant(np.cumsum(a_across) * self.dt, s - lo, self.dt, span, across)
         sens.fused(h, s, P_pre, fus._H2, fus._R2, np.array((-across * u1, across * u0)))
 
     def _course_heading(self, s: int, g: GnssSample, fus: GnssVelocityFusion,
@@ -1385,6 +1397,28 @@ class Estimator:
         psi_c += h.X[h.slot(s), PSI] - h.X[h.slot(cs), PSI]  # turned between the two instants
         diff = abs(wrap_pi(self.heading.vehicle_heading(g) - psi_c))
         return diff <= 3.0 * math.sqrt(var + self.heading.sigma(g) ** 2) + COURSE_CONFIRM_RAD
+
+    def _timing_window(self, s: int, g: GnssSample, lat: LatencyEstimator) -> tuple[int, int, float]:
+        """The stored steps lo..hi a fix fused at step s may truly be from, and the span of 3
+        latency sigmas (``timing_secant``): s +- that span, and while the latency is not identified
+        (its std still the prior's: a configured delay is the user's guess) anywhere from
+        max_delay_s before the fix's reception to the reception (never after it)."""
+        h = self.hist
+        k_rx = step_of(g.t, self.dt)
+        span = 3.0 * lat.std_s
+        n = int(math.ceil(span / self.dt))
+        lo, hi = s - n, min(s + n, k_rx)
+        if lat.enabled and lat.std_s >= PRIOR_STD_S:
+            lo, hi = min(lo, k_rx - lat.max_steps), k_rx
+        return max(lo, h.oldest()), max(min(hi, h.last), s), span
+
+    def _course_timing_slope(self, s: int, g: GnssSample, lat: LatencyEstimator, r: float) -> float:
+        """d psi / d d of a heading aligned from the course fused at stored step s: the heading's
+        turn (the gyro's) between s and the course's possible true instants, as a secant."""
+        lo, hi, span = self._timing_window(s, g, lat)
+        h = self.hist
+        turned = np.cumsum(h.aux[np.arange(lo, hi + 1) % h.n, AUX_R]) * self.dt
+        return timing_secant(turned, s - lo, self.dt, span, r)
 
     def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
         """GNSS speed against the wheel speed at its time of validity (scaled by the learned
@@ -1435,7 +1469,7 @@ class Estimator:
         for cons in self.considers:
             cons.set_heading(idx, J)
         if self.lat_sens is not None:
-            self.lat_sens.set_heading(h, idx, J, float(r))
+            self.lat_sens.set_heading(h, idx, J, self._course_timing_slope(s, g, lat, float(r)))
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var
