@@ -584,12 +584,6 @@ class Estimator:
         r_m = held[I_YAW]
         ax_m = held[I_AX]
         ay_m = held[I_AY]
-        age = self.input_age  # each held sample at this step's middle, as the step integrates it
-        if GYRO_AGE_COMPENSATION:
-            r_m = age.at_mid(0, r_m, t)
-        if ACCEL_AGE_COMPENSATION:
-            ax_m = age.at_mid(I_AX - I_YAW, ax_m, t)
-            ay_m = age.at_mid(I_AY - I_YAW, ay_m, t)
         ysa = self.yaw_scale_applied
         if ysa:  # the learned scale error, off the raw gyro (yaw_scale_check.py)
             r_m *= 1.0 - ysa
@@ -648,6 +642,15 @@ class Estimator:
             fdi.bias_relearn = None
             xp[BR] += db
             Pp[BR, BR] += var
+        # Each held IMU sample at this step's middle, as the step integrates it (input_age.py); the
+        # cross-checks above compare it as sampled with the wheels, sampled alike (carried forward
+        # alone, the gyro ran ahead of the wheels in a slide: mu05_outage_30s isolated it)
+        age = self.input_age
+        if GYRO_AGE_COMPENSATION:
+            r_m = age.at_mid(0, r_m, t)
+        if ACCEL_AGE_COMPENSATION:
+            ax_m = age.at_mid(I_AX - I_YAW, ax_m, t)
+            ay_m = age.at_mid(I_AY - I_YAW, ay_m, t)
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]
