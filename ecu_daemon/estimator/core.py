@@ -48,6 +48,7 @@ from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
+from .input_age import InputAge
 from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
@@ -72,6 +73,10 @@ assert I_ROLL > I_MZ  # the magnetometer's axes: I_MX <= j < I_ROLL
 WHEEL_INPUTS = (I_FL, I_FR, I_RL, I_RR)
 assert sorted(WHEEL_INPUTS) == [0, 1, 2, 3]  # wheels first in INPUT_NAMES: one comparison in the hot path
 I_RR_MAX = 3
+# the held gyro / accelerometer samples carried to the middle of the step that integrates them
+# by their own slope (input_age.py): a sample is on average half a CAN period old
+GYRO_AGE_COMPENSATION = True
+ACCEL_AGE_COMPENSATION = True
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
 SIDESLIP_STD_VALID = math.radians(2.0) / 3.0  # 3 sigma inside the 2 deg a valid sideslip promises
@@ -306,6 +311,8 @@ class Estimator:
         self.held_t = [-math.inf] * len(INPUT_INDEX)
         # [imu] off the CG / off the body axes: its samples converted as they enter (None: at the CG)
         self.imu_mount = ImuMount.from_config(cfg.imu, I_YAW, I_AX, I_AY)
+        # the gyro's and accelerometers' held samples taken to each step's middle (input_age.py)
+        self.input_age = InputAge(I_AY - I_YAW + 1, dt)
         self.queue: deque = deque()
         self.k: int | None = None
         # no sample for longer than every timeout: a gap, skipped instead of stepped through
@@ -402,6 +409,8 @@ class Estimator:
                         v = imu.convert(j, ts, v)
                     held[j] = v
                     held_t[j] = ts
+                    if I_YAW <= j <= I_AY:
+                        self.input_age.observe(j - I_YAW, ts, v)
                     if j <= I_RR_MAX:
                         self.wheel_new = True
                     elif j == I_AY:
@@ -507,6 +516,7 @@ class Estimator:
         self.gaps += 1
         self.last_gap = ((k - 1) * self.dt, t_next)
         self.held_t = [-math.inf] * len(self.held_t)
+        self.input_age.reset()
         if self.initialized:
             self._reset(k)
         return step_of(t_next, self.dt) if to_sample else last_step_at(t_next, self.dt)
@@ -572,11 +582,11 @@ class Estimator:
         held = self.held
         held_t = self.held_t
         r_m = held[I_YAW]
+        ax_m = held[I_AX]
+        ay_m = held[I_AY]
         ysa = self.yaw_scale_applied
         if ysa:  # the learned scale error, off the raw gyro (yaw_scale_check.py)
             r_m *= 1.0 - ysa
-        ax_m = held[I_AX]
-        ay_m = held[I_AY]
         tmo = self.timeouts
         imu_ok = (t - held_t[I_YAW] <= tmo[I_YAW] and t - held_t[I_AX] <= tmo[I_AX]
                   and t - held_t[I_AY] <= tmo[I_AY])
@@ -632,6 +642,15 @@ class Estimator:
             fdi.bias_relearn = None
             xp[BR] += db
             Pp[BR, BR] += var
+        # Each held IMU sample at this step's middle, as the step integrates it (input_age.py); the
+        # cross-checks above compare it as sampled with the wheels, sampled alike (carried forward
+        # alone, the gyro ran ahead of the wheels in a slide: mu05_outage_30s isolated it)
+        age = self.input_age
+        if GYRO_AGE_COMPENSATION:
+            r_m = age.at_mid(0, r_m, t)
+        if ACCEL_AGE_COMPENSATION:
+            ax_m = age.at_mid(I_AX - I_YAW, ax_m, t)
+            ay_m = age.at_mid(I_AY - I_YAW, ay_m, t)
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]
