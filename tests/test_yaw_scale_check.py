@@ -181,7 +181,8 @@ def test_a_real_gyro_scale_error_is_not_wrong_while_valid(tmp_path, name):
     # end to end (simulate -> files -> replay -> evaluate): the 40 m circle to 0.65 g with the yaw
     # rate x1.01 / x0.99; before the scale was applied (and published on the heading): sideslip
     # within 3 sigma 93 %, up to 3.2 deg off while valid, heading 30-38 %, up to 4.5 deg.
-    # (+-3 % is not yet: heading within 3 sigma 54-71 %, the suite's gyro_scale_+-3pct)
+    # (+-3 % is not yet: heading within 3 sigma 54-71 % on main 531388f, 84.5-88.6 % realigned to the
+    # scale fit: wrong before the fit resolves the scale; the suite's gyro_scale_+-3pct)
     from ecu_daemon.sim.suite import SUITE
     from ecu_daemon.suite import run_case
 
@@ -190,6 +191,25 @@ def test_a_real_gyro_scale_error_is_not_wrong_while_valid(tmp_path, name):
     assert row["sideslip_coverage_3sigma"] >= 0.99 and row["heading_coverage_3sigma"] >= 0.99
     assert row["sideslip_worst_valid_deg"] < 2.0 and row["heading_worst_valid_deg"] < 5.0
     assert row["sideslip_valid_above_5mps"] > 0.5  # not bought by never promising it
+
+
+@pytest.mark.parametrize("name,rms_deg,valid", [("gyro_scale_+1pct", 0.45, 0.9), ("gyro_scale_-3pct", 1.2, 0.6)])
+def test_the_heading_a_scale_turned_before_it_was_resolved_is_taken_out(tmp_path, name, rms_deg, valid):
+    # end to end, the suite's 40 m circle: before the fit resolves the scale (37 / 31 s) the gyro has
+    # turned heading and vy together by s x its integral, the direction course cannot see on a
+    # circle, and the single-track model alone took tens of seconds to pull it back (on main
+    # 531388f: sideslip RMS 0.71 / 1.60 deg, heading 1.6 / 3.6 deg off at the fit's resolution, still
+    # 1.1 / 2.6 deg off 25 s later; sideslip valid above 5 m/s 71 / 37 %, held invalid by the whole
+    # scale on vy's std). Realigned to the fit's heading when the scale is applied, after which
+    # only the residual scale is published.
+    from ecu_daemon.sim.suite import SUITE
+    from ecu_daemon.suite import run_case
+
+    row = run_case({c.name: c for c in SUITE}[name], tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["sideslip_rms_deg"] < rms_deg
+    assert row["sideslip_coverage_3sigma"] >= 0.99 and row["sideslip_worst_valid_deg"] < 2.0
+    assert row["sideslip_valid_above_5mps"] > valid
 
 
 def _drive_step(scale_after: float, t_step: float, r_of_t, duration: float, course_noise: float = 0.0,

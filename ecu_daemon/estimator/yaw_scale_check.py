@@ -30,9 +30,11 @@ corrected rates divided by the (1 - s_applied) of their step), so the fit keeps 
 whole scale, not the residual of its own correction (no feedback loop). ``scale_std()`` is what the
 core grows vy's std by and publishes on the heading: |s_hat| + std_s, the whole scale even once it
 is applied (what the scale put into heading and vy before it was resolved stays in the state until
-courses and the model have separated it, and the fit reads ~10 % low while the filter's yaw-bias
+courses and the model have separated it, and the fit reads 10-25 % low while the filter's yaw-bias
 state takes a part of s r; narrowed to the residual |s_hat - applied| + std_s the 3 % suite cases
-fell to 50 % within 3 sigma), never below the tilt of a 6 % banked road (BANK_TILT_SCALE: a bank
+fell to 50 % within 3 sigma) until the core has realigned its state to the fit's heading
+(``heading()``, once the scale is applied: ``core.Estimator._realign_to_scale_fit``), then the
+residual with what the fit reads low (``core.YAW_SCALE_FIT_LOW``); never below the tilt of a 6 % banked road (BANK_TILT_SCALE: a bank
 the window has not seen yet), and not capped. Unobserved (no turning yet) it is the prior, so a
 drive without corners publishes what it did before and its gyro is left untouched.
 
@@ -264,6 +266,15 @@ class YawScaleCheck:
         self.cov = cov
         self.scale = float(self.theta[2])
         self.scale_sd = math.sqrt(max(cov[2, 2], 0.0))
+
+    def heading(self, t: float) -> tuple[float, float]:
+        """The heading the fit says at time t of its last fix (rad, as the filter's: the gyro heading
+        + offset + residual bias + s x integral, the courses' lever-arm and latency terms left out)
+        and its variance; NaN before a solve."""
+        if self.cov is None or t != self.t_last:
+            return math.nan, math.nan
+        g = np.array((1.0, t - self.t_run, self.yaw_int, 0.0, 0.0))
+        return self.psi_gyro + float(g @ self.theta), float(g @ self.cov @ g)
 
     def applied(self) -> float:
         """The scale the core applies to the gyro: s_hat once resolved (APPLY_SIGMA), else 0."""
