@@ -259,6 +259,17 @@ def _fmt(v: float, spec: str) -> str:
     return format(v, spec) if isinstance(v, (int, float)) and math.isfinite(v) else "-".rjust(len(format(0.0, spec)))
 
 
+def _compass_deg(rad: float) -> float:
+    """Heading in [0, 360) as printed to 0.1 deg: 359.96 deg reads 0.0, not 360.0."""
+    return round(math.degrees(rad) % 360.0, 1) % 360.0
+
+
+def _valid_or_dash(v: float, valid: bool, spec: str) -> str:
+    """The value when the estimator flags it valid, a dash otherwise: the plain line shows what
+    the bus promises, as the output frame's validity bit does."""
+    return format(v, spec) if valid else "-".rjust(len(format(0.0, spec)))
+
+
 class DemoSession:
     def __init__(self, cfg, sim, *, speed: float = 1.0, tui: bool = True, record_dir=None,
                  out=None, bus_config: dict | None = None) -> None:
@@ -410,9 +421,10 @@ class DemoSession:
             self.out.write(f"t={t:5.1f} s  waiting for the first estimate\n")
         else:
             e, tr = last
-            self.out.write(f"t={t:5.1f} s  sideslip {e.sideslip_rad * DEG:+6.2f} deg"
+            self.out.write(f"t={t:5.1f} s  sideslip {_valid_or_dash(e.sideslip_rad * DEG, e.sideslip_valid, '+6.2f')} deg"
                            f" (truth {tr['sideslip_rad'] * DEG:+6.2f})"
-                           f"  heading {e.heading_rad * DEG:6.1f} deg (truth {tr['heading_rad'] * DEG:6.1f})"
+                           f"  heading {_valid_or_dash(_compass_deg(e.heading_rad), e.heading_valid, '6.1f')} deg"
+                           f" (truth {_compass_deg(tr['heading_rad']):6.1f})"
                            f"  vx {e.vx_mps:5.2f} m/s  RMS sideslip {_fmt(self.truth.rms_sideslip_deg(), '.3f')} deg"
                            f"  tick p99 {self.daemon.tick_stats.snapshot().late_p99_s * 1e6:.0f} us\n")
         self.out.flush()

@@ -45,6 +45,9 @@ def test_plain_output_when_not_a_terminal(capsys):
     out = capsys.readouterr().out
     assert "\x1b[" not in out and "demo summary" in out
     assert re.search(r"^t=\s*[0-9.]+ s", out, re.M)  # periodic plain lines
+    # standing still for the first 3 s: no heading yet, and the line says so instead of a number
+    last = [ln for ln in out.splitlines() if ln.startswith("t=") and "heading" in ln][-1]
+    assert re.search(r"heading\s+- deg \(truth\s+35\.0\)", last), last
 
 
 @pytest.mark.parametrize("args", [["--speed", "0"], ["--speed", "nan"], ["--duration", "0.5"]])
