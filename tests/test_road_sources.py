@@ -302,7 +302,10 @@ def test_with_one_antenna_the_bank_rests_on_the_offset_an_earlier_dual_antenna_d
     daemon reads separates a constant bank from the ay offset (0.15 m/s^2 = 0.88 deg here), so
     cold it is never valid and wrong by about the offset. The same car's learned state after a
     drive whose lateral baseline measured the bank carries the offset (and its std) to the next
-    drive: there the single-antenna bank is valid, within half a degree and its 3 sigma."""
+    drive: there the single-antenna bank is valid, within half a degree and its 3 sigma. Valid
+    until the lane changes: a lane change may cross a crowned road's crest (2.5 % crossfall each
+    way), so b_ay's walk per change of path curvature (estimator/bank_walk.py) lets the bank move
+    there and GNSS has to re-learn it: its std may leave the valid band, never its 3 sigma."""
     dual = next(c.scenario for c in SUITE if c.name == "dual_bank_across").with_(duration_s=30.0)
     cfg = vehicle_config(dual)
     paths = write_all(tmp_path / "dual", simulate(dual, cfg), cfg)
@@ -313,7 +316,8 @@ def test_with_one_antenna_the_bank_rests_on_the_offset_an_earlier_dual_antenna_d
 
     single = next(c.scenario for c in SUITE if c.name == "bank_+6pct").with_(duration_s=30.0)
     cfg = vehicle_config(single)
-    paths = write_all(tmp_path / "single", simulate(single, cfg), cfg)
+    sim = simulate(single, cfg)
+    paths = write_all(tmp_path / "single", sim, cfg)
     rcfg = config_mod.load(paths["config"])
     assert not rcfg.gnss.fuse_baseline_elevation and not rcfg.gnss.baseline_m  # one antenna
     results = {}
@@ -323,5 +327,9 @@ def test_with_one_antenna_the_bank_rests_on_the_offset_an_earlier_dual_antenna_d
         results[name] = evaluate(paths["truth"], out)["bank"]
     cold, warm = results["cold"], results["restored"]
     assert cold["validity"]["valid_fraction_above_5mps"] == 0.0 and cold["rms"] > 0.7 * DEG
-    assert warm["rms"] < 0.5 * DEG and warm["validity"]["valid_fraction_above_5mps"] > 0.9
-    assert warm["validity"]["coverage_3sigma"] >= 0.99
+    assert warm["rms"] < 0.5 * DEG and warm["validity"]["coverage_3sigma"] >= 0.99
+    tr = sim.truth_table()
+    lane_change_t = float(tr["t"][np.argmax(np.abs(tr["yaw_rate_radps"]) > 0.05)])
+    rows = np.genfromtxt(tmp_path / "restored.csv", delimiter=",", names=True)
+    before = (rows["vx_mps"] > 5.0) & (rows["t"] < lane_change_t)
+    assert before.sum() > 500 and rows["bank_valid"][before].mean() > 0.99

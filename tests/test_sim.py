@@ -334,5 +334,6 @@ def test_registry_has_the_named_scenarios():
         assert name in SCENARIOS
     assert SCENARIOS["circle_bank"].bank_rad < 0 < SCENARIOS["dlc_dry_bank"].bank_rad
     assert SCENARIOS["slalom_mu03"].mu == 0.3
-    assert all(30 <= sc.duration() <= 90 for sc in SCENARIOS.values())
+    # the road courses (sim/road.py) run several curves of a real road's length: up to 150 s
+    assert all(30 <= sc.duration() <= (150 if sc.manoeuvre == "road_course" else 90) for sc in SCENARIOS.values())
     assert replace(SCENARIOS["dlc_dry"], duration_s=5.0).duration() == 5.0

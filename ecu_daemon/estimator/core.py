@@ -57,6 +57,7 @@ from .latency_sensitivity import LatencySensitivity, timing_secant
 from .lateral_noise import LateralNoise
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .yaw_scale_check import YawScaleCheck
+from .bank_walk import BankWalk
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import BaselineMount, RoadAttitude
 from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
@@ -352,6 +353,7 @@ class Estimator:
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
+        self.bank_walk = BankWalk(dt)
         self._lp_rdot = dt / (0.05 + dt)
         self.model_inputs = LaggedModelInputs(self._lp_r, self._lp_rdot, dt)  # r, ay at rdot's lag
         self.turn_lp = 0.0  # |yaw rate| over the last seconds (the latency-induced heading error)
@@ -674,6 +676,7 @@ class Estimator:
                 # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
                 e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * x[VX])
                 P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * self.dt) ** 2
+                self.bank_walk.step(P, BAY, x[VX], self.r_lp)  # the road's bank moves where it curves
         if iso:
             self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:

@@ -17,6 +17,7 @@ import bisect
 import math
 from dataclasses import dataclass
 
+from .road import PROFILES
 from .vehicle import G, Commands, VehicleParams, VehicleState
 
 # --------------------------------------------------------------------------------- steering specs
@@ -56,6 +57,15 @@ class Circle:
 
     radius_m: float = 40.0
     left: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class RoadPath:
+    """Follow a road's centreline (``points``: (n, 2) every ``step_m`` in the anchor frame, from
+    :meth:`~ecu_daemon.sim.road.RoadProfile.centreline`)."""
+
+    points: object
+    step_m: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -109,6 +119,7 @@ class Manoeuvre:
     speed_knots: tuple
     phases: tuple
     duration_s: float
+    road: object = None  # a RoadProfile under the whole drive (bank and grade along the distance)
 
     def speed(self, t_rel: float) -> tuple[float, float]:
         """(target speed, target acceleration) at ``t_rel`` seconds after the start."""
@@ -161,6 +172,7 @@ class Driver:
         self.int_v = 0.0
         self.last_t = None
         self.kappa_peak = 2.16 * mu / params.tyre_front.kx1  # slip ratio at peak force (tyre.py)
+        self.road_idx = 0  # RoadPath: index of the centreline point nearest the car
 
     # steering --------------------------------------------------------------------------
     def _phase(self, t_rel: float) -> int:
@@ -187,7 +199,15 @@ class Driver:
         yaw = -(s.psi - a.course)
         v = max(s.vx, 0.0)
         ld = max(6.0, 0.55 * v)
-        if isinstance(spec, Circle):
+        if isinstance(spec, RoadPath):
+            pts = spec.points
+            lo = self.road_idx
+            hi = min(len(pts), lo + 200)
+            d2 = (pts[lo:hi, 0] - x) ** 2 + (pts[lo:hi, 1] - y) ** 2
+            self.road_idx = lo + int(d2.argmin())
+            j = min(len(pts) - 1, self.road_idx + int(round(ld / spec.step_m)))
+            xt, yt = float(pts[j, 0]), float(pts[j, 1])
+        elif isinstance(spec, Circle):
             sign = 1.0 if spec.left else -1.0
             cy = sign * spec.radius_m
             ang = math.atan2(y - cy, x)  # angle of the car around the centre
@@ -409,6 +429,25 @@ def low_speed(mu: float = 1.0, radius_m: float = 15.0, v_max: float = 10.0) -> M
     return Manoeuvre("low_speed", tuple(knots), phases, 75.0)
 
 
+def road_course(mu: float = 1.0, profile: str = "country") -> Manoeuvre:
+    """A drive along a :mod:`road <ecu_daemon.sim.road>` profile whose curvature, bank and grade
+    vary with distance: ``country`` (15-25 m/s, 150 s) or ``handling`` (6-11 m/s, 110 s), from
+    standstill, with speed changes (so GNSS latency and wheel scale stay observable)."""
+    prof = PROFILES[profile]()
+    if profile == "country":
+        v = 14.0 if _low(mu) else 20.0
+        knots = _start(v) + [(25.0, v), (35.0, 1.2 * v), (55.0, 1.2 * v), (65.0, 0.8 * v), (85.0, 0.8 * v),
+                             (95.0, v), (125.0, v), (132.0, 1.2 * v), (142.0, 0.9 * v)]
+        duration = 150.0
+    else:
+        v = 7.0 if _low(mu) else 9.0
+        knots = _start(v) + [(30.0, v), (40.0, 1.2 * v), (55.0, 1.2 * v), (65.0, 0.7 * v), (80.0, 0.7 * v),
+                             (90.0, v)]
+        duration = 110.0
+    phases = (Phase(1e9, RoadPath(prof.centreline(3000.0 if profile == "country" else 1500.0))),)
+    return Manoeuvre(f"road_{profile}", tuple(knots), phases, duration, road=prof)
+
+
 #: manoeuvre kind -> builder(mu, **params) -> Manoeuvre
 BUILDERS = {
     "straight": straight,
@@ -422,4 +461,5 @@ BUILDERS = {
     "flying": flying,
     "reversing": reversing,
     "low_speed": low_speed,
+    "road_course": road_course,
 }

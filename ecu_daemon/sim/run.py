@@ -57,7 +57,10 @@ class SimResult:
         n = len(c("t"))
         const = lambda v: np.full(n, float(v))  # noqa: E731
         vx, vy = c("vx"), c("vy")
-        bx, by = sens.effective_accel_biases(sp, sc.bank_rad, sc.grade_rad, sc.vehicle.roll_gradient_rad_per_g)
+        bank, grade = sens.road_at(tr)
+        if tr.road.profile is not None:  # the road under the car, row by row
+            bank, grade = bank[sl], grade[sl]
+        bx, by = sens.effective_accel_biases(sp, bank, grade, sc.vehicle.roll_gradient_rad_per_g)
         cf, cr = sc.vehicle.axle_cornering_stiffness()
         psi = c("psi")
         cps, sps = np.cos(psi), np.sin(psi)
@@ -78,13 +81,13 @@ class SimResult:
             "yaw_rate_bias_radps": const(sp.yaw_rate_bias_radps),
             "accel_x_bias_mps2": const(sp.accel_x_bias_mps2),
             "accel_y_bias_mps2": const(sp.accel_y_bias_mps2),
-            "accel_x_bias_eff_mps2": const(bx),
-            "accel_y_bias_eff_mps2": const(by),
+            "accel_x_bias_eff_mps2": const(bx) if np.ndim(bx) == 0 else bx,
+            "accel_y_bias_eff_mps2": const(by) if np.ndim(by) == 0 else by,
             "wheel_scale": const(sp.wheel_scale),
             "steering_offset_rad": const(sp.steering_offset_rad),
             "gnss_delay_s": const(gp.latency_s),
-            "bank_rad": const(sc.bank_rad),
-            "grade_rad": const(sc.grade_rad),
+            "bank_rad": const(bank) if np.ndim(bank) == 0 else bank,
+            "grade_rad": const(grade) if np.ndim(grade) == 0 else grade,
             "mu": const(sc.mu),
             "speed_mps": np.hypot(vx, vy),
             "vel_n_mps": vx * cps + vy * sps,
@@ -169,7 +172,7 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
     cfg = config if config is not None else Config()
     man = scenario.build_manoeuvre()
     duration = scenario.duration()
-    road = Road(scenario.mu, scenario.bank_rad, scenario.grade_rad)
+    road = Road(scenario.mu, scenario.bank_rad, scenario.grade_rad, man.road)
     driver = Driver(man, scenario.vehicle, scenario.mu, T0, scenario.grade_rad)
     v0 = man.speed(0.0)[0]
     vy0 = r0 = steer0 = 0.0

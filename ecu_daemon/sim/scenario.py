@@ -111,6 +111,14 @@ def _registry() -> dict[str, Scenario]:
     out["brake_turn_dry"] = Scenario("brake_turn_dry", "brake_turn",
                                      description="braking 18 -> 8 m/s at 5 m/s^2 twice in a 60 m left circle")
     out["demo"] = Scenario("demo", "demo", description="~65 s: straight, lane change, slalom, circle (dry, flat)")
+    # roads whose bank and grade vary along the distance (sim/road.py): crossfall on the straights,
+    # superelevation into the curves over their transitions, grade up and down
+    out["road_country"] = Scenario("road_country", "road_course", params=(("profile", "country"),),
+                                   description="~2.5 km country road, alternating curves R 120-250 m at 15-25 m/s; "
+                                               "2.5 % crossfall, 4-7 % superelevation, grade +-5 %")
+    out["road_handling"] = Scenario("road_handling", "road_course", params=(("profile", "handling"),),
+                                    description="low-speed handling course, curves R 25-45 m at 6-11 m/s; "
+                                                "6-8 % superelevation, grade +-6 %")
     return out
 
 

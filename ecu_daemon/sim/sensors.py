@@ -153,7 +153,7 @@ def magnetometer(truth: TruthArrays, p: MagParams, t: np.ndarray, rng: np.random
     x1 = cps * m_ned[0] + sps * m_ned[1]
     y1 = -sps * m_ned[0] + cps * m_ned[1]
     z1 = np.full_like(psi, m_ned[2])
-    ct, st = math.cos(th), math.sin(th)
+    ct, st = _cos(th), _sin(th)
     x2, z2 = ct * x1 - st * z1, st * x1 + ct * z1
     cr, sr = np.cos(roll), np.sin(roll)
     y3, z3 = cr * y1 + sr * z2, -sr * y1 + cr * z2
@@ -231,6 +231,25 @@ def sample(truth: TruthArrays, name: str, t: np.ndarray) -> np.ndarray:
     return np.interp(t, truth.t, truth.col(name))
 
 
+def road_at(truth: TruthArrays, t: np.ndarray | None = None):
+    """(bank, grade) under the car: the road's constants (floats, so the constant-road drives
+    stay bit for bit as they were), or with a :class:`~ecu_daemon.sim.road.RoadProfile` the truth
+    columns at times ``t`` (``None``: every truth step) as arrays."""
+    if truth.road.profile is None:
+        return truth.road.bank_rad, truth.road.grade_rad
+    if t is None:
+        return truth.col("bank"), truth.col("grade")
+    return sample(truth, "bank", t), sample(truth, "grade", t)
+
+
+def _sin(x):
+    return math.sin(x) if isinstance(x, float) else np.sin(x)
+
+
+def _cos(x):
+    return math.cos(x) if isinstance(x, float) else np.cos(x)
+
+
 class CanSensors:
     """Measured values (SI, ISO 8855) of the estimator's inputs at arbitrary send times."""
 
@@ -276,13 +295,17 @@ class CanSensors:
         if name == "roll_rate" and p.roll_rate:
             # about the body's x axis: the body roll's rate (bank is constant here) plus the turn's
             # share on a grade (Euler kinematics: p = droll/dt + yaw rate * sin(grade))
-            rate = np.gradient(tr.col("roll"), tr.t)
-            return (np.interp(t, tr.t, rate) + sample(tr, "r", t) * math.sin(self.grade_rad)
+            # (with a road profile the bank's rate along the road too)
+            roll = tr.col("roll") if tr.road.profile is None else tr.col("roll") + tr.col("bank")
+            rate = np.gradient(roll, tr.t)
+            grade = self.grade_rad if tr.road.profile is None else sample(tr, "grade", t)
+            return (np.interp(t, tr.t, rate) + sample(tr, "r", t) * _sin(grade)
                     + p.roll_rate_bias_radps + p.roll_rate_noise_radps * noise)
         if name in ("mag_x", "mag_y", "mag_z") and p.magnetometer is not None:
             # the three axes of one frame: one field vector per send time
             if self._mag is None or len(self._mag[0]) != n or not np.array_equal(self._mag[0], t):
-                self._mag = (t.copy(), magnetometer(tr, p.magnetometer, t, self.rng, self.bank_rad, self.grade_rad))
+                bank, grade = (self.bank_rad, self.grade_rad) if tr.road.profile is None else road_at(tr, t)
+                self._mag = (t.copy(), magnetometer(tr, p.magnetometer, t, self.rng, bank, grade))
             return self._mag[1][:, "xyz".index(name[-1])].copy()
         raise KeyError(f"unknown input {name!r}")
 
@@ -297,7 +320,7 @@ class CanSensors:
         roll = tr.col("roll")
         fz = (tr.col("fz_fl") + tr.col("fz_fr") + tr.col("fz_rl") + tr.col("fz_rr")) / tr.params.mass_kg
         acc_z = fz * np.cos(roll) - tr.col("fy") * np.sin(roll)
-        p_rate = np.gradient(roll, tr.t)
+        p_rate = np.gradient(roll if tr.road.profile is None else roll + tr.col("bank"), tr.t)
         r = tr.col("r")
         cols = (tr.col("acc_x"), tr.col("acc_y"), acc_z, p_rate, r, np.gradient(p_rate, tr.t), np.gradient(r, tr.t))
         ax, ay, az, p, r, pdot, rdot = (np.interp(t, tr.t, c) for c in cols)
@@ -346,8 +369,8 @@ def antenna_height(truth: TruthArrays, lever_arm_m: tuple, tv: np.ndarray) -> np
     """The antenna's true height (m) above where the drive started, at times ``tv``: its up
     velocity (grade along x, bank along y, as velD's) integrated over the truth's steps."""
     lx, ly = lever_arm_m
-    sg, sb = math.sin(truth.road.grade_rad), math.sin(truth.road.bank_rad)
-    cg = math.cos(truth.road.grade_rad)
+    bank, grade = road_at(truth)
+    sg, sb, cg = _sin(grade), _sin(bank), _cos(grade)
     r = truth.col("r")
     up = (truth.col("vx") - r * ly) * sg + (truth.col("vy") + r * lx) * sb * cg
     t = truth.t
@@ -365,7 +388,8 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     vx, vy, r, psi = (sample(truth, c, tv) for c in ("vx", "vy", "r", "psi"))
     north, east = sample(truth, "north", tv), sample(truth, "east", tv)
     lx, ly = params.lever_arm_m
-    cb, cg = math.cos(truth.road.bank_rad), math.cos(truth.road.grade_rad)
+    bank, grade = road_at(truth, tv)
+    cb, cg = _cos(bank), _cos(grade)
     # antenna velocity in the body frame, then horizontal N/E (dpsi/dt = -r: heading is clockwise)
     ux, uy = (vx - r * ly) * cg, (vy + r * lx) * cb
     cps, sps = np.cos(psi), np.sin(psi)
@@ -391,7 +415,7 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
     # vertical: climbing a grade along x, a bank along y (positive bank: left side up). Its noise
     # (1.5 x horizontal, as receivers' vertical is) comes from its own stream seeded by the epoch
     # grid, so adding it left every horizontal draw, and thus every older drive, as it was.
-    sg, sb = math.sin(truth.road.grade_rad), math.sin(truth.road.bank_rad)
+    sg, sb = _sin(grade), _sin(bank)
     vd_true = -((vx - r * ly) * sg + (vy + r * lx) * sb * cg)
     vd = vd_true + 1.5 * params.vel_noise_mps * np.random.default_rng([int(k0), n, 4]).standard_normal(n)
     # height: the true climb plus a Gauss-Markov error (sigma alt_noise_m, pos_tau_s) from its own
@@ -415,9 +439,9 @@ def gnss_epochs(truth: TruthArrays, params: GnssParams, rng: np.random.Generator
         # unit baseline in the body (x forward, y left) is (cos off, -sin off), off clockwise.
         # Noise from its own stream (as velD's), so the older draws stay as they were.
         off = math.radians(params.baseline_offset_deg)
-        phi = truth.road.bank_rad + sample(truth, "roll", tv)
-        gam = truth.road.grade_rad
-        up = math.cos(off) * math.sin(gam) - math.sin(off) * math.cos(gam) * np.sin(phi)
+        phi = bank + sample(truth, "roll", tv)
+        gam = grade
+        up = math.cos(off) * _sin(gam) - math.sin(off) * _cos(gam) * np.sin(phi)
         down = (-params.baseline_m * up
                 + params.down_noise_m * np.random.default_rng([int(k0), n, 6]).standard_normal(n))
     good = np.ones(n, dtype=bool)
@@ -488,8 +512,8 @@ def effective_accel_biases(sp: SensorParams, bank_rad: float, grade_rad: float,
     Sensor bias plus the constant gravity components of grade and bank, including the body roll
     the bank's lateral force causes: the value a constant-bias state converges to.
     """
-    fy = G * math.sin(bank_rad) * math.cos(grade_rad)
-    fz = G * math.cos(bank_rad) * math.cos(grade_rad)
+    fy = G * _sin(bank_rad) * _cos(grade_rad)
+    fz = G * _cos(bank_rad) * _cos(grade_rad)
     roll = roll_gradient_rad_per_g / G * fy
-    return (sp.accel_x_bias_mps2 + G * math.sin(grade_rad),
-            sp.accel_y_bias_mps2 + fy * math.cos(roll) + fz * math.sin(roll))
+    return (sp.accel_x_bias_mps2 + G * _sin(grade_rad),
+            sp.accel_y_bias_mps2 + fy * _cos(roll) + fz * _sin(roll))

@@ -159,6 +159,16 @@ def _low_speed() -> list[SuiteCase]:
     return out
 
 
+def _road_profile() -> list[SuiteCase]:
+    """Roads whose bank and grade vary along the distance, as real roads' do (sim/road.py): the
+    country road (15-25 m/s) with UBX and with NMEA (no vertical velocity: the grade from ax
+    only), and the low-speed handling course (6-11 m/s, the low-speed targets)."""
+    return [SuiteCase("road_country", "road_profile", _base("road_country", "road_country")),
+            SuiteCase("road_country_nmea", "road_profile", _base("road_country_nmea", "road_country",
+                                                                 gnss_protocol="nmea")),
+            SuiteCase("road_handling", "road_profile", _base("road_handling", "road_handling"), low_speed=True)]
+
+
 def _dual_antenna() -> list[SuiteCase]:
     """A moving-base pair (1.2 m baseline) on the same receiver as the velocity: standstill
     included, antennas along, across and reversed on the car, UBX and NMEA, low friction, a wrong
@@ -253,7 +263,7 @@ def _gyro_scale() -> list[SuiteCase]:
 
 
 def build_suite() -> list[SuiteCase]:
-    return (_flying() + _conditions() + _sensor_faults() + _low_speed() + _dual_antenna() + _two_receivers()
+    return (_flying() + _conditions() + _sensor_faults() + _low_speed() + _road_profile() + _dual_antenna() + _two_receivers()
             + _magnetometer() + _imu() + _gyro_scale())
 
 

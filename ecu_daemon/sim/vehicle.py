@@ -106,6 +106,9 @@ class Road:
     mu: float = 1.0
     bank_rad: float = 0.0
     grade_rad: float = 0.0
+    #: a :class:`~ecu_daemon.sim.road.RoadProfile`: bank and grade follow the distance travelled
+    #: (``bank_rad`` / ``grade_rad`` are then ignored)
+    profile: object = None
 
 
 class VehicleState(NamedTuple):
@@ -143,6 +146,7 @@ TRUTH_COLUMNS = (
     "acc_x", "acc_y",  # specific force in the rolled body frame (an ideal body-fixed accelerometer)
     "roll", "alpha_f", "alpha_r",
     "fz_fl", "fz_fr", "fz_rl", "fz_rr",
+    "bank", "grade", "dist",  # the road under the car (constant unless Road.profile), distance travelled
 )
 
 
@@ -199,10 +203,19 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
     tf, tr = p.tyre_front, p.tyre_rear
     forces = tyre_mod.forces
     mu = road.mu
-    sb, cb = math.sin(road.bank_rad), math.cos(road.bank_rad)
-    sg, cg = math.sin(road.grade_rad), math.cos(road.grade_rad)
+    prof = road.profile
+    bank, grade = (road.bank_rad, road.grade_rad) if prof is None else (float(prof.bank_at(0.0)),
+                                                                       float(prof.grade_at(0.0)))
+    sb, cb = math.sin(bank), math.cos(bank)
+    sg, cg = math.sin(grade), math.cos(grade)
     gx, gy = -G * sg, -G * sb * cg  # gravity in the road-plane body frame
     fz_tot = m * G * cb * cg
+    dist = 0.0
+    if prof is not None:  # tabulate the profile every 0.1 m once: np.interp per step is slow
+        _len = float(max(k[0] for k in prof.bank + prof.grade)) + 100.0
+        _s = np.arange(0.0, _len, 0.1)
+        _bank, _grade = prof.bank_at(_s).tolist(), prof.grade_at(_s).tolist()
+        _nmax = len(_s) - 1
     chi_f = p.roll_stiffness_front_share
     k_roll = p.roll_gradient_rad_per_g / G
     lag = min(1.0, dt / p.suspension_lag_s) if p.suspension_lag_s > 0 else 1.0
@@ -230,6 +243,13 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
     rate_limit = math.radians(1000.0) * dt  # steering-wheel rate limit per step (driver + EPS)
     for i in range(n):
         t = t0 + i * dt
+        if prof is not None:  # the road under the car now: gravity's components and the normal load
+            j = min(int(dist * 10.0), _nmax)
+            bank, grade = _bank[j], _grade[j]
+            sb, cb = math.sin(bank), math.cos(bank)
+            sg, cg = math.sin(grade), math.cos(grade)
+            gx, gy = -G * sg, -G * sb * cg
+            fz_tot = m * G * cb * cg
         if i % driver_every == 0:
             cmd = driver.update(VehicleState(t, vx, vy, r, psi, north, east, steer, tuple(om), tuple(kap),
                                              fyf + gy))
@@ -316,7 +336,7 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
         fz_s = (fz[0] + fz[1] + fz[2] + fz[3]) / m
         acc_y = fy_s * math.cos(roll) + fz_s * math.sin(roll)
         rows.append((t, vx, vy, r, psi, north, east, steer, delta, om[0], om[1], om[2], om[3],
-                     fx_s, fy_s, ax, ay, fx_s, acc_y, roll, alpha_f, alpha_r, fz[0], fz[1], fz[2], fz[3]))
+                     fx_s, fy_s, ax, ay, fx_s, acc_y, roll, alpha_f, alpha_r, fz[0], fz[1], fz[2], fz[3], bank, grade, dist))
         # advance: velocities first, then pose with the new velocities (semi-implicit Euler)
         vx += dt * dvx
         vy += dt * dvy
@@ -329,6 +349,7 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
         vhx, vhy = vx * cg, vy * cb
         north += dt * (vhx * cps + vhy * sps)
         east += dt * (vhx * sps - vhy * cps)
+        dist += dt * math.hypot(vx, vy)
         fxf += lag * (fx_s - fxf)
         fyf += lag * (fy_s - fyf)
     data = np.array(rows, dtype=float)
