@@ -142,6 +142,12 @@ YAW_SCALE_STD = 0.005
 # takes a part of s r on a steady circle (suite circle: 0.78 % of 0.99 %, 2.72 % of 3.09 %); once
 # the applied scale is the fit's, the residual published is at least this share of it
 YAW_SCALE_FIT_LOW = 0.25
+# A scale error s not yet corrected turns the heading by s x the rotation since the heading was last
+# constrained, and on a long corner courses take that back only slowly (the single-track model
+# pulls vy, and with it the heading, over tens of seconds: suite circle +2 %, heading 2.2 deg off
+# 11 s into the circle, 70 % of s x the integrated yaw rate). The rotation is counted signed (a
+# slalom's cancels, as its heading error does) and forgotten over this memory (s).
+SCALE_ROT_MEMORY_S = 20.0
 # The single-track model anchors vy wherever GNSS course cannot (a steady corner: course is
 # heading + sideslip, and the yaw rate x latency std turns it by degrees on a tight circle). Its
 # error is a bias over the corner, which the filter fuses as a pseudo-measurement inflated to a
@@ -360,6 +366,8 @@ class Estimator:
         self.align_lat_var = 0.0
         self.align_psi_var = 0.0
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
+        self.scale_rot = 0.0  # rad: the signed rotation since the heading was last constrained (SCALE_ROT_MEMORY_S)
+        self._scale_rot_decay = math.exp(-dt / SCALE_ROT_MEMORY_S)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
@@ -560,6 +568,7 @@ class Estimator:
         # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
         # mid-corner would otherwise publish a heading std without it for its first seconds)
         self.turn_lp = abs(r_m - x[BR])
+        self.scale_rot = 0.0
         self.align_lat_var = 0.0
         self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
         self.initialized = True
@@ -696,6 +705,7 @@ class Estimator:
         # the single-track model's inputs at rdot's lag, and vy's kinematic change over that lag
         r_c, ay_c, vy_shift = self.model_inputs.step(r_lp, r, ay, vx)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        self.scale_rot = self.scale_rot * self._scale_rot_decay + r * self.dt
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
                 or (t - self.last_gnss_fused_t > GNSS_FRESH_S
@@ -1006,6 +1016,10 @@ class Estimator:
         # grown in P: grown there with vy along the direction course cannot see, the single-track
         # model's errors reached the heading through the correlation, Revs heading RMS 0.153 -> 0.33)
         e = self.yaw_scale_std * self.turn_lp * TURN_MEMORY_S
+        if not self.yaw_scale_realigned:
+            # before the scale is applied and the state realigned: the rotation since the heading
+            # was last constrained times the scale over both priors (YawScaleCheck.heading_scale)
+            e = max(e, self.yaw_scale_heading * abs(self.scale_rot))
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -1332,6 +1346,7 @@ class Estimator:
         # left is the residual: the fit's std and what it reads low (YAW_SCALE_FIT_LOW).
         self.yaw_scale_std = best.scale_std(self.yaw_scale_applied * (1.0 - YAW_SCALE_FIT_LOW)
                                             if self.yaw_scale_realigned else 0.0)
+        self.yaw_scale_heading = best.heading_scale()
 
     def _check_lever_arm_y(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Feed this fix's speed to its receiver's lever-arm y check (against the wheels)."""
@@ -1543,6 +1558,7 @@ class Estimator:
         h.P[idx] = P
         # the heading is now this course's, with its latency error r x (latency error) at that turn
         self.turn_lp = max(self.turn_lp, abs(r))
+        self.scale_rot = 0.0
         self.align_lat_var = (r * lat.std_s) ** 2
         self.align_psi_var = float(var[-1])
         self.aligned = True
