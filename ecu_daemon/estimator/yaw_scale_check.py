@@ -38,6 +38,16 @@ residual with what the fit reads low (``core.YAW_SCALE_FIT_LOW``); never below t
 the window has not seen yet), and not capped. Unobserved (no turning yet) it is the prior, so a
 drive without corners publishes what it did before and its gyro is left untouched.
 
+Which prior: 0.5 % is a calibrated gyro's, but an uncalibrated automotive sensor is specified to a
+few per cent, and early in a long corner the narrow prior shrinks a real 3 % to a fraction of it
+while the heading is already degrees off. The fit is solved with a SENSOR_TOL prior as well; the
+data's own scale (that fit with its prior taken out, widened by the model's sideslip error over the
+rotation turned) weighs the two priors by their marginal likelihoods (``_select``, P_WIDE a priori).
+Once a radian has turned (SELECT_ROT) and the wide prior is the likelier, its fit is the scale (so
+it is applied, and the core realigns, with the data's scale, not the shrunk one). Until then the
+core publishes on the heading the scale's rms over both (``heading_scale``) times the rotation since
+the heading was last constrained (``core.SCALE_ROT_MEMORY_S``).
+
 The scale is a sensor constant: the learned-state file keeps s_hat and its std, and a restart
 starts the fit from them (``prior``): as information the fit had gathered, forgotten over WINDOW_S
 like the rest (a gyro replaced or re-mounted between drives is relearned, not held by a fixed
