@@ -54,6 +54,7 @@ from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, w
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
 from .latency_sensitivity import LatencySensitivity, timing_secant
+from .scale_sensitivity import ScaleSensitivity
 from .lateral_noise import LateralNoise
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .yaw_scale_check import YawScaleCheck
@@ -142,12 +143,6 @@ YAW_SCALE_STD = 0.005
 # takes a part of s r on a steady circle (suite circle: 0.78 % of 0.99 %, 2.72 % of 3.09 %); once
 # the applied scale is the fit's, the residual published is at least this share of it
 YAW_SCALE_FIT_LOW = 0.25
-# A scale error s not yet corrected turns the heading by s x the rotation since the heading was last
-# constrained, and on a long corner courses take that back only slowly (the single-track model
-# pulls vy, and with it the heading, over tens of seconds: suite circle +2 %, heading 2.2 deg off
-# 11 s into the circle, 70 % of s x the integrated yaw rate). The rotation is counted signed (a
-# slalom's cancels, as its heading error does) and forgotten over this memory (s).
-SCALE_ROT_MEMORY_S = 20.0
 # The single-track model anchors vy wherever GNSS course cannot (a steady corner: course is
 # heading + sideslip, and the yaw rate x latency std turns it by degrees on a tight circle). Its
 # error is a bias over the corner, which the filter fuses as a pseudo-measurement inflated to a
@@ -266,6 +261,7 @@ class Estimator:
         # what of that error the heading still carries while it is not a state (latency_sensitivity.py);
         # one receiver only (two have two latency errors: the low-pass of |r| below stays for them)
         self.lat_sens = LatencySensitivity(self.hist.n) if len(receivers) == 1 else None
+        self.scale_sens = ScaleSensitivity(self.hist.n, dt)
         # per receiver: the UTC epoch of its last velocity fix and the step it was fused at; a
         # dual-antenna heading of the same epoch (UBX RELPOSNED: NAV-PVT's iTOW) takes that step
         self.fix_steps: dict[int, tuple[float, int]] = {}
@@ -366,8 +362,6 @@ class Estimator:
         self.align_lat_var = 0.0
         self.align_psi_var = 0.0
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
-        self.scale_rot = 0.0  # rad: the signed rotation since the heading was last constrained (SCALE_ROT_MEMORY_S)
-        self._scale_rot_decay = math.exp(-dt / SCALE_ROT_MEMORY_S)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
@@ -568,7 +562,6 @@ class Estimator:
         # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
         # mid-corner would otherwise publish a heading std without it for its first seconds)
         self.turn_lp = abs(r_m - x[BR])
-        self.scale_rot = 0.0
         self.align_lat_var = 0.0
         self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
         self.initialized = True
@@ -705,7 +698,6 @@ class Estimator:
         # the single-track model's inputs at rdot's lag, and vy's kinematic change over that lag
         r_c, ay_c, vy_shift = self.model_inputs.step(r_lp, r, ay, vx)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
-        self.scale_rot = self.scale_rot * self._scale_rot_decay + r * self.dt
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
                 or (t - self.last_gnss_fused_t > GNSS_FRESH_S
@@ -778,6 +770,7 @@ class Estimator:
                 cons.step(i, ip, A, predict)
         if self.lat_sens is not None:
             self.lat_sens.step(i, ip, A, predict)
+        self.scale_sens.step(i, ip, A, predict, r)
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
@@ -1017,9 +1010,12 @@ class Estimator:
         # model's errors reached the heading through the correlation, Revs heading RMS 0.153 -> 0.33)
         e = self.yaw_scale_std * self.turn_lp * TURN_MEMORY_S
         if not self.yaw_scale_realigned:
-            # before the scale is applied and the state realigned: the rotation since the heading
-            # was last constrained times the scale over both priors (YawScaleCheck.heading_scale)
-            e = max(e, self.yaw_scale_heading * abs(self.scale_rot))
+            # before the scale is applied and the state realigned: what the heading still carries
+            # of a scale error, d psi / d s tracked through the filter's own gains
+            # (scale_sensitivity.py: in a long corner about the rotation since the heading was last
+            # constrained, on a straight falling as its courses take the heading back), times the
+            # scale over both priors (YawScaleCheck.heading_scale)
+            e = max(e, self.yaw_scale_heading * self.scale_sens.heading(self.hist.last))
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -1196,8 +1192,10 @@ class Estimator:
         else:
             cons = self._consider(g.source, lat)
             sens = self.lat_sens
-            P_pre = h.P[js].copy() if sens is not None else None
+            P_pre = h.P[js].copy()
             ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=cons)
+            if ok:
+                self.scale_sens.fused(h, s, P_pre, fus._H2, fus._R2)
             if ok and sens is not None:
                 self._sensitivity_fused(sens, s, P_pre, fus, g)
             if g.source == 0:
@@ -1402,9 +1400,10 @@ class Estimator:
             self.aligned = False
         sens = self.lat_sens
         if self.aligned:
-            P_pre = h.P[h.slot(s)].copy() if sens is not None else None
+            P_pre = h.P[h.slot(s)].copy()
             if not fus.fuse(h, s, g, std, self._consider(rx, lat), stagger):
                 return
+            self.scale_sens.fused(h, s, P_pre, fus._H, fus._R)
             if sens is not None:  # the heading reads psi + r d (gnss_heading.py)
                 sens.fused(h, s, P_pre, fus._H, fus._R, np.array((h.aux[h.slot(s), AUX_R],)))
         else:
@@ -1414,6 +1413,7 @@ class Estimator:
                 cons.zero_heading(h)
             if sens is not None:
                 sens.zero_heading(h)
+            self.scale_sens.zero_heading(h)
             self.aligned = True
             for f in self.receivers:
                 f.consecutive_rejects = 0
@@ -1552,13 +1552,13 @@ class Estimator:
             cons.set_heading(idx, J)
         if self.lat_sens is not None:
             self.lat_sens.set_heading(h, idx, J, self._course_timing_slope(s, g, lat, float(r)))
+        self.scale_sens.set_heading(idx, J)
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var
         h.P[idx] = P
         # the heading is now this course's, with its latency error r x (latency error) at that turn
         self.turn_lp = max(self.turn_lp, abs(r))
-        self.scale_rot = 0.0
         self.align_lat_var = (r * lat.std_s) ** 2
         self.align_psi_var = float(var[-1])
         self.aligned = True

@@ -45,8 +45,8 @@ data's own scale (that fit with its prior taken out, widened by the model's side
 rotation turned) weighs the two priors by their marginal likelihoods (``_select``, P_WIDE a priori).
 Once a radian has turned (SELECT_ROT) and the wide prior is the likelier, its fit is the scale (so
 it is applied, and the core realigns, with the data's scale, not the shrunk one). Until then the
-core publishes on the heading the scale's rms over both (``heading_scale``) times the rotation since
-the heading was last constrained (``core.SCALE_ROT_MEMORY_S``).
+core publishes on the heading the scale's rms over both (``heading_scale``) times what the heading
+still carries of a scale error (``scale_sensitivity.py``: d psi / d s through the filter's gains).
 
 The scale is a sensor constant: the learned-state file keeps s_hat and its std, and a restart
 starts the fit from them (``prior``): as information the fit had gathered, forgotten over WINDOW_S
