@@ -176,13 +176,15 @@ def test_the_learned_state_file_carries_the_scale(tmp_path):
     assert "yaw_rate_scale" not in Estimator._check_learned({"version": LEARNED_VERSION, "yaw_rate_scale": 0.2})
 
 
-@pytest.mark.parametrize("name", ["gyro_scale_+1pct", "gyro_scale_-1pct"])
+@pytest.mark.parametrize("name", ["gyro_scale_+1pct", "gyro_scale_-1pct", "gyro_scale_+3pct", "gyro_scale_-3pct"])
 def test_a_real_gyro_scale_error_is_not_wrong_while_valid(tmp_path, name):
     # end to end (simulate -> files -> replay -> evaluate): the 40 m circle to 0.65 g with the yaw
     # rate x1.01 / x0.99; before the scale was applied (and published on the heading): sideslip
     # within 3 sigma 93 %, up to 3.2 deg off while valid, heading 30-38 %, up to 4.5 deg.
-    # (+-3 % is not yet: heading within 3 sigma 54-71 % on main 531388f, 84.5-88.6 % realigned to the
-    # scale fit: wrong before the fit resolves the scale; the suite's gyro_scale_+-3pct)
+    # +-3 %: heading within 3 sigma 88.8 / 85.4 % on main 2c600ae (1.4-3.1 deg off with a std of
+    # 0.4-0.9 deg between 22 and 31 s: the 0.5 % prior shrank the scale to 0.45 +- 0.46 % at 25 s);
+    # now the heading std counts the scale over both priors times the rotation since the heading was
+    # last constrained, and the wide prior's fit resolves the scale at ~26 s
     from ecu_daemon.sim.suite import SUITE
     from ecu_daemon.suite import run_case
 
@@ -210,6 +212,43 @@ def test_the_heading_a_scale_turned_before_it_was_resolved_is_taken_out(tmp_path
     assert row["sideslip_rms_deg"] < rms_deg
     assert row["sideslip_coverage_3sigma"] >= 0.99 and row["sideslip_worst_valid_deg"] < 2.0
     assert row["sideslip_valid_above_5mps"] > valid
+
+
+@pytest.mark.parametrize("scale", [-0.05, -0.03, 0.03, 0.05])
+def test_a_scale_beyond_the_calibrated_prior_is_resolved_early_in_a_long_corner(scale):
+    # 10 s straight, then a steady circle at 0.25 rad/s: 10 s into it (2.5 rad turned) the data say
+    # the scale to ~0.3 %, but the 0.5 % prior alone shrank a 3 % scale to 1.0 +- 0.3 % (main
+    # 2c600ae), 6 sigma off, and the core's heading was realigned to that. The data's own scale
+    # selects the sensor-tolerance prior (a Bayes factor) and its fit is the scale.
+    chk = _drive(scale, lambda t: 0.0 if t < 10.0 else 0.25, 20.0, course_noise=math.radians(0.3))
+    true = scale / (1.0 + scale)
+    assert abs(chk.scale - true) < 3.0 * chk.scale_sd
+    assert chk.applied() and chk.p_wide > 0.9
+
+
+@pytest.mark.parametrize("scale", [-0.03, 0.02, 0.03, 0.05])
+def test_the_heading_scale_covers_a_large_scale_before_it_is_resolved(scale):
+    # 3 s into the circle (0.75 rad): the narrow fit still says ~0.25 +- 0.48 %; what the core
+    # multiplies the rotation by for the heading std must cover the scale at 3 sigma by 5 s in
+    chk = _drive(scale, lambda t: 0.0 if t < 10.0 else 0.25, 15.0, course_noise=math.radians(0.3))
+    assert 3.0 * chk.heading_scale() >= abs(scale / (1.0 + scale))
+    assert chk.heading_scale() >= chk.scale_std()
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_an_exact_gyro_never_selects_the_wide_prior(seed):
+    # course noise up to 1 deg, steady and varying circles: the wide prior is never selected, and
+    # the heading's scale returns to the narrow fit's once the data agree with it
+    for r_of_t in (lambda t: 0.0 if t < 10.0 else 0.25, _circle_with_speed_changes):
+        for noise in (0.3, 1.0):
+            chk = YawScaleCheck(0.0)
+            seen = []
+            orig = chk._select
+            chk._select = lambda s_w, v_w: (orig(s_w, v_w), seen.append(chk.p_wide))
+            _drive(0.0, r_of_t, 60.0, course_noise=math.radians(noise), seed=seed, chk=chk)
+            assert max(seen) < 0.5
+            assert not chk.applied()
+            assert chk.heading_scale() < 1.5 * chk.scale_std()
 
 
 def _drive_step(scale_after: float, t_step: float, r_of_t, duration: float, course_noise: float = 0.0,
@@ -259,10 +298,20 @@ def test_a_constant_scale_does_not_trigger_the_change_detector(scale):
     assert chk.changes == 0
 
 
-@pytest.mark.xfail(strict=True, reason="issue 7 open: a step early in the drive (fit not yet sure of the old "
-                   "scale) is learned by the fit itself, but the heading it turned wrong before that is "
-                   "not published; the detector does not fire in time")
-@pytest.mark.parametrize("name,at_s,factor", [("gyro_step_+2pct_at35", 35.0, 1.02), ("gyro_step_-3pct_at45", 45.0, 0.97)])
+_STEP_OPEN = ("issue 7 open: a step early in the drive (fit not yet sure of the old scale) is learned by the fit "
+              "itself, but the heading it turned wrong before that is not published; the detector does not fire "
+              "in time")
+
+
+@pytest.mark.parametrize("name,at_s,factor", [
+    # since gyro17 (the heading std from the scale over both priors) its heading is covered (100 %,
+    # worst valid 2.1 deg), but its sideslip is marginal: within 3 sigma 98.93 % and worst valid
+    # 1.97 deg against the 99 % / 2.0 deg asserted, the same bits compiled and pure Python on the
+    # developer's machine (xfail) and above 99 % in CI (XPASS): not strict until that margin is real
+    pytest.param("gyro_step_+2pct_at35", 35.0, 1.02,
+                 marks=pytest.mark.xfail(strict=False, reason="marginal: sideslip 98.9 % within 3 sigma")),
+    pytest.param("gyro_step_-3pct_at45", 45.0, 0.97, marks=pytest.mark.xfail(strict=True, reason=_STEP_OPEN)),
+])
 def test_a_gyro_scale_step_mid_drive_is_not_wrong_while_valid(tmp_path, name, at_s, factor):
     # end to end: the suite's 40 m circle (circle_dry) with an exact gyro that steps to x1.02 at 35 s
     # / x0.97 at 45 s. On integ 546e586 (the 300 s fit holding the old scale, nothing detecting the

@@ -54,6 +54,7 @@ from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, w
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
 from .latency_sensitivity import LatencySensitivity, timing_secant
+from .scale_sensitivity import ScaleSensitivity
 from .lateral_noise import LateralNoise
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .yaw_scale_check import YawScaleCheck
@@ -261,6 +262,7 @@ class Estimator:
         # what of that error the heading still carries while it is not a state (latency_sensitivity.py);
         # one receiver only (two have two latency errors: the low-pass of |r| below stays for them)
         self.lat_sens = LatencySensitivity(self.hist.n) if len(receivers) == 1 else None
+        self.scale_sens = ScaleSensitivity(self.hist.n, dt)
         # per receiver: the UTC epoch of its last velocity fix and the step it was fused at; a
         # dual-antenna heading of the same epoch (UBX RELPOSNED: NAV-PVT's iTOW) takes that step
         self.fix_steps: dict[int, tuple[float, int]] = {}
@@ -771,6 +773,7 @@ class Estimator:
                 cons.step(i, ip, A, predict)
         if self.lat_sens is not None:
             self.lat_sens.step(i, ip, A, predict)
+        self.scale_sens.step(i, ip, A, predict, r)
         kalman.symmetrize(P)  # exactly symmetric at every step (what is stored, published, rewound)
         pd = P.diagonal().tolist()
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
@@ -1009,6 +1012,13 @@ class Estimator:
         # grown in P: grown there with vy along the direction course cannot see, the single-track
         # model's errors reached the heading through the correlation, Revs heading RMS 0.153 -> 0.33)
         e = self.yaw_scale_std * self.turn_lp * TURN_MEMORY_S
+        if not self.yaw_scale_realigned:
+            # before the scale is applied and the state realigned: what the heading still carries
+            # of a scale error, d psi / d s tracked through the filter's own gains
+            # (scale_sensitivity.py: in a long corner about the rotation since the heading was last
+            # constrained, on a straight falling as its courses take the heading back), times the
+            # scale over both priors (YawScaleCheck.heading_scale)
+            e = max(e, self.yaw_scale_heading * self.scale_sens.heading(self.hist.last))
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -1185,8 +1195,10 @@ class Estimator:
         else:
             cons = self._consider(g.source, lat)
             sens = self.lat_sens
-            P_pre = h.P[js].copy() if sens is not None else None
+            P_pre = h.P[js].copy()
             ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=cons)
+            if ok:
+                self.scale_sens.fused(h, s, P_pre, fus._H2, fus._R2)
             if ok and sens is not None:
                 self._sensitivity_fused(sens, s, P_pre, fus, g)
             if g.source == 0:
@@ -1335,6 +1347,7 @@ class Estimator:
         # left is the residual: the fit's std and what it reads low (YAW_SCALE_FIT_LOW).
         self.yaw_scale_std = best.scale_std(self.yaw_scale_applied * (1.0 - YAW_SCALE_FIT_LOW)
                                             if self.yaw_scale_realigned else 0.0)
+        self.yaw_scale_heading = best.heading_scale()
 
     def _check_lever_arm_y(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Feed this fix's speed to its receiver's lever-arm y check (against the wheels)."""
@@ -1390,9 +1403,10 @@ class Estimator:
             self.aligned = False
         sens = self.lat_sens
         if self.aligned:
-            P_pre = h.P[h.slot(s)].copy() if sens is not None else None
+            P_pre = h.P[h.slot(s)].copy()
             if not fus.fuse(h, s, g, std, self._consider(rx, lat), stagger):
                 return
+            self.scale_sens.fused(h, s, P_pre, fus._H, fus._R)
             if sens is not None:  # the heading reads psi + r d (gnss_heading.py)
                 sens.fused(h, s, P_pre, fus._H, fus._R, np.array((h.aux[h.slot(s), AUX_R],)))
         else:
@@ -1402,6 +1416,7 @@ class Estimator:
                 cons.zero_heading(h)
             if sens is not None:
                 sens.zero_heading(h)
+            self.scale_sens.zero_heading(h)
             self.aligned = True
             for f in self.receivers:
                 f.consecutive_rejects = 0
@@ -1540,6 +1555,7 @@ class Estimator:
             cons.set_heading(idx, J)
         if self.lat_sens is not None:
             self.lat_sens.set_heading(h, idx, J, self._course_timing_slope(s, g, lat, float(r)))
+        self.scale_sens.set_heading(idx, J)
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var

@@ -38,6 +38,16 @@ residual with what the fit reads low (``core.YAW_SCALE_FIT_LOW``); never below t
 the window has not seen yet), and not capped. Unobserved (no turning yet) it is the prior, so a
 drive without corners publishes what it did before and its gyro is left untouched.
 
+Which prior: 0.5 % is a calibrated gyro's, but an uncalibrated automotive sensor is specified to a
+few per cent, and early in a long corner the narrow prior shrinks a real 3 % to a fraction of it
+while the heading is already degrees off. The fit is solved with a SENSOR_TOL prior as well; the
+data's own scale (that fit with its prior taken out, widened by the model's sideslip error over the
+rotation turned) weighs the two priors by their marginal likelihoods (``_select``, P_WIDE a priori).
+Once a radian has turned (SELECT_ROT) and the wide prior is the likelier, its fit is the scale (so
+it is applied, and the core realigns, with the data's scale, not the shrunk one). Until then the
+core publishes on the heading the scale's rms over both (``heading_scale``) times what the heading
+still carries of a scale error (``scale_sensitivity.py``: d psi / d s through the filter's gains).
+
 The scale is a sensor constant: the learned-state file keeps s_hat and its std, and a restart
 starts the fit from them (``prior``): as information the fit had gathered, forgotten over WINDOW_S
 like the rest (a gyro replaced or re-mounted between drives is relearned, not held by a fixed
@@ -82,6 +92,23 @@ BIAS_FLOOR = math.radians(0.005)
 #: from 0.153 to 0.22 deg); below it the gyro is left as it reads and the term keeps the whole
 #: |s_hat| + std, as before
 APPLY_SIGMA = 3.0
+
+#: Model selection for the heading (``heading_scale``): the 0.5 % prior is a calibrated gyro's; an
+#: uncalibrated automotive yaw-rate sensor's sensitivity is specified to a few per cent, so a gyro
+#: may also be a draw from this wider prior. Early in a long corner the fit with the 0.5 % prior
+#: shrinks a real 3 % scale to 0.45 +- 0.46 % (suite circle, 25 s) while the heading is already
+#: 2 deg off: the data's own scale (3.2 +- 1.2 % then) is what says which prior it came from.
+SENSOR_TOL = 0.05
+#: prior probability of the wide component: a gyro beyond its calibrated 0.5 % is the exception
+#: (the mixture then publishes ~1.2 % on a corner's first radian, 0.5 % once the data agree with
+#: the narrow prior, and the wide posterior once they contradict it)
+P_WIDE = 0.05
+#: rad: the rotation the fit must have integrated before its data may select the wide prior. Below
+#: it a sensor-tolerance scale turns the heading by less than SENSOR_TOL x 1 rad = 2.9 deg, what a
+#: lane change at the friction limit leaves in the single-track model's sideslip (mu03_outage_30s:
+#: the wide fit read +17 % from +-0.25 rad of a lane change on mu 0.3 with an exact gyro); the suite
+#: circle's 3 % is selected at 1.7 rad
+SELECT_ROT = 1.0
 
 #: a restored scale's std is never below this: a MEMS gyro's sensitivity moves by about 0.1 %
 #: with temperature between drives, and the restored value is itself the fit's estimate, biased low
@@ -140,6 +167,13 @@ class YawScaleCheck:
         self.gated = 0
         self.theta = np.zeros(self.N)
         self.cov = None
+        self.wide = (0.0, SENSOR_TOL ** 2)  # the scale's posterior under the wide prior (mean, var)
+        self.p_wide = P_WIDE
+        # the single-track model's sideslip error at the last fix (rad) and the largest rotation the
+        # fit has integrated within its memory (rad): a model bias held over a corner reads as a
+        # scale of bias / rotation (``_select``)
+        self.model_rad = 0.0
+        self.rot_seen = 0.0
         # scale-change detection (module docstring): CUSUM sums, the yaw integral where each last
         # sat at zero (the change point's estimate), alarms, the step's size, the heading error
         # found at the alarm (rad) for the core to take once
@@ -178,8 +212,11 @@ class YawScaleCheck:
             self.rhs *= f
             self.r_info *= f
             self.r_rhs *= f
+            self.rot_seen *= f
         self.k_last = k
         self.t_last = t
+        self.model_rad = vy_std / vx
+        self.rot_seen = max(self.rot_seen, abs(self.yaw_int))
         h = np.array((1.0, t - self.t_run, self.yaw_int, ratio, -r))
         pred = float(h @ self.theta) if self.cov is not None else 0.0
         # unwrapped about the fit's prediction: a 3 % scale error turns the gyro heading by more
@@ -250,22 +287,65 @@ class YawScaleCheck:
                                            1.0 / max(latency_std_s, 1e-3) ** 2))
         if cov is None:
             return
-        theta = cov @ self.rhs
-        if self.r_info:
-            # the restored scale as one more observation of s (information form: a rank-1 update);
-            # dropped for good where this drive's own fit disagrees with it beyond 3 sigma
-            s0 = self.r_rhs / self.r_info
-            if (theta[2] - s0) ** 2 > 9.0 * (cov[2, 2] + 1.0 / self.r_info):
-                self.r_info = self.r_rhs = 0.0
-            else:
-                c = cov[:, 2].copy()
-                g = c / (cov[2, 2] + 1.0 / self.r_info)
-                theta = theta + g * (s0 - theta[2])
-                cov = cov - np.outer(g, c)
+        theta, cov = self._with_restored(cov @ self.rhs, cov, drop=True)
+        wide = _regularised_cov(self.info, (1e-9, 1.0 / (sb * sb), 1.0 / SENSOR_TOL ** 2, 1.0 / LEVER_TOL_M ** 2,
+                                            1.0 / max(latency_std_s, 1e-3) ** 2))
+        if wide is not None:
+            tw, cw = self._with_restored(wide @ self.rhs, wide, drop=False)
+            self._select(float(tw[2]), float(cw[2, 2]))
+            if self.p_wide > 0.5:  # the data favour the wide prior: its fit is the scale (and heading)
+                theta, cov = tw, cw
         self.theta = theta
         self.cov = cov
         self.scale = float(self.theta[2])
         self.scale_sd = math.sqrt(max(cov[2, 2], 0.0))
+
+    def _with_restored(self, theta: np.ndarray, cov: np.ndarray, drop: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The restored scale as one more observation of s (information form: a rank-1 update);
+        dropped for good (``drop``) where this drive's own fit disagrees with it beyond 3 sigma."""
+        if not self.r_info:
+            return theta, cov
+        s0 = self.r_rhs / self.r_info
+        if (theta[2] - s0) ** 2 > 9.0 * (cov[2, 2] + 1.0 / self.r_info):
+            if drop:
+                self.r_info = self.r_rhs = 0.0
+            return theta, cov
+        c = cov[:, 2].copy()
+        g = c / (cov[2, 2] + 1.0 / self.r_info)
+        return theta + g * (s0 - theta[2]), cov - np.outer(g, c)
+
+    def _select(self, s_w: float, v_w: float) -> None:
+        """Which prior the data favour (SENSOR_TOL): the wide fit's scale undone of its prior is the
+        data's own (s_d +- v_d, widened by the model's bias over the rotation seen); its marginal
+        likelihood under either prior, N(s_d; 0, v_d + prior^2), weighs the two (a Bayes factor),
+        P_WIDE a priori."""
+        self.wide = (s_w, v_w)
+        lam = 1.0 / v_w - 1.0 / SENSOR_TOL ** 2
+        if lam <= 1.0 / (10.0 * SENSOR_TOL) ** 2 or self.rot_seen < SELECT_ROT:  # too little turned yet
+            self.p_wide = P_WIDE
+            return
+        s_d = s_w / (v_w * lam)
+        # the fit counts the model's sideslip error as noise correlated over a few fixes; at the
+        # friction limit it is a bias over the whole corner, which a scale of bias / rotation explains
+        # (mu03_outage_30s: +11 % from a quarter radian, no scale error at all): the data's scale is
+        # not known better than that
+        v_d = 1.0 / lam + (self.model_rad / max(self.rot_seen, 1e-3)) ** 2
+
+        def log_l(prior_var):
+            return -0.5 * (s_d * s_d / (v_d + prior_var) + math.log(v_d + prior_var))
+
+        d = log_l(SENSOR_TOL ** 2) - log_l(SCALE_PRIOR ** 2)
+        odds = P_WIDE / (1.0 - P_WIDE) * math.exp(min(d, 50.0))
+        self.p_wide = odds / (1.0 + odds)
+
+    def heading_scale(self) -> float:
+        """The scale's rms over both priors (mixture posterior, ``_select``): what a gyro not yet
+        corrected turns the heading by per radian, for the core's heading std before the scale is
+        applied and the state realigned (the narrow fit alone is overconfident while a large scale
+        is still shrunk by its prior); never below ``scale_std()``'s floor."""
+        s_w, v_w = self.wide
+        m2 = (1.0 - self.p_wide) * (self.scale ** 2 + self.scale_sd ** 2) + self.p_wide * (s_w * s_w + v_w)
+        return max(math.sqrt(m2), self.scale_std())
 
     def heading(self, t: float) -> tuple[float, float]:
         """The heading the fit says at time t of its last fix (rad, as the filter's: the gyro heading
