@@ -231,11 +231,13 @@ def _replay(tmp_path, sc, cfg=None):
 
 def test_dual_antenna_across_a_banked_lane_change_gives_a_valid_bank_within_half_a_degree(tmp_path):
     """The suite's dual_bank_across: 6 % bank, sensor offset 0.15 m/s^2 (0.9 deg of bank if taken
-    for one), baseline across the car; before the tilt was fused: 0.98 deg, never valid."""
+    for one), baseline across the car; before the tilt was fused: 0.98 deg, never valid. Valid on
+    0.83 of the rows above 5 m/s (0.97 before the roll counted the road's bank change its gain may
+    have taken, road.py: the baseline's tilt is bank + roll, so that doubt is the bank's too)."""
     sc = next(c.scenario for c in SUITE if c.name == "dual_bank_across")
     r, _ = _replay(tmp_path, sc)
     assert r["bank"]["rms"] < 0.5 * DEG
-    assert r["bank"]["validity"]["valid_fraction_above_5mps"] > 0.9
+    assert r["bank"]["validity"]["valid_fraction_above_5mps"] > 0.75
     assert r["bank"]["validity"]["coverage_3sigma"] >= 0.99
     assert r["roll"]["validity"]["coverage_3sigma"] >= 0.99
 

@@ -29,6 +29,7 @@ class BankWalk:
         self.k = k
         self.distance_m = distance_m
         self.kappa = 0.0
+        self.total = 0.0  # (m/s^2)^2: all the variance added so far (road.py counts it in the roll)
 
     def step(self, P, j: int, vx: float, r: float) -> None:
         v = abs(vx)
@@ -37,4 +38,6 @@ class BankWalk:
         a = min(1.0, v * self.dt / self.distance_m)
         dk = a * (r / v - self.kappa)  # the yaw per metre travelled (either way)
         self.kappa += dk
-        P[j, j] += self.k * abs(dk)
+        q = self.k * abs(dk)
+        P[j, j] += q
+        self.total += q

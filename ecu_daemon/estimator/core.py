@@ -759,8 +759,11 @@ class Estimator:
                 x[j] = xl[j] = lo
             elif v > hi:
                 x[j] = xl[j] = hi
-        if imu_ok and not iso & (ACCEL_X | ACCEL_Y):
-            self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY])
+        road_ok = imu_ok and not iso & (ACCEL_X | ACCEL_Y)
+        # every step: the road's grade and bank move on while the accelerometers cannot be heard (walks only)
+        self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY], x[VX], self.bank_walk.total, P[GAY, GAY],
+                       road_ok)
+        if road_ok:
             if self.road.roll_gyro_params is None:
                 self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
             else:

@@ -7,7 +7,8 @@ its velocity model uses the sums. Splitting them needs slow, separate informatio
 offsets, so two 2-state Kalman filters do it here and the 8-state filter stays as it is:
 
 * grade ``[grade, o_x]``: the main filter's ``b_ax`` (its variance inflated for the correlation of
-  successive values), and the GNSS vertical velocity (UBX velD): at speed
+  successive values, and for the road it averaged: a grade walks per metre travelled, see
+  ``GRADE_WALK_M``), and the GNSS vertical velocity (UBX velD): at speed
   ``tan(grade) = -v_down / v_horizontal`` measures grade directly and so makes ``o_x`` observable.
   NMEA has no vertical velocity; its GGA altitude differenced over the distance travelled measures
   the grade instead (``altitude_grade.py``, its own noise model and gate); without an altitude grade
@@ -25,7 +26,9 @@ Roll (the body on its suspension, relative to the road plane; ISO sign: left sid
 ``g sin(roll)`` more, which is the gain error the main filter learns, so ``g_ay / g`` is the roll
 gradient (rad per m/s^2); its std adds a floor for the accelerometer's own scale error. The body
 follows the force through its damped suspension, so ``f_y`` is lagged (``ROLL_LAG_S``) and the size
-of that lag's correction is counted in the std as wholly uncertain (real suspensions differ).
+of that lag's correction is counted in the std as wholly uncertain (real suspensions differ). Where
+the road's bank changes, the gain takes part of the change as roll: the roll's std counts the bank
+variance the main filter's b_ay walk charged (:meth:`RoadAttitude.step`).
 
 Two optional sources make bank (and grade) observable and the roll better:
 
@@ -58,6 +61,17 @@ G = 9.80665
 UPDATE_EVERY = 17  # main-filter steps between updates from its bias states (~0.1 s)
 CORRELATION_S = 5.0  # the main filter's bias estimates are correlated over about this long
 ANGLE_WALK = math.radians(0.3)  # rad/sqrt(s): how fast road grade and bank wander
+#: rad/sqrt(m): the grade's walk per metre travelled. Roads change grade over vertical curves
+#: designed by their K value, tens of metres per % of grade change: K 20 m/% over a 100 m curve is a
+#: 5 % (2.9 deg) change, 0.29 deg/sqrt(m) as a random walk; K 50 m/% over 200 m, 0.16. (Per second
+#: the old 0.3 deg/sqrt(s) is 0.07 deg/sqrt(m) at 20 m/s: a +-5 % grade over 500 m outran it.)
+GRADE_WALK_M = math.radians(0.15)
+#: rad: 1-sigma of the most a road's bank changes from one curve to the next (2.5 % crossfall to up
+#: to 8 % superelevation the other way: ~6 deg at most), the cap of the roll's road doubt
+BANK_SWING = math.radians(3.0)
+#: m/s^2: above this lateral force the roll carries the whole road doubt (a bank change the gain
+#: took shows as roll in proportion to the force, see RoadAttitude.set_roll)
+ROLL_DOUBT_FORCE = 1.0
 OFFSET_WALK = 2e-4  # m/s^2/sqrt(s): accelerometer offset drift (temperature)
 ANGLE_PRIOR = math.radians(10.0)  # 1-sigma of an unknown road angle
 OFFSET_LEARNED_FLOOR = 0.02  # m/s^2: a restored offset is never trusted better than this
@@ -204,6 +218,10 @@ class RoadAttitude:
                                          OFFSET_LEARNED_FLOOR)
             return 0.0, offset_std
         self.dt = dt
+        self.dist = 0.0  # metres travelled since the last update (the grade's walk)
+        self.bank_walk_seen = 0.0  # (m/s^2)^2: the main filter's road-driven b_ay variance counted so far
+        self.var_gay_seen = 0.0
+        self.roll_doubt = 0.0  # rad^2: road bank changes the main filter's gain may have taken as roll
         self.grade = _Channel(*prior("accel_x_offset_mps2"))
         self.bank = _Channel(*prior("accel_y_offset_mps2"))
         self.vertical_fused = 0
@@ -229,16 +247,41 @@ class RoadAttitude:
                                max(learned.get("roll_rate_bias_std_radps", ROLL_RATE_BIAS_PRIOR),
                                    ROLL_RATE_BIAS_LEARNED_FLOOR))
 
-    def step(self, k: int, b_ax: float, var_bax: float, b_ay: float, var_bay: float, g_ay: float) -> None:
-        """Every ``UPDATE_EVERY`` steps: the main filter's bias sums at step k."""
+    def step(self, k: int, b_ax: float, var_bax: float, b_ay: float, var_bay: float, g_ay: float,
+             vx: float = 0.0, bank_walk: float = 0.0, var_gay: float = 0.0, update: bool = True) -> None:
+        """Every step: the distance travelled (``vx``), the main filter's road-driven b_ay variance so
+        far (``bank_walk``, :mod:`bank_walk`) and its gain's variance; every ``UPDATE_EVERY`` steps
+        the walks, and (``update``: the accelerometers are heard) the bias sums at step k.
+
+        The roll's road doubt: where the road's bank changes, the main filter splits the change of
+        ``b_ay`` between ``b_ay`` and the gain ``g_ay`` (a bias and a gain read the same within one
+        corner), and the gain's share is roll (``g_ay / g * f_y``) by as much as the bank moved. The
+        main filter's own ``P[g_ay]`` does not hold it (its b_ay walk is sized for sideslip, and a
+        country road's bank moves more), so it is counted here: the bank variance charged, capped at
+        ``BANK_SWING``, shrunk as the main filter learns its gain (``P[g_ay]`` falling)."""
         self._k = k
+        dv = bank_walk - self.bank_walk_seen
+        self.bank_walk_seen = bank_walk
+        if dv > 0.0:
+            self.roll_doubt = min(self.roll_doubt + dv / (G * G), BANK_SWING * BANK_SWING)
+        if 0.0 < var_gay < self.var_gay_seen:
+            self.roll_doubt *= var_gay / self.var_gay_seen
+        self.var_gay_seen = var_gay
+        self.dist += abs(vx) * self.dt
         if k % UPDATE_EVERY:
             return
         period = UPDATE_EVERY * self.dt
         inflate = CORRELATION_S / period
         for ch in (self.grade, self.bank):
             ch.predict(period)
-        self.grade.gravity_update(b_ax, var_bax * inflate, 1.0)
+        # the grade moves where the car travels (vertical curves); the main filter's b_ax averages
+        # the last CORRELATION_S of road, so it lags a changing grade by that much road's walk
+        self.grade.P[0, 0] += GRADE_WALK_M * GRADE_WALK_M * self.dist
+        lag_var = (G * GRADE_WALK_M) ** 2 * self.dist / period * CORRELATION_S
+        self.dist = 0.0
+        if not update:
+            return
+        self.grade.gravity_update(b_ax, (var_bax + lag_var) * inflate, 1.0)
         self.bank.gravity_update(b_ay, var_bay * inflate, (1.0 + g_ay) * math.cos(self.grade.x[0]))
 
     def fuse_vertical(self, vel_d: float, speed: float, speed_acc: float) -> bool:
@@ -281,7 +324,8 @@ class RoadAttitude:
         d = fy - lp  # squared as d * d: compiled, gcc turns pow(d, 2.0) into d * d, which differs
         # from Python's d ** 2 (libm pow) in the last bit for ~1 in 1000 values
         self.roll_std = math.sqrt((lp / G) ** 2 * (var_gay + GAIN_FLOOR ** 2) + k2 * (d * d)
-                                  + k2 * (self.bank._Pm[1, 1] + ay_doubt * ay_doubt))
+                                  + k2 * (self.bank._Pm[1, 1] + ay_doubt * ay_doubt)
+                                  + self.roll_doubt * min(1.0, lp * lp / (ROLL_DOUBT_FORCE * ROLL_DOUBT_FORCE)))
         if self._ring is not None:
             self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
 
