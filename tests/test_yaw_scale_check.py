@@ -202,8 +202,9 @@ def test_the_heading_a_scale_turned_before_it_was_resolved_is_taken_out(tmp_path
     # circle, and the single-track model alone took tens of seconds to pull it back (on main
     # 531388f: sideslip RMS 0.71 / 1.60 deg, heading 1.6 / 3.6 deg off at the fit's resolution, still
     # 1.1 / 2.6 deg off 25 s later; sideslip valid above 5 m/s 71 / 37 %, held invalid by the whole
-    # scale on vy's std). Realigned to the fit's heading when the scale is applied, after which
-    # only the residual scale is published.
+    # scale on vy's std). Moved by what it carries of the scale (S x applied, scale_sensitivity.py)
+    # when the scale is applied (integ18: realigned to the fit's heading), after which only the
+    # residual scale is published.
     from ecu_daemon.sim.suite import SUITE
     from ecu_daemon.suite import run_case
 

@@ -1015,13 +1015,12 @@ class Estimator:
         # grown in P: grown there with vy along the direction course cannot see, the single-track
         # model's errors reached the heading through the correlation, Revs heading RMS 0.153 -> 0.33)
         e = self.yaw_scale_std * self.turn_lp * TURN_MEMORY_S
-        if not self.yaw_scale_realigned:
-            # before the scale is applied and the state realigned: what the heading still carries
-            # of a scale error, d psi / d s tracked through the filter's own gains
-            # (scale_sensitivity.py: in a long corner about the rotation since the heading was last
-            # constrained, on a straight falling as its courses take the heading back), times the
-            # scale over both priors (YawScaleCheck.heading_scale)
-            e = max(e, self.yaw_scale_heading * self.scale_sens.heading(self.hist.last))
+        # What the heading still carries of a scale error, d psi / d s tracked through the filter's
+        # own gains (scale_sensitivity.py: in a long corner about the rotation since the heading was
+        # last constrained, on a straight falling as its courses take the heading back), times the
+        # scale over both priors not yet applied to the gyro and the state (_shift_for_scale,
+        # YawScaleCheck.heading_scale)
+        e = max(e, self.yaw_scale_heading * self.scale_sens.heading(self.hist.last))
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -1279,8 +1278,10 @@ class Estimator:
                 self._widen_for_scale_change(s, e, vx_s)
             was_applied = self.yaw_scale_applied
             self._set_yaw_scale()
-            if self.yaw_scale_applied and not was_applied:
-                self.yaw_scale_realigned = self._realign_to_scale_fit(s, vx_s, vy_m_std)
+            if self.yaw_scale_applied:
+                if self.yaw_scale_applied != was_applied:
+                    self._shift_for_scale(self.yaw_scale_applied - was_applied)
+                self.yaw_scale_realigned = True
                 self._set_yaw_scale()
         if chk.suspected:
             self.lever_flagged = True
@@ -1302,39 +1303,25 @@ class Estimator:
         log.warning("gyro: courses say the yaw-rate scale changed (heading %.2f deg off): relearning it",
                     math.degrees(e))
 
-    def _realign_to_scale_fit(self, s: int, vx: float, vy_m_std: float) -> bool:
-        """The scale is resolved and applied from now on, but what it turned wrong before is in the
-        state: on a circle course cannot see a heading error taken together with vy (the direction
-        (psi, vy) = (1, vx)), and the single-track model pulls it back only over tens of seconds
-        (+1 %: heading 1.6 deg off when applied at 37 s, still 1.1 deg at 61 s). The fit's heading
-        (gyro heading + offset + bias + s I: every course of the run against the scaled integral)
-        knows it. So P grows once along that direction by the difference, and the fit's heading is
-        fused at the fix's step, its error the fit's prediction std and the model's sideslip error
-        (the offset the fit reads the courses against). Once per resolution (the scale applied after
-        none was): fused again as the fit refines, the same information would shrink P for little
-        (-3 %: realigned again at -2.4 % by 0.19 deg: sideslip RMS 0.98 -> 0.94 deg, 2 % fewer rows valid).
-        True if the state was realigned."""
-        best = min(self.yaw_scale_checks, key=lambda c: c.scale_sd)
-        psi_fit, var_fit = best.heading(s * self.dt)
-        if not math.isfinite(psi_fit):  # (a fit that took this fix: vx above its MIN_SPEED)
-            return False
+    def _shift_for_scale(self, da: float) -> None:
+        """The applied scale changed by da (r = r_m (1 - applied)): from now on the gyro is
+        integrated with it, and what the old one turned wrong is in every stored state. That part
+        is linear in the scale (scale_sensitivity.py: x_err = -S s, S through the filter's own
+        gains), so each stored step moves by S_k da: the state is what it would be had the new
+        scale been applied all along, to first order. Not the fit's heading: early in a drive that
+        heading is the narrow prior's (a 3 % gyro fitted 0.76 +- 0.25 % 7 s after a flying start's
+        corner), and the offset the fit draws with the shrunk scale put it 1.8 deg off while it
+        claimed 0.44 (flying_6 x1.03: the realignment moved the heading from 0.84 to 1.56 deg off
+        and published 0.44-0.6). What is left, -S (s - applied), stays on the heading std
+        (``_set_yaw_scale``: the scale's residual over both priors times |S_psi|)."""
         h = self.hist
-        i = h.slot(s)
-        d = math.remainder(psi_fit - float(h.X[i][PSI]), 2.0 * math.pi)
-        u = np.zeros(NX)
-        u[PSI] = d
-        u[VY] = d * vx
-        if not h.correct(s, np.zeros(NX), -np.outer(u, u)):
-            return False
-        P = h.P[i]
-        m = vy_m_std / vx
-        S = float(P[PSI, PSI]) + var_fit + m * m
-        K = P[:, PSI] / S
-        if not h.correct(s, K * d, np.outer(K, K) * S):
-            return False
-        log.info("gyro: scale %.2f %% resolved, heading realigned by %.2f deg to the scale fit's (+- %.2f)",
-                 100.0 * self.yaw_scale_applied, math.degrees(d), math.degrees(math.sqrt(var_fit + m * m)))
-        return True
+        idx = np.arange(h.oldest(), h.last + 1) % h.n
+        X = h.X[idx]
+        X += self.scale_sens.S[idx] * da
+        X[:, PSI] %= 2.0 * math.pi
+        h.X[idx] = X
+        log.info("gyro: scale %.2f %% applied, the state moved by %.2f deg of heading (the scale's share of it)",
+                 100.0 * self.yaw_scale_applied, math.degrees(float(self.scale_sens.S[h.last % h.n, PSI]) * da))
 
     def _set_yaw_scale(self) -> None:
         """The receiver whose fit knows the scale best sets what is applied to the gyro and the
@@ -1350,7 +1337,12 @@ class Estimator:
         # left is the residual: the fit's std and what it reads low (YAW_SCALE_FIT_LOW).
         self.yaw_scale_std = best.scale_std(self.yaw_scale_applied * (1.0 - YAW_SCALE_FIT_LOW)
                                             if self.yaw_scale_realigned else 0.0)
-        self.yaw_scale_heading = best.heading_scale()
+        # the heading's term: S_psi times the scale not yet applied to the gyro and the state
+        # (_shift_for_scale), over both priors (the applied scale may be the narrow prior's,
+        # shrunk). Not less YAW_SCALE_FIT_LOW: S_psi grows with the whole rotation on a circle, where
+        # the fit reads its scale to ~0.1 % (suite circle -3 %: -3.05 of -3.09 % at 30 s); a quarter
+        # of the scale times that rotation held the heading invalid at 0.1 deg off (95 -> 25 % valid)
+        self.yaw_scale_heading = best.heading_scale(self.yaw_scale_applied if self.yaw_scale_realigned else 0.0)
 
     def _check_lever_arm_y(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
         """Feed this fix's speed to its receiver's lever-arm y check (against the wheels)."""

@@ -32,8 +32,9 @@ core grows vy's std by and publishes on the heading: |s_hat| + std_s, the whole 
 is applied (what the scale put into heading and vy before it was resolved stays in the state until
 courses and the model have separated it, and the fit reads 10-25 % low while the filter's yaw-bias
 state takes a part of s r; narrowed to the residual |s_hat - applied| + std_s the 3 % suite cases
-fell to 50 % within 3 sigma) until the core has realigned its state to the fit's heading
-(``heading()``, once the scale is applied: ``core.Estimator._realign_to_scale_fit``), then the
+fell to 50 % within 3 sigma) until the core has moved its state by what it carries of the applied
+scale (``core.Estimator._shift_for_scale``: S x applied, ``scale_sensitivity.py``; not to the fit's
+heading, ``heading()``, which early in a drive is drawn with a shrunk scale), then the
 residual with what the fit reads low (``core.YAW_SCALE_FIT_LOW``); never below the tilt of a 6 % banked road (BANK_TILT_SCALE: a bank
 the window has not seen yet), and not capped. Unobserved (no turning yet) it is the prior, so a
 drive without corners publishes what it did before and its gyro is left untouched.
@@ -44,9 +45,10 @@ while the heading is already degrees off. The fit is solved with a SENSOR_TOL pr
 data's own scale (that fit with its prior taken out, widened by the model's sideslip error over the
 rotation turned) weighs the two priors by their marginal likelihoods (``_select``, P_WIDE a priori).
 Once a radian has turned (SELECT_ROT) and the wide prior is the likelier, its fit is the scale (so
-it is applied, and the core realigns, with the data's scale, not the shrunk one). Until then the
-core publishes on the heading the scale's rms over both (``heading_scale``) times what the heading
-still carries of a scale error (``scale_sensitivity.py``: d psi / d s through the filter's gains).
+it is applied, and the core realigns, with the data's scale, not the shrunk one). The core
+publishes on the heading the rms over both of the scale not yet applied (``heading_scale``) times
+what the heading still carries of a scale error (``scale_sensitivity.py``: d psi / d s through the
+filter's gains).
 
 The scale is a sensor constant: the learned-state file keeps s_hat and its std, and a restart
 starts the fit from them (``prior``): as information the fit had gathered, forgotten over WINDOW_S
@@ -338,14 +340,15 @@ class YawScaleCheck:
         odds = P_WIDE / (1.0 - P_WIDE) * math.exp(min(d, 50.0))
         self.p_wide = odds / (1.0 + odds)
 
-    def heading_scale(self) -> float:
-        """The scale's rms over both priors (mixture posterior, ``_select``): what a gyro not yet
-        corrected turns the heading by per radian, for the core's heading std before the scale is
-        applied and the state realigned (the narrow fit alone is overconfident while a large scale
-        is still shrunk by its prior); never below ``scale_std()``'s floor."""
+    def heading_scale(self, applied: float = 0.0) -> float:
+        """The rms over both priors (mixture posterior, ``_select``) of the scale less ``applied``:
+        what the gyro, corrected by that, still turns the heading by per radian, for the core's
+        heading std (the narrow fit alone is overconfident while a large scale is still shrunk by
+        its prior, and the applied scale is then the shrunk one); never below ``scale_std()``'s floor."""
         s_w, v_w = self.wide
-        m2 = (1.0 - self.p_wide) * (self.scale ** 2 + self.scale_sd ** 2) + self.p_wide * (s_w * s_w + v_w)
-        return max(math.sqrt(m2), self.scale_std())
+        m2 = ((1.0 - self.p_wide) * ((self.scale - applied) ** 2 + self.scale_sd ** 2)
+              + self.p_wide * ((s_w - applied) ** 2 + v_w))
+        return max(math.sqrt(m2), self.scale_std(applied))
 
     def heading(self, t: float) -> tuple[float, float]:
         """The heading the fit says at time t of its last fix (rad, as the filter's: the gyro heading

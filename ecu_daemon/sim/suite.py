@@ -259,6 +259,17 @@ def _gyro_scale() -> list[SuiteCase]:
         name = f"gyro_scale_{pct:+d}pct"
         fault = Fault("yaw_rate", "scaled", 0.0, 1.0e4, 1.0 + pct / 100.0)
         out.append(SuiteCase(name, "gyro_scale", _base(name, "circle_dry", sensor_faults=(fault,))))
+    # A flying start mid-corner with the gyro off: the heading is aligned at the first fix, the
+    # corner turns it by scale x rotation, and the fit applies its scale a few seconds into the
+    # straight, early, while a 3-5 % scale is still shrunk by the calibrated prior. What the state
+    # carries of the scale must move with the scale applied, not to the fit's heading of that moment
+    # (integ18: flying_6 +3 % realigned from 0.84 to 1.56 deg off publishing 0.44 deg, flying_10
+    # -5 % from 0.44 to 3.0 deg off).
+    flying = {c.name: c for c in _flying()}
+    for base, pct in (("flying_6_r9r_h250", 3), ("flying_10_r14l_h45", -3), ("flying_10_r14l_h45", -5)):
+        name = f"{base.split('_r')[0]}_gyro_{pct:+d}pct"
+        fault = Fault("yaw_rate", "scaled", 0.0, 1.0e4, 1.0 + pct / 100.0)
+        out.append(SuiteCase(name, "gyro_scale", flying[base].scenario.with_(name=name, sensor_faults=(fault,))))
     return out
 
 
