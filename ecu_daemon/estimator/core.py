@@ -1278,9 +1278,10 @@ class Estimator:
                 self._widen_for_scale_change(s, e, vx_s)
             was_applied = self.yaw_scale_applied
             self._set_yaw_scale()
+            if self.yaw_scale_applied != was_applied:  # (back to none too: a shift once more on
+                # re-application would count the first one twice)
+                self._shift_for_scale(self.yaw_scale_applied - was_applied)
             if self.yaw_scale_applied:
-                if self.yaw_scale_applied != was_applied:
-                    self._shift_for_scale(self.yaw_scale_applied - was_applied)
                 self.yaw_scale_realigned = True
                 self._set_yaw_scale()
         if chk.suspected:
