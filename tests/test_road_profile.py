@@ -101,3 +101,14 @@ def test_country_road_grade_follows_the_vertical_curves(road_rows):
     """Grade RMS on the country road's +-5 % / 500 m vertical curves at 15-25 m/s (road18: 1.97 deg,
     the velD fixes gated out behind a lagging estimate; 0.36 with the per-metre walk)."""
     assert road_rows["road_country"]["grade_rms_deg"] < 0.6, road_rows["road_country"]
+
+
+def test_country_road_latency_is_not_read_from_the_grade(road_rows):
+    """The GNSS latency within 0.03 s at the end of the country road (integ18: +0.047 s). The
+    accelerometer's timing reference integrates g sin(grade) as speed change; the ramp in its fit
+    holds one grade, and the +-5 % / 500 m vertical curves (+-0.5 m/s^2 along the road) bent the
+    integral so that its best delay sat at the candidate range's end (0.80 s for 0.40) and let the
+    braked wheels' long delay (0.44-0.45 s) through as agreeing. A run now breaks off where the
+    estimated grade has changed under it (core.GRADE_RUN_CHANGE)."""
+    row = road_rows["road_country"]
+    assert abs(row["latency_error_s"]) < 0.03, row

@@ -60,7 +60,7 @@ from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
-from .road import BaselineMount, RoadAttitude
+from .road import G, BaselineMount, RoadAttitude
 from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
@@ -194,6 +194,7 @@ LAT_BIAS_STEPS = 1.0  # the ay bias's variance grows by (excess * dt)^2 per step
 # mid-corner and restarted with a learned (tight) latency std, that heading was valid 5.2 deg off
 # (tools/cut_starts.py revs, cut 420 s). It costs at most one latency before the first fix is used.
 MAX_RECEIVERS = 8  # learned latencies kept per receiver index
+GRADE_RUN_CHANGE = 0.3  # m/s^2: g x the grade change (3 %) a speed-integral run may span (its ramp holds one grade)
 LEARNED_BOUNDS_LIST = tuple((j, lo, hi) for j, (lo, hi) in LEARNED_BOUNDS.items())
 
 log = logging.getLogger(__name__)
@@ -237,6 +238,7 @@ class Estimator:
         # a heading-only receiver identifies its latency from its heading changes against the gyro
         self.yaw_integral = YawIntegral(dt, gn.max_delay_s) if not all(self.uses_velocity) else None
         self.speed_integral = SpeedIntegral(dt, gn.max_delay_s)
+        self.speed_run_grade = 0.0  # the road grade its current run began on
         self.receivers = [GnssVelocityFusion(rx.lever_arm_m[0], rx.lever_arm_m[1], gn.min_fix_type,
                                              gn.max_speed_acc_mps, gn.nmea_speed_acc_mps, es.gnss_gate_sigma)
                           for rx in receivers]
@@ -712,8 +714,20 @@ class Estimator:
         # forwards (its fixes are observed only then) or standing (vx ~ 0 either side): a run kept
         # through a reversal integrates ax, not d|v|/dt, below 1 m/s, and the first fix after it read
         # as a 0.2 s latency error (reversing, once vy's std no longer broke the run off at every turn)
-        self.speed_integral.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
-                                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and x[VX] > -0.1)
+        # The integral takes the grade's g sin(grade) for speed change; its fit's ramp holds one
+        # grade (and the sensor's offset), not one that changes along the road: road_country's
+        # +-5 % on 500 m (+-0.5 m/s^2) bent it until its best delay sat at the range's end (0.80 s
+        # for 0.40) and let the braked wheels' long delay through as agreeing (+0.047 s). So a run
+        # breaks off once road.py's grade has changed by GRADE_RUN_CHANGE since it began. Not
+        # subtracted instead: that estimate follows the filter's b_ax, which takes up wheel slip
+        # and latency errors on flat roads (latency_0.1: 0.142 s for 0.100 with it subtracted).
+        si = self.speed_integral
+        grade = float(self.road.grade.x[0])
+        if si.first >= k:
+            self.speed_run_grade = grade
+        si.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
+                imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and x[VX] > -0.1
+                and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
         self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
 
