@@ -15,11 +15,9 @@ import numpy as np
 import pytest
 
 
-def _run(tmp_path, factor, monkeypatch):
+def _record_published(monkeypatch, what):
+    """(t, *what(estimator)) at every published step once the estimator is initialised."""
     from ecu_daemon.pipeline import Pipeline
-    from ecu_daemon.sim.sensors import Fault
-    from ecu_daemon.sim.suite import SUITE, SuiteCase
-    from ecu_daemon.suite import run_case
 
     rec = []
     publish = Pipeline._publish
@@ -27,10 +25,20 @@ def _run(tmp_path, factor, monkeypatch):
     def _publish(self, e, send):
         est = self.estimator
         if est.initialized and est.hist.last >= 0:
-            rec.append((e.t, est.scale_sens.heading(est.hist.last), bool(est.yaw_scale_realigned)))
+            rec.append((e.t, *what(est)))
         return publish(self, e, send)
 
     monkeypatch.setattr(Pipeline, "_publish", _publish)
+    return rec
+
+
+def _run(tmp_path, factor, monkeypatch):
+    from ecu_daemon.sim.sensors import Fault
+    from ecu_daemon.sim.suite import SUITE, SuiteCase
+    from ecu_daemon.suite import run_case
+
+    rec = _record_published(monkeypatch, lambda est: (est.scale_sens.heading(est.hist.last),
+                                                      bool(est.yaw_scale_realigned)))
     base = {c.name: c for c in SUITE}["flying_10_r14l_h45"]
     name = f"flying_10_scale_{factor}"
     case = SuiteCase(name, base.family, base.scenario.with_(
@@ -95,20 +103,10 @@ def test_a_scale_error_after_a_corner_is_covered_and_the_heading_valid_soon_on_t
 
 def _run_suite_row(tmp_path, name, monkeypatch):
     """One suite row, with the scale applied to the gyro at every published step."""
-    from ecu_daemon.pipeline import Pipeline
     from ecu_daemon.sim.suite import SUITE
     from ecu_daemon.suite import run_case
 
-    rec = []
-    publish = Pipeline._publish
-
-    def _publish(self, e, send):
-        est = self.estimator
-        if est.initialized and est.hist.last >= 0:
-            rec.append((e.t, float(est.yaw_scale_applied)))
-        return publish(self, e, send)
-
-    monkeypatch.setattr(Pipeline, "_publish", _publish)
+    rec = _record_published(monkeypatch, lambda est: (float(est.yaw_scale_applied),))
     row = run_case({c.name: c for c in SUITE}[name], tmp_path)
 
     def read(p):

@@ -107,20 +107,25 @@ def sens_fused_reference(S: np.ndarray, A: np.ndarray, P: np.ndarray, H: np.ndar
     carry_reference(S, A, s, last)
 
 
-def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
-    """S at every step after s from S at s: S_j = A_j ... A_{s+1} S_s, the prefix products by
-    doubling as StepHistory.correct_reference does (log2(count) whole-array matmuls instead of a
-    rewind's ~80 small ones; the same bits every run)."""
-    n = len(S)
-    idx = np.arange(s + 1, last + 1) % n
-    if len(idx) == 0:
-        return
+def prefix_products(A: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """A_j ... A_{s+1} for every slot j of idx (the steps after s, in order), by doubling as
+    StepHistory.correct_reference does (log2(count) whole-array matmuls instead of a rewind's
+    ~80 small ones; the same bits every run)."""
     phis = A[idx]
     d = 1
     while d < len(phis):
         phis[d:] = phis[d:] @ phis[:-d]
         d *= 2
-    S[idx] = phis @ S[s % n]
+    return phis
+
+
+def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
+    """S at every step after s from S at s: S_j = A_j ... A_{s+1} S_s."""
+    n = len(S)
+    idx = np.arange(s + 1, last + 1) % n
+    if len(idx) == 0:
+        return
+    S[idx] = prefix_products(A, idx) @ S[s % n]
 
 
 sens_step = sens_step_reference

@@ -27,6 +27,7 @@ import numpy as np
 
 from .history import StepHistory
 from .kinematic import NX, PSI
+from .latency_sensitivity import prefix_products
 
 
 class ScaleSensitivity:
@@ -62,12 +63,8 @@ class ScaleSensitivity:
         idx = np.arange(s + 1, hist.last + 1) % n
         if len(idx) == 0:
             return
-        phis = hist.A[idx]  # prefix products by doubling (latency_sensitivity.carry_reference)
-        d = 1
-        while d < len(phis):
-            phis[d:] = phis[d:] @ phis[:-d]
-            d *= 2
-        self.S[idx] += phis @ delta
+        # the change, not S_s, is carried: unlike the latency's, every later step added its own r dt
+        self.S[idx] += prefix_products(hist.A, idx) @ delta
 
     def set_heading(self, idx: np.ndarray, J: np.ndarray) -> None:
         """The heading was set from a course at every slot idx as course + J x."""
