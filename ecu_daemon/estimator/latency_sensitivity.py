@@ -88,7 +88,8 @@ def timing_secant(y: np.ndarray, i0: int, dt: float, span: float, slope: float) 
 
 
 # The kernels: numpy references here, swapped for the compiled ones (``_kernels.c``: ``sens_step``,
-# ``sens_fused``; the same math, summed in index order) by ``backend.select``.
+# ``sens_fused``; the same math, summed in index order; ``prefix_doubling``: numpy's own bits,
+# checked) by ``backend.select``.
 
 def sens_step_reference(A: np.ndarray, S_prev: np.ndarray, S_out: np.ndarray) -> None:
     """S_out = A S_prev: the sensitivity through one step's effective transition."""
@@ -112,11 +113,16 @@ def prefix_products(A: np.ndarray, idx: np.ndarray) -> np.ndarray:
     StepHistory.correct_reference does (log2(count) whole-array matmuls instead of a rewind's
     ~80 small ones; the same bits every run)."""
     phis = A[idx]
+    prefix_doubling(phis)
+    return phis
+
+
+def prefix_doubling_reference(phis: np.ndarray) -> None:
+    """phis[j] <- phis[j] ... phis[0] in place: for d = 1, 2, 4, ...: phis[d:] = phis[d:] @ phis[:-d]."""
     d = 1
     while d < len(phis):
         phis[d:] = phis[d:] @ phis[:-d]
         d *= 2
-    return phis
 
 
 def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
@@ -130,3 +136,4 @@ def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
 
 sens_step = sens_step_reference
 sens_fused = sens_fused_reference
+prefix_doubling = prefix_doubling_reference
