@@ -34,6 +34,9 @@ MODULES = (
     "ecu_daemon/estimator/lateral_noise.py",  # LateralNoise.observe: every lateral-accelerometer sample
     "ecu_daemon/estimator/latency_sensitivity.py",  # LatencySensitivity: every step (one receiver)
     "ecu_daemon/estimator/lever_arm_check.py",  # the lever-arm checks' observe: every GNSS fix, two per receiver
+    "ecu_daemon/estimator/yaw_scale_check.py",  # YawScaleCheck.observe: every GNSS course, one per receiver
+    "ecu_daemon/estimator/scale_sensitivity.py",  # ScaleSensitivity.step: every step; .fused: every 2-D fix
+    "ecu_daemon/estimator/bank_walk.py",  # BankWalk.step: every step
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",

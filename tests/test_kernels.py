@@ -323,6 +323,104 @@ def test_sensitivity_fused_agrees(m, depth):
 
 
 # ------------------------------------------------------------------------------------------------
+# the scale sensitivity's products (scale_sensitivity.py): numpy's own bits, not within a tolerance
+
+def _bits(a):
+    return np.ascontiguousarray(a).view(np.uint64)
+
+
+needs_blas_bits = pytest.mark.skipif(backend.compiled is None or not backend.blas_bits_match(),
+                                     reason="numpy's BLAS sums in another order here: the references run")
+
+
+@needs_blas_bits
+@pytest.mark.parametrize("count", [1, 2, 3, 83, 130])
+def test_prefix_doubling_gives_numpys_bits(count):
+    """The doubling of a rewind's transitions, compiled: bit for bit numpy's matmul (the estimate's
+    bytes must not depend on which ran), on transitions with structural zeros."""
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(count, NX, NX))
+    A[RNG.random(A.shape) < 0.3] = 0.0
+    ref, out = A.copy(), A.copy()
+    ls.prefix_doubling_reference(ref)
+    backend.compiled.prefix_doubling(out)
+    assert np.array_equal(_bits(out), _bits(ref))
+
+
+@needs_blas_bits
+@pytest.mark.parametrize("depth", [0, 1, 7, 83, 99])  # 99: across the ring's wrap
+def test_carry_change_gives_numpys_bits_and_touches_only_later_slots(depth):
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    n, last = 100, 170
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(n, NX, NX))
+    S0 = RNG.normal(size=(n, NX))
+    delta = RNG.normal(size=NX)
+    s = last - depth
+    ref, out = S0.copy(), S0.copy()
+    ss.carry_change_reference(ref, A, s, last, delta)
+    backend.compiled.carry_change(out, A, s, last, delta)
+    assert np.array_equal(_bits(out), _bits(ref))
+    untouched = np.setdiff1d(np.arange(n), np.arange(s + 1, last + 1) % n)
+    assert np.array_equal(out[untouched], S0[untouched])
+    with pytest.raises(ValueError):  # a window the ring no longer holds
+        backend.compiled.carry_change(out, A, last - n, last, delta)
+
+
+@needs_blas_bits
+def test_scale_step_gives_numpys_bits_in_place_too():
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    from ecu_daemon.estimator.kinematic import PSI
+    for _ in range(200):
+        A = np.eye(NX) + 0.05 * RNG.normal(size=(NX, NX))
+        sp = RNG.normal(size=NX)
+        r_dt = float(RNG.normal()) * 0.006
+        ref, out = np.empty(NX), np.empty(NX)
+        ss.scale_step_reference(A, sp, ref, PSI, r_dt)
+        backend.compiled.scale_step(A, sp, out, PSI, r_dt)
+        assert np.array_equal(_bits(out), _bits(ref))
+        inplace = sp.copy()
+        backend.compiled.scale_step(A, inplace, inplace, PSI, r_dt)  # S_out is S_prev
+        assert np.array_equal(_bits(inplace), _bits(ref))
+
+
+def test_numpys_products_stand_in_only_where_the_probe_matches(monkeypatch):
+    """A numpy whose BLAS sums in another order (the probe fails): select keeps the references,
+    so the bytes are numpy's either way; where it matches, the compiled ones run."""
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    try:
+        monkeypatch.setattr(backend, "_blas_checked", False)
+        backend.select(True)
+        assert ss.carry_change is ss.carry_change_reference and ss.scale_step is ss.scale_step_reference
+        assert ls.prefix_doubling is ls.prefix_doubling_reference
+        monkeypatch.setattr(backend, "_blas_checked", True)
+        backend.select(False)
+        assert ss.carry_change is ss.carry_change_reference
+        backend.select(True)
+        assert ss.carry_change is backend.compiled.carry_change
+        assert ls.prefix_doubling is backend.compiled.prefix_doubling
+    finally:
+        monkeypatch.undo()
+        backend.select(True)
+
+
+@pytest.mark.parametrize("span", [0.03, 0.3, np.inf])
+def test_across_secant_gives_the_references_bits(span):
+    """The latency sensitivity's across-track secant (``_sensitivity_fused``), compiled: elementwise
+    IEEE operations in numpy's order, so bit for bit the reference, a NaN row and the tangent's
+    win (``slope`` larger than every secant) included."""
+    for trial in range(300):
+        n = int(RNG.integers(1, 150))
+        aux = RNG.normal(size=(n, 6)) * RNG.choice([0.01, 1.0, 10.0])
+        if trial % 50 == 7:
+            aux[RNG.integers(0, n), RNG.integers(0, 6)] = np.nan
+        psi = RNG.uniform(-7.0, 7.0, n)
+        args = (aux, np.cos(psi), np.sin(psi), float(RNG.normal()), float(RNG.normal()), float(RNG.normal()),
+                float(RNG.normal()), 0.006, int(RNG.integers(0, n)), span,
+                float(RNG.normal()) * (1e6 if trial % 10 == 3 else 0.1))
+        ref, out = ls.across_secant_reference(*args), backend.compiled.across_secant(*args)
+        assert np.array_equal(_bits(np.array(out)), _bits(np.array(ref))), (trial, ref, out)
+
+
+# ------------------------------------------------------------------------------------------------
 # the lever-arm checks' fits (lever_arm_check.py)
 
 @pytest.mark.parametrize("p", [3, 4])

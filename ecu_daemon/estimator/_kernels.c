@@ -1021,6 +1021,309 @@ static PyObject *k_sens_step(PyObject *self, PyObject *const *args, Py_ssize_t n
     Py_RETURN_NONE;
 }
 
+/* numpy's BLAS, reproduced: 8x8 products with the bits numpy's matmul / dot give them where its
+ * OpenBLAS runs the Haswell kernels (x86-64): a matrix product's every element one fused
+ * multiply-add chain over k in index order from +0 (dgemm); a matrix-vector product's every
+ * element four such chains over k = m, m + 4 (lanes m = 0..3), summed (l0 + l2) + (l1 + l3)
+ * (dgemv). Why: the scale sensitivity's carry of a 0.5 s rewind (scale_sensitivity.py) is ~450
+ * products by doubling and ~80 matrix-vector ones, each a whole BLAS call through numpy's gufunc
+ * machinery (~2 k instructions for 1 k flops): it was ~40 % of a fused GNSS fix. backend.select
+ * compares these with numpy's own on probe products and keeps the numpy references where they
+ * differ (another BLAS or CPU): the estimate's bits never depend on which of the two ran. */
+#if defined(__GNUC__) && defined(__x86_64__)
+#define BLAS_FMA_TARGET 1
+#include <immintrin.h>
+__attribute__((target("avx2,fma"))) static void mm8_fma(const double *x, const double *y, double *out)
+{
+    __m256d yk[2 * N]; /* y's rows, loaded once */
+    for (int k = 0; k < N; k++) {
+        yk[2 * k] = _mm256_loadu_pd(y + k * N);
+        yk[2 * k + 1] = _mm256_loadu_pd(y + k * N + 4);
+    }
+    for (int i = 0; i < N; i++) { /* row i: each element's chain in k order, four elements a lane */
+        __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd();
+        for (int k = 0; k < N; k++) {
+            __m256d b = _mm256_broadcast_sd(x + i * N + k);
+            a0 = _mm256_fmadd_pd(b, yk[2 * k], a0);
+            a1 = _mm256_fmadd_pd(b, yk[2 * k + 1], a1);
+        }
+        _mm256_storeu_pd(out + i * N, a0);
+        _mm256_storeu_pd(out + i * N + 4, a1);
+    }
+}
+
+__attribute__((target("avx2,fma"))) static void mv8_fma(const double *a, const double *x, double *y)
+{
+    for (int i = 0; i < N; i++) {
+        double l[4] = {0.0, 0.0, 0.0, 0.0};
+        for (int k = 0; k < N; k++)
+            l[k % 4] = __builtin_fma(a[i * N + k], x[k], l[k % 4]);
+        y[i] = (l[0] + l[2]) + (l[1] + l[3]);
+    }
+}
+#endif
+
+static void mm8_libm(const double *x, const double *y, double *out)
+{
+    for (int i = 0; i < N; i++) {
+        double acc[N] = {0.0};
+        for (int k = 0; k < N; k++)
+            for (int j = 0; j < N; j++)
+                acc[j] = fma(x[i * N + k], y[k * N + j], acc[j]); /* correctly rounded, as the instruction */
+        memcpy(out + i * N, acc, sizeof(acc));
+    }
+}
+
+static void mv8_libm(const double *a, const double *x, double *y)
+{
+    for (int i = 0; i < N; i++) {
+        double l[4] = {0.0, 0.0, 0.0, 0.0};
+        for (int k = 0; k < N; k++)
+            l[k % 4] = fma(a[i * N + k], x[k], l[k % 4]);
+        y[i] = (l[0] + l[2]) + (l[1] + l[3]);
+    }
+}
+
+typedef void (*mm8_fn)(const double *, const double *, double *);
+
+static void blas8(mm8_fn *mm, mm8_fn *mv)
+{
+    *mm = mm8_libm;
+    *mv = mv8_libm;
+#ifdef BLAS_FMA_TARGET
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) {
+        *mm = mm8_fma;
+        *mv = mv8_fma;
+    }
+#endif
+}
+
+/* phis[j] <- phis[j] ... phis[0] in place: for d = 1, 2, 4, ...: phis[d:] = phis[d:] @ phis[:-d]. */
+static void doubling(double *phis, Py_ssize_t count, mm8_fn mm)
+{
+    double t[N * N];
+    for (Py_ssize_t d = 1; d < count; d *= 2)
+        for (Py_ssize_t j = count - 1; j >= d; j--) { /* descending: phis[j - d] is still the old one */
+            mm(phis + j * N * N, phis + (j - d) * N * N, t);
+            memcpy(phis + j * N * N, t, sizeof(t));
+        }
+}
+
+/* prefix_doubling(phis): latency_sensitivity.prefix_doubling_reference, numpy's bits (above). */
+static PyObject *k_prefix_doubling(PyObject *self, PyObject *arg)
+{
+    Py_buffer b;
+    double *phis = get_doubles(arg, &b, -(N * N), "phis");
+    if (!phis)
+        return NULL;
+    mm8_fn mm, mv;
+    blas8(&mm, &mv);
+    doubling(phis, b.len / (Py_ssize_t)(N * N * sizeof(double)), mm);
+    PyBuffer_Release(&b);
+    Py_RETURN_NONE;
+}
+
+/* carry_change(S, A, s, last, delta): scale_sensitivity.carry_change_reference, numpy's bits:
+ * S at every slot of steps s+1 .. last += (A_j ... A_{s+1}) delta (ring of len(S) slots). */
+static PyObject *k_carry_change(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "carry_change(S, A, s, last, delta)");
+        return NULL;
+    }
+    long long s = PyLong_AsLongLong(args[2]), last = PyLong_AsLongLong(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bS, bA, bd;
+    double *S = get_doubles(args[0], &bS, -N, "S");
+    if (!S)
+        return NULL;
+    double *A = get_doubles(args[1], &bA, -(N * N), "A");
+    if (!A) {
+        PyBuffer_Release(&bS);
+        return NULL;
+    }
+    double *delta = get_doubles(args[4], &bd, N, "delta");
+    if (!delta) {
+        PyBuffer_Release(&bA);
+        PyBuffer_Release(&bS);
+        return NULL;
+    }
+    Py_ssize_t n = bS.len / (Py_ssize_t)(N * sizeof(double));
+    PyObject *ret = NULL;
+    long long count = last - s;
+    if (bA.len / (Py_ssize_t)(N * N * sizeof(double)) != n || count >= n) {
+        PyErr_SetString(PyExc_ValueError, "carry_change: A and S must hold the same slots, the window fewer");
+        goto done;
+    }
+    if (count > 0) {
+        double *phis = PyMem_Malloc((size_t)count * N * N * sizeof(double));
+        if (!phis) {
+            PyErr_NoMemory();
+            goto done;
+        }
+        for (long long c = 0; c < count; c++) {
+            long long k = s + 1 + c, slot = ((k % n) + n) % n;
+            memcpy(phis + c * N * N, A + slot * N * N, N * N * sizeof(double));
+        }
+        mm8_fn mm, mv;
+        blas8(&mm, &mv);
+        doubling(phis, (Py_ssize_t)count, mm);
+        for (long long c = 0; c < count; c++) {
+            long long k = s + 1 + c, slot = ((k % n) + n) % n;
+            double v[N];
+            mv(phis + c * N * N, delta, v);
+            for (int a = 0; a < N; a++)
+                S[slot * N + a] = S[slot * N + a] + v[a];
+        }
+        PyMem_Free(phis);
+    }
+    ret = Py_None;
+    Py_INCREF(ret);
+done:
+    PyBuffer_Release(&bd);
+    PyBuffer_Release(&bA);
+    PyBuffer_Release(&bS);
+    return ret;
+}
+
+/* scale_step(A, S_prev, S_out, i, r_dt): scale_sensitivity.scale_step_reference, numpy's bits:
+ * S_out = A S_prev, then S_out[i] += r_dt (i: the heading's index). */
+static PyObject *k_scale_step(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "scale_step(A, S_prev, S_out, i, r_dt)");
+        return NULL;
+    }
+    long ipsi = PyLong_AsLong(args[3]);
+    double r_dt = PyFloat_AsDouble(args[4]);
+    if (PyErr_Occurred())
+        return NULL;
+    if (ipsi < 0 || ipsi >= N) {
+        PyErr_SetString(PyExc_ValueError, "scale_step: index outside the state");
+        return NULL;
+    }
+    Py_buffer bA, bp, bo;
+    double *A = get_doubles(args[0], &bA, N * N, "A");
+    if (!A)
+        return NULL;
+    double *sp = get_doubles(args[1], &bp, N, "S_prev");
+    if (!sp) {
+        PyBuffer_Release(&bA);
+        return NULL;
+    }
+    double *so = get_doubles(args[2], &bo, N, "S_out");
+    if (!so) {
+        PyBuffer_Release(&bp);
+        PyBuffer_Release(&bA);
+        return NULL;
+    }
+    mm8_fn mm, mv;
+    blas8(&mm, &mv);
+    double v[N];
+    mv(A, sp, v);
+    memcpy(so, v, sizeof(v)); /* S_out may be S_prev */
+    so[ipsi] = so[ipsi] + r_dt;
+    PyBuffer_Release(&bo);
+    PyBuffer_Release(&bp);
+    PyBuffer_Release(&bA);
+    Py_RETURN_NONE;
+}
+
+/* across_secant(aux, c, sn, u0, u1, lever_x, lever_y, dt, i0, span, slope):
+ * latency_sensitivity.across_secant_reference, bit for bit (elementwise IEEE operations in numpy's
+ * order, the cumulative sum left to right as numpy's accumulate, argmax's first maximum, a NaN
+ * first): the antenna's acceleration across the track over the stored rows aux (count x 6, the
+ * history's aux columns; c, sn the cos / sin of their headings, from numpy), integrated, and its
+ * largest timing secant about row i0. Why: ~25 numpy calls on ~100-element arrays per fused fix. */
+static PyObject *k_across_secant(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 11) {
+        PyErr_SetString(PyExc_TypeError, "across_secant(aux, c, sn, u0, u1, lever_x, lever_y, dt, i0, span, slope)");
+        return NULL;
+    }
+    double sc[6];
+    const int at[6] = {3, 4, 5, 6, 7, 9}; /* u0, u1, lever_x, lever_y, dt, span */
+    for (int a = 0; a < 6; a++) {
+        sc[a] = PyFloat_AsDouble(args[at[a]]);
+        if (sc[a] == -1.0 && PyErr_Occurred())
+            return NULL;
+    }
+    double u0 = sc[0], u1 = sc[1], lx = sc[2], ly = sc[3], dt = sc[4], span = sc[5];
+    double slope = PyFloat_AsDouble(args[10]);
+    if (slope == -1.0 && PyErr_Occurred())
+        return NULL;
+    Py_ssize_t i0 = PyLong_AsSsize_t(args[8]);
+    if (i0 == -1 && PyErr_Occurred())
+        return NULL;
+    Py_buffer ba, bc, bs;
+    double *aux = get_doubles(args[0], &ba, -6, "aux");
+    if (!aux)
+        return NULL;
+    Py_ssize_t count = ba.len / (Py_ssize_t)(6 * sizeof(double));
+    double *c = get_doubles(args[1], &bc, count, "c");
+    if (!c) {
+        PyBuffer_Release(&ba);
+        return NULL;
+    }
+    double *sn = get_doubles(args[2], &bs, count, "sn");
+    if (!sn) {
+        PyBuffer_Release(&bc);
+        PyBuffer_Release(&ba);
+        return NULL;
+    }
+    PyObject *ret = NULL;
+    double *y = NULL;
+    if (i0 < 0 || i0 >= count) {
+        PyErr_SetString(PyExc_IndexError, "across_secant: i0 outside the rows");
+        goto done;
+    }
+    y = PyMem_Malloc((size_t)count * sizeof(double));
+    if (!y) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    double cum = 0.0;
+    for (Py_ssize_t j = 0; j < count; j++) {
+        const double *a = aux + j * 6;
+        double rr = a[0], rd = a[2]; /* AUX_R, AUX_RDOT */
+        double bx = (a[5] - rd * ly) - (rr * rr) * lx; /* AUX_AX */
+        double by = (a[1] + rd * lx) - (rr * rr) * ly; /* AUX_AY */
+        double across = u1 * (bx * c[j] + by * sn[j]) - u0 * (bx * sn[j] - by * c[j]);
+        cum = j ? cum + across : across;
+        y[j] = cum;
+    }
+    for (Py_ssize_t j = 0; j < count; j++)
+        y[j] = y[j] * dt;
+    double y0 = y[i0], best = 0.0;
+    Py_ssize_t jb = -1;
+    for (Py_ssize_t j = 0; j < count; j++) {
+        double lag = (double)(j - i0) * dt;
+        double al = fabs(lag);
+        double m = (isnan(al) || isnan(span)) ? NAN : (al <= span ? al : span);
+        double sg = lag > 0.0 ? 1.0 : (lag < 0.0 ? -1.0 : (isnan(lag) ? lag : 0.0));
+        double cap = j == i0 ? 1.0 : sg * m;
+        double sec = (y[j] - y0) / cap;
+        double as = fabs(sec);
+        if (isnan(as)) { /* numpy's argmax: the first NaN */
+            jb = j;
+            best = sec;
+            break;
+        }
+        if (jb < 0 || as > fabs(best)) {
+            jb = j;
+            best = sec;
+        }
+    }
+    ret = PyFloat_FromDouble(fabs(best) > fabs(slope) ? best : slope);
+done:
+    PyMem_Free(y);
+    PyBuffer_Release(&bs);
+    PyBuffer_Release(&bc);
+    PyBuffer_Release(&ba);
+    return ret;
+}
+
 /* sens_fused(S, A, P, H, R, h, s, last): a fix of m = 1 or 2 rows fused at stored step s with
  * Jacobian H and noise R against the covariance P it had before: with K = P H' (H P H' + R)^-1,
  * S_s <- S_s - K (H S_s - h), then S_j = A_j S_{j-1} for every later step j up to last. */
@@ -1560,6 +1863,14 @@ static PyMethodDef methods[] = {
      "sens_step(A, S_prev, S_out): S_out = A S_prev (the latency sensitivity through one step)"},
     {"sens_fused", (PyCFunction)(void (*)(void))k_sens_fused, METH_FASTCALL,
      "sens_fused(S, A, P, H, R, h, s, last): S_s -= K (H S_s - h), then carried to step last"},
+    {"prefix_doubling", k_prefix_doubling, METH_O,
+     "prefix_doubling(phis): phis[j] <- phis[j] ... phis[0] in place (count x 8 x 8), numpy's bits where checked"},
+    {"carry_change", (PyCFunction)(void (*)(void))k_carry_change, METH_FASTCALL,
+     "carry_change(S, A, s, last, delta): S at steps s+1 .. last += (A_j ... A_{s+1}) delta, numpy's bits"},
+    {"scale_step", (PyCFunction)(void (*)(void))k_scale_step, METH_FASTCALL,
+     "scale_step(A, S_prev, S_out, i, r_dt): S_out = A S_prev, S_out[i] += r_dt, numpy's bits"},
+    {"across_secant", (PyCFunction)(void (*)(void))k_across_secant, METH_FASTCALL,
+     "across_secant(aux, c, sn, u0, u1, lever_x, lever_y, dt, i0, span, slope) -> the timing secant of the across-track acceleration"},
     {"fit_update", (PyCFunction)(void (*)(void))k_fit_update, METH_FASTCALL,
      "fit_update(info, rhs, h, z, var, prior, theta, cov) -> solved: add a fix, solve the regularised fit"},
     {"fit_predict", (PyCFunction)(void (*)(void))k_fit_predict, METH_FASTCALL,

@@ -7,7 +7,10 @@ The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under t
 single-track learner's ``rls_update`` (``fusion/single_track.py``) and the latency sensitivity's
 ``sens_step`` / ``sens_fused`` (``latency_sensitivity.py``) and the lever-arm checks'
 ``fit_update`` / ``fit_predict`` (``lever_arm_check.py``) and the latency identification's
-``latency_costs`` / ``accumulate`` / ``median`` (``latency.py``); the pure-Python
+``latency_costs`` / ``accumulate`` / ``median`` (``latency.py``) and the prefix products
+doubling (``latency_sensitivity.prefix_doubling``) and the scale sensitivity's ``scale_step`` /
+``carry_change`` (``scale_sensitivity.py``): unlike the others these three reproduce numpy's
+bits, and are installed only where a probe shows they do (:func:`blas_bits_match`); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -16,7 +19,9 @@ from __future__ import annotations
 import contextlib
 import logging
 
-from . import history, kalman, kinematic, latency, latency_sensitivity, lever_arm_check
+import numpy as np
+
+from . import history, kalman, kinematic, latency, latency_sensitivity, lever_arm_check, scale_sensitivity
 from .fusion import single_track, stiffness_regression
 
 log = logging.getLogger(__name__)
@@ -24,9 +29,10 @@ log = logging.getLogger(__name__)
 KERNELS = ("predict", "predict_from", "scalar_update", "index_update", "late_update", "symmetrize", "correct")
 STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum", "window_fit")
 SINGLE_TRACK_KERNELS = ("rls_update",)
-SENSITIVITY_KERNELS = ("sens_step", "sens_fused")
+SENSITIVITY_KERNELS = ("sens_step", "sens_fused", "across_secant")
 LEVER_KERNELS = ("fit_update", "fit_predict")
 LATENCY_KERNELS = ("latency_costs", "accumulate", "median")
+SCALE_KERNELS = ("scale_step", "carry_change")
 
 try:
     from . import _kernels as compiled
@@ -36,11 +42,40 @@ except ImportError as e:  # no compiler at install time, or a source checkout ne
     _import_error = str(e)
 if compiled is not None and not all(hasattr(compiled, name)
                                     for name in KERNELS + STIFFNESS_KERNELS + SINGLE_TRACK_KERNELS
-                                    + SENSITIVITY_KERNELS + LEVER_KERNELS + LATENCY_KERNELS):
+                                    + SENSITIVITY_KERNELS + LEVER_KERNELS + LATENCY_KERNELS
+                                    + ("prefix_doubling",) + SCALE_KERNELS):
     _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
     compiled = None
 
 _announced = False
+_blas_checked = None  # blas_bits_match(), once per process
+
+
+def blas_bits_match() -> bool:
+    """Do the compiled products that stand in for numpy's (``prefix_doubling``, ``carry_change``,
+    ``scale_step``: numpy's BLAS reproduced, ``_kernels.c``) give numpy's own bits on fixed probes?
+    The estimate's bytes must not depend on which of the two ran: where numpy's BLAS sums in
+    another order (another library or CPU), the references stay."""
+    global _blas_checked
+    if _blas_checked is None:
+        rng = np.random.default_rng(20)
+        ok = True
+        for scale in (0.05, 1.0, 30.0):
+            A = np.eye(8) + scale * rng.standard_normal((40, 8, 8))
+            A[rng.random(A.shape) < 0.25] = 0.0  # structural zeros, as a transition's
+            S = rng.standard_normal((40, 8))
+            delta = rng.standard_normal(8)
+            refs, outs = (A[3:36].copy(), S.copy(), S.copy()), (A[3:36].copy(), S.copy(), S.copy())
+            latency_sensitivity.prefix_doubling_reference(refs[0])
+            compiled.prefix_doubling(outs[0])
+            scale_sensitivity.carry_change_reference(refs[1], A, 37, 40 + 30, delta)  # wraps the ring
+            compiled.carry_change(outs[1], A, 37, 40 + 30, delta)
+            for k in range(1, 40):
+                scale_sensitivity.scale_step_reference(A[k], refs[2][k - 1], refs[2][k], 2, 0.01 * k)
+                compiled.scale_step(A[k], outs[2][k - 1], outs[2][k], 2, 0.01 * k)
+            ok = ok and all(np.array_equal(r.view(np.uint64), o.view(np.uint64)) for r, o in zip(refs, outs))
+        _blas_checked = ok
+    return _blas_checked
 
 
 def _predict_compiled(self, x, P, P_out, r_m, ax_m, ay_m):
@@ -79,6 +114,11 @@ def select(use_compiled: bool = True) -> str:
         setattr(lever_arm_check, name, getattr(compiled, name) if on else getattr(lever_arm_check, name + "_reference"))
     for name in LATENCY_KERNELS:
         setattr(latency, name, getattr(compiled, name) if on else getattr(latency, name + "_reference"))
+    blas = on and blas_bits_match()
+    latency_sensitivity.prefix_doubling = (compiled.prefix_doubling if blas
+                                           else latency_sensitivity.prefix_doubling_reference)
+    for name in SCALE_KERNELS:
+        setattr(scale_sensitivity, name, getattr(compiled, name) if blas else getattr(scale_sensitivity, name + "_reference"))
     return active()
 
 

@@ -53,6 +53,7 @@ from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
+from . import latency_sensitivity
 from .latency_sensitivity import LatencySensitivity, timing_secant
 from .scale_sensitivity import ScaleSensitivity
 from .lateral_noise import LateralNoise
@@ -1462,13 +1463,9 @@ class Estimator:
         # step where earlier fixes corrected them, which is no motion)
         lo, hi, span = self._timing_window(s, g, self.latencies[g.source])
         rows = np.arange(lo, hi + 1) % h.n
-        A = h.aux[rows]
-        rr, rd = A[:, AUX_R], A[:, AUX_RDOT]
-        bx = A[:, AUX_AX] - rd * fus.lever_y - rr * rr * fus.lever_x
-        by = A[:, AUX_AY] + rd * fus.lever_x - rr * rr * fus.lever_y
         c, sn = np.cos(h.X[rows, PSI]), np.sin(h.X[rows, PSI])
-        a_across = u1 * (bx * c + by * sn) - u0 * (bx * sn - by * c)
-        across = timing_secant(np.cumsum(a_across) * self.dt, s - lo, self.dt, span, across)
+        across = latency_sensitivity.across_secant(h.aux[rows], c, sn, u0, u1, fus.lever_x, fus.lever_y,
+                                                   self.dt, s - lo, span, across)
         sens.fused(h, s, P_pre, fus._H2, fus._R2, np.array((-across * u1, across * u0)))
 
     def _course_heading(self, s: int, g: GnssSample, fus: GnssVelocityFusion,

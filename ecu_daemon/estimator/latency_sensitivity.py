@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .history import StepHistory
+from .history import AUX_AX, AUX_AY, AUX_R, AUX_RDOT, StepHistory
 from .kinematic import NX, PSI
 
 
@@ -87,8 +87,23 @@ def timing_secant(y: np.ndarray, i0: int, dt: float, span: float, slope: float) 
     return float(sec[j]) if abs(sec[j]) > abs(slope) else float(slope)
 
 
+def across_secant_reference(aux: np.ndarray, c: np.ndarray, sn: np.ndarray, u0: float, u1: float,
+                            lever_x: float, lever_y: float, dt: float, i0: int, span: float,
+                            slope: float) -> float:
+    """The antenna's acceleration across the track (unit vector (u0, u1) north / east) over the
+    stored rows aux (the history's aux rows of the fix's timing window; c, sn: cos / sin of their
+    headings), integrated to a velocity change, and its ``timing_secant`` about row i0: what a
+    velocity fix at row i0 carries of a latency error (``core.Estimator._sensitivity_fused``)."""
+    rr, rd = aux[:, AUX_R], aux[:, AUX_RDOT]
+    bx = aux[:, AUX_AX] - rd * lever_y - rr * rr * lever_x
+    by = aux[:, AUX_AY] + rd * lever_x - rr * rr * lever_y
+    a_across = u1 * (bx * c + by * sn) - u0 * (bx * sn - by * c)
+    return timing_secant(np.cumsum(a_across) * dt, i0, dt, span, slope)
+
+
 # The kernels: numpy references here, swapped for the compiled ones (``_kernels.c``: ``sens_step``,
-# ``sens_fused``; the same math, summed in index order) by ``backend.select``.
+# ``sens_fused``; the same math, summed in index order; ``prefix_doubling``: numpy's own bits,
+# checked; ``across_secant``: elementwise, the same bits) by ``backend.select``.
 
 def sens_step_reference(A: np.ndarray, S_prev: np.ndarray, S_out: np.ndarray) -> None:
     """S_out = A S_prev: the sensitivity through one step's effective transition."""
@@ -112,11 +127,16 @@ def prefix_products(A: np.ndarray, idx: np.ndarray) -> np.ndarray:
     StepHistory.correct_reference does (log2(count) whole-array matmuls instead of a rewind's
     ~80 small ones; the same bits every run)."""
     phis = A[idx]
+    prefix_doubling(phis)
+    return phis
+
+
+def prefix_doubling_reference(phis: np.ndarray) -> None:
+    """phis[j] <- phis[j] ... phis[0] in place: for d = 1, 2, 4, ...: phis[d:] = phis[d:] @ phis[:-d]."""
     d = 1
     while d < len(phis):
         phis[d:] = phis[d:] @ phis[:-d]
         d *= 2
-    return phis
 
 
 def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
@@ -130,3 +150,5 @@ def carry_reference(S: np.ndarray, A: np.ndarray, s: int, last: int) -> None:
 
 sens_step = sens_step_reference
 sens_fused = sens_fused_reference
+prefix_doubling = prefix_doubling_reference
+across_secant = across_secant_reference

@@ -43,8 +43,7 @@ class ScaleSensitivity:
     def step(self, i: int, ip: int, A: np.ndarray, predict: bool, r: float) -> None:
         """Carry S through step i's effective transition and add this step's r dt to the heading."""
         if predict:
-            np.dot(A, self.Sr[ip], out=self.Sr[i])
-            self.Sr[i][PSI] += r * self.dt
+            scale_step(A, self.Sr[ip], self.Sr[i], PSI, r * self.dt)
         else:  # a fresh start: the initial heading owes nothing to the scale yet
             self.Sr[i].fill(0.0)
 
@@ -60,11 +59,8 @@ class ScaleSensitivity:
         i = s % n
         delta = -(K @ (H @ self.S[i]))
         self.S[i] += delta
-        idx = np.arange(s + 1, hist.last + 1) % n
-        if len(idx) == 0:
-            return
         # the change, not S_s, is carried: unlike the latency's, every later step added its own r dt
-        self.S[idx] += prefix_products(hist.A, idx) @ delta
+        carry_change(self.S, hist.A, s, hist.last, delta)
 
     def set_heading(self, idx: np.ndarray, J: np.ndarray) -> None:
         """The heading was set from a course at every slot idx as course + J x."""
@@ -73,3 +69,24 @@ class ScaleSensitivity:
     def zero_heading(self, hist: StepHistory) -> None:
         """The heading was set from a source independent of the gyro (a dual-antenna align)."""
         self.S[np.arange(hist.oldest(), hist.last + 1) % hist.n, PSI] = 0.0
+
+
+# The kernels: numpy references here, swapped for the compiled ones (``_kernels.c``: the same
+# products with numpy's own bits, installed only where a probe shows they are) by ``backend.select``.
+
+def scale_step_reference(A: np.ndarray, S_prev: np.ndarray, S_out: np.ndarray, i: int, r_dt: float) -> None:
+    """S_out = A S_prev, then S_out[i] += r_dt (i: the heading's index)."""
+    np.dot(A, S_prev, out=S_out)
+    S_out[i] += r_dt
+
+
+def carry_change_reference(S: np.ndarray, A: np.ndarray, s: int, last: int, delta: np.ndarray) -> None:
+    """S at every step after s (a ring of len(S) slots, up to step last) += A_j ... A_{s+1} delta."""
+    idx = np.arange(s + 1, last + 1) % len(S)
+    if len(idx) == 0:
+        return
+    S[idx] += prefix_products(A, idx) @ delta
+
+
+scale_step = scale_step_reference
+carry_change = carry_change_reference
