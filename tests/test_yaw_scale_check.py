@@ -329,3 +329,37 @@ def test_a_gyro_scale_step_mid_drive_is_not_wrong_while_valid(tmp_path, name, at
     assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
     assert row["sideslip_coverage_3sigma"] >= 0.99 and row["heading_coverage_3sigma"] >= 0.99
     assert row["sideslip_worst_valid_deg"] < 2.0 and row["heading_worst_valid_deg"] < 5.0
+
+
+def _fit_state(chk: YawScaleCheck):
+    return (chk.scale, chk.scale_sd, chk.p_wide, *chk.wide)
+
+
+@pytest.mark.parametrize("scale, prior", [(0.03, None), (-0.02, (0.01, 0.002)), (0.0, (0.04, 0.002))])
+def test_the_scale_fit_runs_the_compiled_fit_kernels_and_agrees_with_the_reference(scale, prior, monkeypatch):
+    """Both solves of a fix (narrow and wide prior) go through the lever-arm checks' ``fit_update``
+    (compiled by ``backend.select``: Gauss-Jordan, not LAPACK's bits), which agrees with the
+    numpy reference within 1e-9 over a drive with speed changes, course noise, a restored scale
+    (kept, or dropped as disagreeing) and the wide prior's selection."""
+    from ecu_daemon.estimator import backend, lever_arm_check
+    if backend.compiled is None:
+        pytest.skip("no compiled kernels")
+    runs = {}
+    for use_compiled in (False, True):
+        with backend.selected(use_compiled):
+            calls = []
+            solve = lever_arm_check.fit_update
+            monkeypatch.setattr(lever_arm_check, "fit_update", lambda *a: calls.append(1) or solve(*a))
+            chk = _drive(scale, _circle_with_speed_changes, 120.0, course_noise=0.002, seed=3,
+                         chk=YawScaleCheck(0.0, prior))
+            monkeypatch.undo()
+            runs[use_compiled] = (chk, len(calls))
+    (ref, n_ref), (comp, n_comp) = runs[False], runs[True]
+    assert n_ref == n_comp >= 2 * comp.n > 500  # two solves a fitted fix
+    assert (comp.n, comp.gated, comp.changes, comp.restored) == (ref.n, ref.gated, ref.changes, ref.restored)
+    assert np.allclose(_fit_state(comp), _fit_state(ref), rtol=1e-9, atol=0.0)
+    # the nuisance columns are poorly conditioned (cond ~1e10: the latency error's takes relative
+    # differences of a few 1e-9): compared in units of their stds
+    sd = np.sqrt(np.diag(ref.cov))
+    assert np.all(np.abs(comp.theta - ref.theta) <= 1e-9 * sd)
+    assert np.all(np.abs(comp.cov - ref.cov) <= 1e-9 * np.outer(sd, sd))

@@ -71,8 +71,9 @@ import math
 
 import numpy as np
 
+from . import lever_arm_check
 from .lever_arm_check import COURSE_NOISE_RAD, CORR_FIXES, GATE_SIGMA, LEVER_TOL_M, MAX_GAP_S, MIN_SPEED, \
-    _regularised_cov, marginalise_offset
+    marginalise_offset
 
 #: prior std of the scale error: the core's constant before this fit existed (core.YAW_SCALE_STD),
 #: an automotive MEMS gyro's sensitivity tolerance after calibration; a drive without corners
@@ -135,6 +136,9 @@ CUSUM_ALARM = 15.0
 CHANGE_KNOWN = RESTORE_FLOOR
 #: a residual counts at most this many stds: one wild fix (a multipath course) must not alarm alone
 CUSUM_CLIP = 8.0
+
+
+_ZEROS = np.zeros(5)  # regressors that add nothing: the second solve of the same information
 
 
 class YawScaleCheck:
@@ -220,7 +224,8 @@ class YawScaleCheck:
         self.model_rad = vy_std / vx
         self.rot_seen = max(self.rot_seen, abs(self.yaw_int))
         h = np.array((1.0, t - self.t_run, self.yaw_int, ratio, -r))
-        pred = float(h @ self.theta) if self.cov is not None else 0.0
+        # the lever-arm checks' kernels (compiled by ``backend.select``): h' theta and h' cov h
+        pred, spread = lever_arm_check.fit_predict(h, self.theta, self.cov) if self.cov is not None else (0.0, 0.0)
         # unwrapped about the fit's prediction: a 3 % scale error turns the gyro heading by more
         # than pi over 17 laps of a circle
         z = pred + math.remainder(course + beta - self.psi_gyro - pred, 2.0 * math.pi)
@@ -232,16 +237,14 @@ class YawScaleCheck:
             self.int_hi = self.int_lo = 0.0
         if not new_run and self.cov is not None:
             e = z - pred
-            sv = var + float(h @ self.cov @ h)
+            sv = var + spread
             if self.scale_sd < CHANGE_KNOWN and self._cusum(e, sv, course + beta):
                 return
             if e * e > GATE_SIGMA ** 2 * sv:
                 self.gated += 1
                 return
-        self.info += np.outer(h, h) / var
-        self.rhs += h * (z / var)
         self.n += 1
-        self._solve(latency_std_s, bias_std)
+        self._solve(latency_std_s, bias_std, h, z, var)
 
     def _cusum(self, e: float, sv: float, psi0: float) -> bool:
         """Accumulate the normalised residual; on an alarm forget the scale and open a new run
@@ -283,17 +286,20 @@ class YawScaleCheck:
         marginalise_offset(self.info, self.rhs)
         self.theta[0] = 0.0
 
-    def _solve(self, latency_std_s: float, bias_std: float) -> None:
+    def _solve(self, latency_std_s: float, bias_std: float, h: np.ndarray, z: float, var: float) -> None:
+        """Add the fix (regressors h, value z, noise variance var) and solve under both scale priors:
+        one ``fit_update`` each (the second adds exact zeros), no inverse built in Python."""
         sb = max(bias_std, BIAS_FLOOR)
-        cov = _regularised_cov(self.info, (1e-9, 1.0 / (sb * sb), 1.0 / SCALE_PRIOR ** 2, 1.0 / LEVER_TOL_M ** 2,
-                                           1.0 / max(latency_std_s, 1e-3) ** 2))
-        if cov is None:
+        prior = np.array((1e-9, 1.0 / (sb * sb), 1.0 / SCALE_PRIOR ** 2, 1.0 / LEVER_TOL_M ** 2,
+                          1.0 / max(latency_std_s, 1e-3) ** 2))
+        theta, cov = np.empty(self.N), np.empty((self.N, self.N))
+        if not lever_arm_check.fit_update(self.info, self.rhs, h, z, var, prior, theta, cov):
             return
-        theta, cov = self._with_restored(cov @ self.rhs, cov, drop=True)
-        wide = _regularised_cov(self.info, (1e-9, 1.0 / (sb * sb), 1.0 / SENSOR_TOL ** 2, 1.0 / LEVER_TOL_M ** 2,
-                                            1.0 / max(latency_std_s, 1e-3) ** 2))
-        if wide is not None:
-            tw, cw = self._with_restored(wide @ self.rhs, wide, drop=False)
+        theta, cov = self._with_restored(theta, cov, drop=True)
+        prior[2] = 1.0 / SENSOR_TOL ** 2
+        tw, cw = np.empty(self.N), np.empty((self.N, self.N))
+        if lever_arm_check.fit_update(self.info, self.rhs, _ZEROS, 0.0, 1.0, prior, tw, cw):
+            tw, cw = self._with_restored(tw, cw, drop=False)
             self._select(float(tw[2]), float(cw[2, 2]))
             if self.p_wide > 0.5:  # the data favour the wide prior: its fit is the scale (and heading)
                 theta, cov = tw, cw
