@@ -978,6 +978,25 @@ static PyObject *k_rls_update(PyObject *self, PyObject *const *args, Py_ssize_t 
     return PyFloat_FromDouble(e);
 }
 
+/* The (A, S_prev, S_out) arguments of a sensitivity's per-step carry (sens_step, scale_step): an
+ * 8 x 8 transition and two 8-vectors; on failure nothing is held and the exception is set. */
+static int get_step_buffers(PyObject *const *args, Py_buffer *bA, Py_buffer *bp, Py_buffer *bo,
+                            double **A, double **sp, double **so)
+{
+    if (!(*A = get_doubles(args[0], bA, N * N, "A")))
+        return 0;
+    if (!(*sp = get_doubles(args[1], bp, N, "S_prev"))) {
+        PyBuffer_Release(bA);
+        return 0;
+    }
+    if (!(*so = get_doubles(args[2], bo, N, "S_out"))) {
+        PyBuffer_Release(bp);
+        PyBuffer_Release(bA);
+        return 0;
+    }
+    return 1;
+}
+
 /* ---- the latency sensitivity S of latency_sensitivity.py (one 8-vector per history slot) ---------
  * Carried through every step's effective transition and, at each fused GNSS fix, updated at the
  * fix's stored step and carried to the present: numpy's per-call overhead and the prefix-product
@@ -993,20 +1012,9 @@ static PyObject *k_sens_step(PyObject *self, PyObject *const *args, Py_ssize_t n
         return NULL;
     }
     Py_buffer bA, bp, bo;
-    double *A = get_doubles(args[0], &bA, N * N, "A");
-    if (!A)
+    double *A, *sp, *so;
+    if (!get_step_buffers(args, &bA, &bp, &bo, &A, &sp, &so))
         return NULL;
-    double *sp = get_doubles(args[1], &bp, N, "S_prev");
-    if (!sp) {
-        PyBuffer_Release(&bA);
-        return NULL;
-    }
-    double *so = get_doubles(args[2], &bo, N, "S_out");
-    if (!so) {
-        PyBuffer_Release(&bp);
-        PyBuffer_Release(&bA);
-        return NULL;
-    }
     double v[N];
     for (int a = 0; a < N; a++) {
         double t = 0.0;
@@ -1204,20 +1212,9 @@ static PyObject *k_scale_step(PyObject *self, PyObject *const *args, Py_ssize_t 
         return NULL;
     }
     Py_buffer bA, bp, bo;
-    double *A = get_doubles(args[0], &bA, N * N, "A");
-    if (!A)
+    double *A, *sp, *so;
+    if (!get_step_buffers(args, &bA, &bp, &bo, &A, &sp, &so))
         return NULL;
-    double *sp = get_doubles(args[1], &bp, N, "S_prev");
-    if (!sp) {
-        PyBuffer_Release(&bA);
-        return NULL;
-    }
-    double *so = get_doubles(args[2], &bo, N, "S_out");
-    if (!so) {
-        PyBuffer_Release(&bp);
-        PyBuffer_Release(&bA);
-        return NULL;
-    }
     mm8_fn mm, mv;
     blas8(&mm, &mv);
     double v[N];
