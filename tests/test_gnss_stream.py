@@ -171,10 +171,11 @@ def test_no_fix_and_invalid_time():
 
 
 def test_checksum_valid_nav_pvt_of_wrong_length_is_malformed():
-    short = UBXMessage(b"\x01", b"\x07", GET, payload=bytes(84)).serialize()  # u-blox 7 layout
+    # 84 bytes is u-blox 7's NAV-PVT and is decoded (test_ublox7_nav_pvt.py); 80 is no layout
+    short = UBXMessage(b"\x01", b"\x07", GET, payload=bytes(80)).serialize()
     samples, parser = parse_all(short + pvt(T0, 1.0, 0.0))
     assert len(samples) == 1 and parser.stats["malformed"] == 1
-    assert "NAV-PVT payload is 84 bytes" in parser.last_error
+    assert "NAV-PVT payload is 80 bytes" in parser.last_error
 
 
 # ------------------------------------------------------------------------------------ NMEA epochs

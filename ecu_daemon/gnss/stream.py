@@ -439,8 +439,12 @@ class GnssStreamParser:
         if velocity and st["samples"]:
             return (f"no usable fix in any of its {st['samples']} epochs (the receiver said no fix, or an"
                     " estimated / simulated one)")
-        if ubx and not self.seen_ubx.get(_NAV_STATUS) and not self.seen_ubx.get(NAV_SOL):
-            return (f"{ubx} NAV-VELNED without a NAV-STATUS or NAV-SOL of the same epoch (the fix state it"
+        if velocity and st["malformed"] >= velocity:
+            return (f"none of its {velocity} velocity messages could be decoded ({st['malformed']} malformed;"
+                    f" the last: {self.last_error})")
+        velned = self.seen_ubx.get(NAV_VELNED, 0)
+        if velned and not self.seen_ubx.get(_NAV_STATUS) and not self.seen_ubx.get(NAV_SOL):
+            return (f"{velned} NAV-VELNED without a NAV-STATUS or NAV-SOL of the same epoch (the fix state it"
                     " needs); enable NAV-STATUS, or NAV-PVT")
         if velocity:
             return (f"{velocity} velocity messages but no epoch could be dated (NMEA VTG needs GGA/GNS/ZDA"

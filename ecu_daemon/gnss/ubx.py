@@ -6,8 +6,9 @@ frames and turns the velocity messages into SI samples. pyubx2 decodes the paylo
 NAV-PVT's (the message every epoch of a modern receiver sends): one ``struct`` unpack with
 pyubx2's scalings, held equal to the library by the tests.
 
-NAV-PVT is the velocity source whenever a receiver sends it. Older receivers (u-blox 4-7, the
-timing series) send NAV-SOL: an ECEF velocity, turned into north/east at the ECEF position
+NAV-PVT is the velocity source whenever a receiver sends it (u-blox 7's 84-byte version too: the
+same fields but flags3 and the vehicle heading). Older receivers (u-blox 4-6, the timing series)
+send NAV-SOL: an ECEF velocity, turned into north/east at the ECEF position
 (pynmeagps' ``ecef2llh``), stamped with GPS week/time of week minus the leap seconds (NAV-TIMEGPS
 when it says they are valid, else the IERS table below). HNR-PVT (u-blox 8 ADR/UDR high-rate
 output) carries ground speed and course of motion. NAV-VELNED is paired with NAV-STATUS/NAV-SOL
@@ -55,6 +56,9 @@ _NAV_RELPOSNED_V0_LEN = 40
 _NAV_STATUS = (0x01, 0x03)
 _NAV_TIMEGPS = (0x01, 0x20)
 _NAV_PVT_LEN = 92
+#: u-blox 7 (protocol 14: NEO-7M and its many clones) sends NAV-PVT with 84 bytes: the same fields up to
+#: pDOP, then reserved bytes, no flags3 (invalidLlh) and no headVeh/magDec/magAcc (PX4's driver takes both)
+_NAV_PVT_LEN_UBX7 = 84
 _GPS_EPOCH_POSIX = 315964800  # 1980-01-06T00:00:00Z
 #: GPS - UTC in seconds from each leap second on (UTC posix time); used until NAV-TIMEGPS says.
 _LEAP_SECONDS = ((1483228800, 18), (1435708800, 17), (1341100800, 16), (1230768000, 15),
@@ -113,18 +117,19 @@ def _utc_of(valid, year, month, day, hour, minute, second, nano) -> float:
 
 
 def nav_pvt_sample(t: float, frame: bytes) -> GnssSample:
-    """The sample of a whole NAV-PVT frame (92-byte payload), read with one ``struct`` unpack.
+    """The sample of a whole NAV-PVT frame (92-byte payload, or u-blox 7's 84), read with one ``struct`` unpack.
 
     Why not pyubx2 here: it builds an attribute per field of every message (~120 us per NAV-PVT,
     a replay's biggest GNSS cost). The fields, scalings (pyubx2's own constants and rounding) and
     bit positions are the library's; ``tests/test_ubx_fast.py`` holds this equal to
     :meth:`UbxDecoder.nav_pvt_reference` on every capture and on random payloads. Any 92 bytes
     are a NAV-PVT for both (no field is variable), so nothing is left to the library here; other
-    lengths never come (``UbxDecoder`` calls them malformed first).
+    lengths never come (``UbxDecoder`` calls them malformed first). In u-blox 7's 84 bytes the
+    flags3 position is reserved: its position is not declared invalid.
     """
     (year, month, day, hour, minute, second, valid, nano, fix_type, flags, num_sv, lon, lat, h_acc,
      vel_n, vel_e, vel_d, s_acc, head_acc, flags3) = _NAV_PVT_FIELDS.unpack_from(frame, 6)
-    llh_ok = not flags3 & 1
+    llh_ok = not flags3 & 1 or len(frame) != 8 + _NAV_PVT_LEN
     return GnssSample(
         t=t,
         vel_n_mps=vel_n / 1000,
@@ -180,8 +185,9 @@ class UbxDecoder:
         cls_id = (frame[2], frame[3])
         out: list[GnssSample] = []
         if cls_id == NAV_PVT:
-            if len(frame) != 8 + _NAV_PVT_LEN:
-                raise UbxError(f"NAV-PVT payload is {len(frame) - 8} bytes, expected {_NAV_PVT_LEN}")
+            if len(frame) - 8 not in (_NAV_PVT_LEN, _NAV_PVT_LEN_UBX7):
+                raise UbxError(f"NAV-PVT payload is {len(frame) - 8} bytes, expected {_NAV_PVT_LEN}"
+                               f" (or {_NAV_PVT_LEN_UBX7}, u-blox 7)")
             self.seen_nav_pvt = True
             pvt = nav_pvt_sample(t, frame)
             self._pvt_epoch = (struct.unpack_from("<I", frame, 6)[0], pvt.fix_time_utc_s)  # payload's iTOW
@@ -233,11 +239,11 @@ class UbxDecoder:
     @classmethod
     def nav_pvt_reference(cls, t: float, frame: bytes) -> GnssSample:
         """The NAV-PVT sample decoded by pyubx2: the reference of :func:`nav_pvt_sample`."""
-        return cls._nav_pvt(t, cls._parse(frame))
+        return cls._nav_pvt(t, cls._parse(frame), len(frame) - 8 == _NAV_PVT_LEN)
 
     @staticmethod
-    def _nav_pvt(t: float, m) -> GnssSample:
-        llh_ok = not getattr(m, "invalidLlh", 0)
+    def _nav_pvt(t: float, m, has_flags3: bool = True) -> GnssSample:
+        llh_ok = not (has_flags3 and getattr(m, "invalidLlh", 0))
         return GnssSample(
             t=t,
             vel_n_mps=m.velN / 1000,
