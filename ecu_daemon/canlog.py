@@ -115,6 +115,8 @@ def _what_is_wrong(line: str) -> str:
         return "expected '(timestamp) interface ID#DATA'"
     if not re.fullmatch(r"\(\d+\.\d+\)", parts[0]):
         return f"bad timestamp {parts[0]!r}"
+    if len(parts) == 2 and "#" in parts[1]:
+        return "no interface name before the frame (candump -L: '(timestamp) can0 ID#DATA')"
     if len(parts) < 3:
         return "missing interface or frame"
     if len(parts) > 4 or (len(parts) == 4 and parts[3] not in ("R", "T")):
@@ -378,7 +380,9 @@ def read_can_log(path: str | Path, *, channel: str | None = None, time_offset: f
     return CanLogReader(path, channel=channel, time_offset=time_offset, messages=messages)
 
 
-_CANDUMP_CHANNEL = re.compile(rb"^[ \t]*\(\d+\.\d+\)[ \t]+(\S+)", re.M)
+#: the channel of a candump line: the token between the time and the frame. A line without one
+#: (``(t) 0B4#...``, which canplayer refuses too) names no channel: the reader reports it by line
+_CANDUMP_CHANNEL = re.compile(rb"^[ \t]*\(\d+\.\d+\)[ \t]+(\S+)[ \t]+\S", re.M)
 
 
 def log_channels(path: str | Path, max_frames: int | None = None) -> dict[str, int]:

@@ -39,8 +39,15 @@ def parse_channel_option(text: str) -> str:
     return name
 
 
+#: channels named in one message at most (the busiest); the rest are counted
+MAX_LISTED = 8
+
+
 def _listing(channels: dict[str, int]) -> str:
-    return ", ".join(f"{name or '(none)'} ({n} frames)" for name, n in sorted(channels.items()))
+    busiest = sorted(sorted(channels.items()), key=lambda kv: -kv[1])[:MAX_LISTED]
+    more = len(channels) - len(busiest)
+    return (", ".join(f"{name or '(none)'} ({n} frames)" for name, n in sorted(busiest))
+            + (f" and {more} more" if more > 0 else ""))
 
 
 def choose_channel(can_path: str, option: str | None, configured: str) -> str | None:

@@ -60,6 +60,7 @@ def test_candump_syntax_variants(tmp_path):
     ("(16210x9000.123456) can0 0AA#1A2B", "bad timestamp"),
     ("1621089000.123456 can0 0AA#1A2B", "expected '\\(timestamp\\) interface ID#DATA'"),
     ("(1621089000.123456) can0", "missing interface or frame"),
+    ("(1621089000.123456) 0AA#1A2B", "no interface name before the frame"),
     ("(1621089000.123456) can0 0AA#1A2B extra", "unexpected text after the frame"),
     ("(1621089000.123456) can0 0AA#112233445566778899", "9 data bytes is not a valid classic CAN length"),
     ("(1621089000.123456) can0 7FF##1" + "11" * 9, "9 data bytes is not a valid CAN FD length"),

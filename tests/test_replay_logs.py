@@ -124,6 +124,30 @@ def test_two_bus_log_without_a_choice_is_refused_listing_the_channels(drive, two
     assert f"can0 ({n} frames), can1 ({n} frames)" in line and "--can-channel" in line
 
 
+def test_a_log_without_interface_names_is_refused_in_one_short_line_naming_the_first_line(drive, tmp_path,
+                                                                                          capsys):
+    """``(t) 0B4#...`` (no interface; canplayer refuses it too). Before: the channel scan took each
+    frame for a channel, and the replay was refused with ONE line of 338 KB listing "10229 CAN
+    channels: 0B0#00083EBC47F7D01E (1 frames), ..." (the 45 s slalom's 15000 frames)."""
+    p = tmp_path / "noiface.log"
+    p.write_text("".join(line.replace(" can0 ", " ", 1) + "\n"
+                         for line in (drive / "drive.log").read_text().splitlines()))
+    assert replay(drive, p, tmp_path) == 2
+    line = last_error_line(capsys)
+    assert line.startswith(f"ecu-daemon replay: error: {p}:1: no interface name before the frame"), line
+    assert len(line) < 300
+
+
+def test_a_log_of_many_channels_lists_the_busiest_and_counts_the_rest(drive, tmp_path, capsys):
+    lines = (drive / "drive.log").read_text().splitlines()
+    p = tmp_path / "many.log"
+    p.write_text("".join(line.replace(" can0 ", f" can{k % 20} ", 1) + "\n" for k, line in enumerate(lines)))
+    assert replay(drive, p, tmp_path) == 2
+    line = last_error_line(capsys)
+    assert "holds frames of 20 CAN channels: " in line and line.count(" frames)") == 8
+    assert "and 12 more; choose one with --can-channel NAME" in line
+
+
 @pytest.mark.parametrize("choice", ["can0", "vcan0=can0"])
 def test_chosen_channel_replays_as_if_alone(drive, original, two_buses, tmp_path, choice):
     assert replay(drive, two_buses, tmp_path, "--can-channel", choice) == 0
