@@ -7,6 +7,7 @@ scenario (incl. seed) and config give identical frames and bytes.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 from dataclasses import dataclass, field
 
@@ -19,6 +20,8 @@ from .can_encoder import FrameEncoder
 from .manoeuvres import Circle, Driver
 from .scenario import T0, Scenario
 from .vehicle import Road, TruthArrays, integrate, steady_cornering
+
+log = logging.getLogger("ecu_daemon.simulate")
 
 #: scale factors of the deliberately wrong vehicle parameters (``--wrong-params``)
 WRONG_FACTORS = {"mass": 1.3, "inertia": 0.7, "cf": 0.7, "cr": 1.3}
@@ -167,9 +170,35 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     return cfg
 
 
+def with_mapped_sensors(scenario: Scenario, cfg: Config) -> Scenario:
+    """The scenario with the optional sensors ``cfg`` maps (``[inputs.roll_rate]``,
+    ``[inputs.mag_x/y/z]``) fitted to the car when it has none.
+
+    Why: a user simulating with their car's config (``simulate --config car.toml``) whose IMU has a
+    roll-rate gyro or a magnetometer had a KeyError traceback ("unknown input 'roll_rate'"): the
+    encoder sends every mapped input, the scenario's car had no such sensor. The sensor gets the
+    defaults of :class:`~ecu_daemon.sim.sensors.SensorParams` / :class:`~ecu_daemon.sim.sensors.MagParams`
+    (no disturbance events); a scenario that has one is left as it is.
+    """
+    changes = {}
+    if "roll_rate" in cfg.inputs and not scenario.sensors.roll_rate:
+        changes["sensor_roll_rate"] = True
+    if any(n in cfg.inputs for n in MAG_INPUTS) and scenario.sensors.magnetometer is None:
+        changes["sensor_magnetometer"] = sens.MagParams()
+    if not changes:
+        return scenario
+    log.info("the config maps %s: the simulated car gets %s", ", ".join(
+        n for n in ("roll_rate", *MAG_INPUTS) if n in cfg.inputs),
+        " and ".join(w for k, w in (("sensor_roll_rate", "a roll-rate gyro"),
+                                    ("sensor_magnetometer", "a magnetometer")) if k in changes))
+    return scenario.with_(**changes)
+
+
 def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
-    """Run ``scenario``; frames are encoded with ``config``'s DBC + mapping (default: ours)."""
+    """Run ``scenario``; frames are encoded with ``config``'s DBC + mapping (default: ours), the
+    optional sensors it maps fitted to the car (:func:`with_mapped_sensors`)."""
     cfg = config if config is not None else Config()
+    scenario = with_mapped_sensors(scenario, cfg)
     man = scenario.build_manoeuvre()
     duration = scenario.duration()
     road = Road(scenario.mu, scenario.bank_rad, scenario.grade_rad, man.road)
