@@ -239,7 +239,8 @@ class Estimator:
         # the receiver whose fixes teach the per-drive stiffness regression (one latency: see _on_gnss)
         self.stiffness_source = self.uses_velocity.index(True)
         self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
-                                           gn.max_delay_s, True, fixed=not gn.estimate_delay,
+                                           gn.max_delay_s, gn.estimate_delay or gn.delay_monitor,
+                                           fixed=not gn.estimate_delay,
                                            prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf),
                                            min_spread=MIN_SPEED_SPREAD if rx.role == "velocity" else HEADING_SPREAD_RAD)
                           for i, rx in enumerate(receivers)]
