@@ -673,11 +673,14 @@ class FaultDetector:
             ay_latch.trip()
         else:
             ay_verdict = (a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None
-            # an isolated ay returns only on agreement that would have shown its fault: driving
-            # straight, ay ~ r vx ~ 0 whatever its sign or scale (a sign-flipped ay went back in on
-            # every straight of the demo drive and out again 0.1-0.3 s into each turn, 2.7 deg off
-            # while valid meanwhile)
-            if ay_verdict is not None and not ay_verdict and ay_latch.active and ref < AY_RETURN_MIN_R:
+            # an ay isolated a second time returns only on agreement that would have shown its
+            # fault: driving straight, ay ~ r vx ~ 0 whatever its sign or scale (a sign-flipped ay
+            # went back in on every straight of the demo drive and out again 0.1-0.3 s into each
+            # turn, 2.7 deg off while valid meanwhile). The first time, a straight's agreement
+            # still counts: a fault that came and went (the suite's 5 s offset, stuck, zero ay)
+            # shows on a straight too, and ay's sideslip would otherwise wait for the next corner.
+            if (ay_verdict is not None and not ay_verdict and ay_latch.active and ay_latch.events >= 2
+                    and ref < AY_RETURN_MIN_R):
                 ay_verdict = None
             ay_latch.update(ay_verdict)
         if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
