@@ -103,6 +103,9 @@ class GnssSettings:
     delay_s: float = 0.2  # latency prior: receive time minus time of validity
     lever_arm_m: list = field(default_factory=lambda: [0.0, 0.0])  # antenna position from CG, x fwd, y left
     estimate_delay: bool = True
+    # with estimate_delay = false: the fixed delay is still checked against the data, and a refuted
+    # one gets a wider std (estimator/latency.py); off only for a latency known independently (PPS)
+    delay_monitor: bool = True
     max_delay_s: float = 0.8  # ring-buffer horizon; later samples are clamped to it and counted
     min_fix_type: int = 2
     max_speed_acc_mps: float = 1.0

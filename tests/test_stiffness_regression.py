@@ -68,6 +68,7 @@ def test_the_latency_slope_says_how_far_a_latency_error_moves_both_axles(tmp_pat
     for tau in (TRUTH["gnss_latency_s"] - 0.02, TRUTH["gnss_latency_s"] + 0.02):
         cfg = vehicle_config(get("demo").with_(gnss_latency_s=tau))
         cfg.gnss.estimate_delay = False
+        cfg.gnss.delay_monitor = False  # held at tau exactly: the experiment's control, not a user's guess
         s = run_replay(cfg, str(tmp_path / writer.CAN_LOG), str(tmp_path / writer.GNSS_LOG))
         assert s["learned_std"]["kappa_drive_latency_s"] == pytest.approx(tau)
         runs.append(s)

@@ -112,6 +112,7 @@ def build_drive(scenario_name: str, steps: int):
     cfg = copy.deepcopy(cfg_replay)
     cfg.gnss.delay_s = GNSS_DELAY_S
     cfg.gnss.estimate_delay = False
+    cfg.gnss.delay_monitor = False  # no identification at all in these rows (see --online-latency)
     config_mod._validate(cfg)  # 0.5 s must sit inside max_delay_s
     decoder = SignalDecoder(cfg)
     events = []

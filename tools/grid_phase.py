@@ -94,6 +94,7 @@ def main() -> int:
     cfg = vehicle_config(sc)
     if args.fixed_latency:
         cfg.gnss.estimate_delay = False
+        cfg.gnss.delay_monitor = False
     dt = cfg.estimator.dt_s
     which = [int(i) for i in args.only.split(",")] if args.only else range(args.phases)
     for i in which:

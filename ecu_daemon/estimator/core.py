@@ -239,7 +239,8 @@ class Estimator:
         # the receiver whose fixes teach the per-drive stiffness regression (one latency: see _on_gnss)
         self.stiffness_source = self.uses_velocity.index(True)
         self.latencies = [LatencyEstimator(dt, float(learned.get(_learned_key("gnss_delay_s", i), rx.delay_s)),
-                                           gn.max_delay_s, gn.estimate_delay,
+                                           gn.max_delay_s, gn.estimate_delay or gn.delay_monitor,
+                                           fixed=not gn.estimate_delay,
                                            prior_std_s=learned.get(_learned_key("gnss_delay_std_s", i), math.inf),
                                            min_spread=MIN_SPEED_SPREAD if rx.role == "velocity" else HEADING_SPREAD_RAD)
                           for i, rx in enumerate(receivers)]
@@ -1510,7 +1511,7 @@ class Estimator:
         span = 3.0 * lat.std_s
         n = int(math.ceil(span / self.dt))
         lo, hi = s - n, min(s + n, k_rx)
-        if lat.enabled and lat.std_s >= PRIOR_STD_S:
+        if lat.enabled and not lat.fixed and lat.std_s >= PRIOR_STD_S:
             lo, hi = min(lo, k_rx - lat.max_steps), k_rx
         return max(lo, h.oldest()), max(min(hi, h.last), s), span
 

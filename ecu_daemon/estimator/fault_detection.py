@@ -141,6 +141,9 @@ STUCK_MIN_SPEED_MPS = 3.0  # wheels are judged above this only (below ~0.3 m/s t
 STANDSTILL_MAX_VX = 1.0  # the IMU-propagated speed must agree that the car stopped
 # --- hysteresis (steps at 6 ms)
 ON_STEPS = 3
+#: rad/s: the yaw rate above which an isolated ay's agreement counts towards its return (a
+#: sign-flipped ay disagrees by 2 |r|, twice the ay / vx tolerance from ~0.11 rad/s)
+AY_RETURN_MIN_R = 0.1
 OFF_STEPS = 170  # ~1 s of agreement before a source returns
 GNSS_ON = 2  # an inconsistent fix is never fused; GNSS is reported isolated from the second
 GNSS_OFF = 5  # 1 s at 5 Hz
@@ -669,7 +672,17 @@ class FaultDetector:
         if ay_stuck:
             ay_latch.trip()
         else:
-            ay_latch.update((a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None)
+            ay_verdict = (a_fail and not w_fail) if (have_w and have_a and not gyro.active) else None
+            # an ay isolated a second time returns only on agreement that would have shown its
+            # fault: driving straight, ay ~ r vx ~ 0 whatever its sign or scale (a sign-flipped ay
+            # went back in on every straight of the demo drive and out again 0.1-0.3 s into each
+            # turn, 2.7 deg off while valid meanwhile). The first time, a straight's agreement
+            # still counts: a fault that came and went (the suite's 5 s offset, stuck, zero ay)
+            # shows on a straight too, and ay's sideslip would otherwise wait for the next corner.
+            if (ay_verdict is not None and not ay_verdict and ay_latch.active and ay_latch.events >= 2
+                    and ref < AY_RETURN_MIN_R):
+                ay_verdict = None
+            ay_latch.update(ay_verdict)
         if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
             mis = ((rr - rl) * kw - self.track * r_g) / v_rear
             self.lr += self._a_lr * (mis - self.lr)

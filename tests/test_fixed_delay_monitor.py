@@ -1,0 +1,85 @@
+"""A GNSS delay fixed by the user (``[gnss] estimate_delay = false``) that the data refute
+(issue 7, wrong configurations): the delay stays as configured, but its std widens so that what
+the filter publishes stays within its promise.
+
+Measured on the demo drive (true latency 0.4 s): fixed at 0.3 or 0.5 s, the sideslip was 2.6-2.9
+deg off while flagged valid, within 3 published sigma on 78-81 % of the valid rows, because a
+fixed delay was taken as good to 0.01 s and its timing error went into the sideslip."""
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import tomllib
+
+import numpy as np
+import pytest
+import tomli_w
+
+from ecu_daemon.estimator.latency import FIXED_STD_S, LatencyEstimator
+from ecu_daemon.sim import simulate, vehicle_config
+from ecu_daemon.sim.scenario import Scenario
+from ecu_daemon.sim.writer import write_all
+
+from config_replay import replay_with
+
+
+@pytest.fixture(scope="module")
+def demo_drive(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fixed_delay")
+    sc = Scenario("demo", "demo")
+    write_all(d, simulate(sc, vehicle_config(sc)))
+    return d
+
+
+def _replay_fixed(d, delay_s):
+    """(estimate rows, truth rows, the replay's warning lines)."""
+    data = tomllib.loads((d / "config.toml").read_text())
+    data["gnss"]["delay_s"] = delay_s
+    data["gnss"]["estimate_delay"] = False
+    cfg = d / f"fixed_{delay_s}.toml"
+    cfg.write_text(tomli_w.dumps(data))
+    e, t = replay_with(d, cfg)
+    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(cfg),
+                        "--can", str(d / "drive.log"), "--gnss", str(d / "drive_gnss.log"),
+                        "--out-csv", str(d / f"fixed_{delay_s}_warn.csv"), "--no-progress", "--log-level", "warning"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return e, t, [ln for ln in r.stderr.splitlines() if "estimate_delay = false" in ln]
+
+
+@pytest.mark.parametrize("delay_s", [0.3, 0.5])
+def test_a_wrong_fixed_delay_keeps_the_sideslip_promise(demo_drive, delay_s):
+    e, t, warned = _replay_fixed(demo_drive, delay_s)
+    assert np.all(e["gnss_delay_s"] == delay_s)  # the user's delay is used as it is
+    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
+    err = np.abs(e["sideslip_rad"] - beta)
+    valid = e["sideslip_valid"].astype(bool)
+    assert valid.sum() > 1000
+    assert (err[valid] <= 3.0 * e["sideslip_std_rad"][valid]).mean() >= 0.99
+    assert math.degrees(err[valid].max()) < 2.0
+    assert len(warned) == 1 and "Traceback" not in warned[0], warned
+
+
+def test_the_right_fixed_delay_is_not_widened(demo_drive):
+    e, t, warned = _replay_fixed(demo_drive, 0.4)
+    assert not warned
+    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
+    valid = e["sideslip_valid"].astype(bool)
+    assert valid.mean() > 0.8
+    assert math.degrees(np.sqrt(np.mean((e["sideslip_rad"] - beta)[valid] ** 2))) < 0.2
+
+
+def test_a_fixed_delay_never_moves_and_starts_at_the_fixed_std():
+    lat = LatencyEstimator(0.006, 0.3, 0.8, fixed=True)
+    assert lat.std_s == FIXED_STD_S
+    rng = np.random.default_rng(0)
+    # a speed that changes, seen 0.4 s late: the candidates' regressor is the speed at each delay
+    t = np.arange(0, 60, 0.006)
+    v = 15 + 3 * np.sin(0.4 * t)
+    for k in range(2000, len(t), 33):  # 5 Hz fixes
+        m = np.arange(lat.max_steps + 1)
+        x = v[k - 1 - m]
+        lat.observe_series(x, v[k - round(0.4 / 0.006)] + 0.02 * rng.standard_normal())
+    assert lat.delay_s == 0.3
+    assert lat.std_s >= 0.1 / 3  # the 0.1 s the data put it off is inside 3 sigma
