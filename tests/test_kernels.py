@@ -402,6 +402,42 @@ def test_numpys_products_stand_in_only_where_the_probe_matches(monkeypatch):
         backend.select(True)
 
 
+@pytest.mark.parametrize("m", [1, 2])
+@pytest.mark.parametrize("depth", [0, 1, 7, 83, 99])  # 83: a 0.5 s rewind; 99: across the ring's wrap
+def test_scale_fused_agrees_and_touches_only_the_fix_and_later_slots(m, depth):
+    """The scale sensitivity's whole fix in one call (perfg23): the gain summed in index order and
+    the change carried one step at a time is the reference (numpy's inverse, the change carried by
+    prefix products) within 1e-12; the slots before the fix's step keep their bits."""
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    n, last = 100, 170
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(n, NX, NX))
+    A[RNG.random(A.shape) < 0.3] = 0.0
+    S0 = RNG.normal(size=(n, NX))
+    P, H, R = spd(0.1), RNG.normal(size=(m, NX)), np.diag(RNG.uniform(0.1, 0.5, m))
+    s = last - depth
+    ref, out = S0.copy(), S0.copy()
+    ss.scale_fused_reference(ref, A, P, H, R, s, last)
+    backend.compiled.scale_fused(out, A, P, H, R, s, last)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
+    untouched = np.setdiff1d(np.arange(n), np.arange(s, last + 1) % n)
+    assert np.array_equal(_bits(out[untouched]), _bits(S0[untouched]))
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)  # the fix's step: (I - K H) S_s
+    np.testing.assert_allclose(out[s % n], (np.eye(NX) - K @ H) @ S0[s % n], rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError):  # a step the ring no longer holds
+        backend.compiled.scale_fused(out, A, P, H, R, last - n, last)
+    with pytest.raises(ValueError):  # a singular innovation covariance
+        backend.compiled.scale_fused(out, A, np.zeros((NX, NX)), H, np.zeros((m, m)), s, last)
+
+
+def test_the_scale_sensitivitys_fix_runs_the_compiled_kernel():
+    """``ScaleSensitivity.fused`` is one ``scale_fused`` call, swapped by ``backend.select``."""
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    with backend.selected(True):
+        assert ss.scale_fused is backend.compiled.scale_fused
+    with backend.selected(False):
+        assert ss.scale_fused is ss.scale_fused_reference
+
+
 @pytest.mark.parametrize("span", [0.03, 0.3, np.inf])
 def test_across_secant_gives_the_references_bits(span):
     """The latency sensitivity's across-track secant (``_sensitivity_fused``), compiled: elementwise
