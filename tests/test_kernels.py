@@ -645,6 +645,27 @@ def test_ring_window_kernels_agree(lo, hi, s):
         sr.window_fit(aux, AUX_R, NAUX, lo, hi, s, 0.006)  # column out of range: an error, not a read
 
 
+@pytest.mark.parametrize("ring", [False, True])
+def test_yaw_sum_gives_numpys_bits(ring):
+    """The checks' gyro turn between fixes (lever_arm_check.yaw_sum): np.sum's own pairwise
+    summation, bit for bit, for every window length a 170-slot ring holds (the fixes are ~33 steps
+    apart; the pairwise blocks change at 8 and 128), across the wrap, with and without the division
+    by the applied scales (perfg23)."""
+    from ecu_daemon.estimator import lever_arm_check as lac
+    n = 170
+    for count in range(0, n + 1):
+        aux = RNG.normal(size=(n, NAUX)) * 10.0 ** RNG.integers(-3, 2, size=(n, NAUX))
+        q = RNG.uniform(-0.05, 0.05, n) if ring else None
+        k0 = int(RNG.integers(0, 3 * n))
+        ref = lac.yaw_sum_reference(aux, AUX_R, k0, k0 + count - 1, q)
+        out = backend.compiled.yaw_sum(aux, AUX_R, k0, k0 + count - 1, q)
+        assert type(out) is float and np.float64(out).tobytes() == np.float64(ref).tobytes(), count
+    with pytest.raises(ValueError):  # a window longer than the ring
+        backend.compiled.yaw_sum(aux, AUX_R, 0, n, q)
+    with pytest.raises(ValueError):  # a column out of range
+        backend.compiled.yaw_sum(aux, NAUX, 0, 3, q)
+
+
 # ------------------------------------------------------------------------------------------------
 # a whole drive
 

@@ -876,6 +876,88 @@ g_done:
     return ret;
 }
 
+/* numpy's np.sum of a contiguous float64 array, bit for bit: its pairwise summation (numpy's
+ * loops_utils.h: below 8 values one chain from -0.0; up to 128 eight chains, combined
+ * ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), the rest added in order; above, split in two at a
+ * multiple of 8), added to the reduction's initial +0.0. tests/test_kernels.py compares it with
+ * np.sum itself on random arrays of every length it meets. */
+static double pairwise_sum(const double *a, Py_ssize_t n)
+{
+    if (n < 8) {
+        double res = -0.0;
+        for (Py_ssize_t i = 0; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    if (n <= 128) {
+        double r[8];
+        memcpy(r, a, sizeof(r));
+        Py_ssize_t i;
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int j = 0; j < 8; j++)
+                r[j] += a[i + j];
+        double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    Py_ssize_t n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_sum(a, n2) + pairwise_sum(a + n2, n - n2);
+}
+
+/* yaw_sum(aux, r_col, k0, k1, ring) -> lever_arm_check.yaw_sum_reference, numpy's bits: the sum
+ * over steps k0..k1 of aux[k, r_col] (ring None) or aux[k, r_col] / (1 - ring[k]) (ring buffers
+ * of the same rows), as np.sum of the gathered (and divided) column. Why: the lever-arm and
+ * gyro-scale checks' gyro turn between fixes was ~8 numpy calls per fix. */
+static PyObject *k_yaw_sum(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "yaw_sum(aux, r_col, k0, k1, ring)");
+        return NULL;
+    }
+    long r_col = PyLong_AsLong(args[1]);
+    long long k0 = PyLong_AsLongLong(args[2]), k1 = PyLong_AsLongLong(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer ba, bq;
+    int has_ring = args[4] != Py_None;
+    double *aux = get_doubles(args[0], &ba, -1, "aux");
+    if (!aux)
+        return NULL;
+    double *ring = NULL, *buf = NULL;
+    PyObject *ret = NULL;
+    Py_ssize_t na = ba.len / (Py_ssize_t)sizeof(double), rows = ba.ndim == 2 ? ba.shape[0] : -1;
+    if (has_ring && !(ring = get_doubles(args[4], &bq, rows > 0 ? rows : 1, "ring"))) {
+        PyBuffer_Release(&ba);
+        return NULL;
+    }
+    long long count = k1 - k0 + 1;
+    if (rows <= 0 || r_col < 0 || r_col >= na / rows || count > rows) {
+        PyErr_SetString(PyExc_ValueError, "yaw_sum: column out of range or a window longer than the ring");
+        goto y_done;
+    }
+    if (count < 0)
+        count = 0;
+    buf = PyMem_Malloc((size_t)(count > 0 ? count : 1) * sizeof(double));
+    if (!buf) {
+        PyErr_NoMemory();
+        goto y_done;
+    }
+    Py_ssize_t ca = na / rows;
+    for (long long c = 0; c < count; c++) {
+        Py_ssize_t i = ring_row(k0 + c, rows);
+        buf[c] = has_ring ? aux[i * ca + r_col] / (1.0 - ring[i]) : aux[i * ca + r_col];
+    }
+    ret = PyFloat_FromDouble(0.0 + pairwise_sum(buf, (Py_ssize_t)count));
+    PyMem_Free(buf);
+y_done:
+    if (has_ring)
+        PyBuffer_Release(&bq);
+    PyBuffer_Release(&ba);
+    return ret;
+}
+
 /* window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay, std of the ay mean): over steps
  * lo..hi of the ring buffer, the least-squares line r = r + r_dot t (t = (k - s) dt) and the mean
  * of ay with the standard error of that mean. */
@@ -1952,6 +2034,8 @@ static PyMethodDef methods[] = {
      "axle_latency(x, P, tau, var): move the considered latency, the states through their covariance"},
     {"gyro_sum", (PyCFunction)(void (*)(void))k_gyro_sum, METH_FASTCALL,
      "gyro_sum(aux, r_col, X, br_col, k0, k1) -> sum of aux[k, r_col] + X[k, br_col], k0 <= k <= k1"},
+    {"yaw_sum", (PyCFunction)(void (*)(void))k_yaw_sum, METH_FASTCALL,
+     "yaw_sum(aux, r_col, k0, k1, ring) -> np.sum of aux[k, r_col] (/ (1 - ring[k])), k0 <= k <= k1, numpy's bits"},
     {"window_fit", (PyCFunction)(void (*)(void))k_window_fit, METH_FASTCALL,
      "window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay mean, its standard error)"},
     {"sens_step", (PyCFunction)(void (*)(void))k_sens_step, METH_FASTCALL,
