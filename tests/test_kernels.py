@@ -402,6 +402,42 @@ def test_numpys_products_stand_in_only_where_the_probe_matches(monkeypatch):
         backend.select(True)
 
 
+@pytest.mark.parametrize("m", [1, 2])
+@pytest.mark.parametrize("depth", [0, 1, 7, 83, 99])  # 83: a 0.5 s rewind; 99: across the ring's wrap
+def test_scale_fused_agrees_and_touches_only_the_fix_and_later_slots(m, depth):
+    """The scale sensitivity's whole fix in one call (perfg23): the gain summed in index order and
+    the change carried one step at a time is the reference (numpy's inverse, the change carried by
+    prefix products) within 1e-12; the slots before the fix's step keep their bits."""
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    n, last = 100, 170
+    A = np.eye(NX) + 0.05 * RNG.normal(size=(n, NX, NX))
+    A[RNG.random(A.shape) < 0.3] = 0.0
+    S0 = RNG.normal(size=(n, NX))
+    P, H, R = spd(0.1), RNG.normal(size=(m, NX)), np.diag(RNG.uniform(0.1, 0.5, m))
+    s = last - depth
+    ref, out = S0.copy(), S0.copy()
+    ss.scale_fused_reference(ref, A, P, H, R, s, last)
+    backend.compiled.scale_fused(out, A, P, H, R, s, last)
+    np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
+    untouched = np.setdiff1d(np.arange(n), np.arange(s, last + 1) % n)
+    assert np.array_equal(_bits(out[untouched]), _bits(S0[untouched]))
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)  # the fix's step: (I - K H) S_s
+    np.testing.assert_allclose(out[s % n], (np.eye(NX) - K @ H) @ S0[s % n], rtol=1e-12, atol=1e-12)
+    with pytest.raises(ValueError):  # a step the ring no longer holds
+        backend.compiled.scale_fused(out, A, P, H, R, last - n, last)
+    with pytest.raises(ValueError):  # a singular innovation covariance
+        backend.compiled.scale_fused(out, A, np.zeros((NX, NX)), H, np.zeros((m, m)), s, last)
+
+
+def test_the_scale_sensitivitys_fix_runs_the_compiled_kernel():
+    """``ScaleSensitivity.fused`` is one ``scale_fused`` call, swapped by ``backend.select``."""
+    from ecu_daemon.estimator import scale_sensitivity as ss
+    with backend.selected(True):
+        assert ss.scale_fused is backend.compiled.scale_fused
+    with backend.selected(False):
+        assert ss.scale_fused is ss.scale_fused_reference
+
+
 @pytest.mark.parametrize("span", [0.03, 0.3, np.inf])
 def test_across_secant_gives_the_references_bits(span):
     """The latency sensitivity's across-track secant (``_sensitivity_fused``), compiled: elementwise
@@ -607,6 +643,27 @@ def test_ring_window_kernels_agree(lo, hi, s):
     np.testing.assert_allclose(comp, ref, rtol=1e-12, atol=1e-12)
     with backend.selected(True), pytest.raises(ValueError):
         sr.window_fit(aux, AUX_R, NAUX, lo, hi, s, 0.006)  # column out of range: an error, not a read
+
+
+@pytest.mark.parametrize("ring", [False, True])
+def test_yaw_sum_gives_numpys_bits(ring):
+    """The checks' gyro turn between fixes (lever_arm_check.yaw_sum): np.sum's own pairwise
+    summation, bit for bit, for every window length a 170-slot ring holds (the fixes are ~33 steps
+    apart; the pairwise blocks change at 8 and 128), across the wrap, with and without the division
+    by the applied scales (perfg23)."""
+    from ecu_daemon.estimator import lever_arm_check as lac
+    n = 170
+    for count in range(0, n + 1):
+        aux = RNG.normal(size=(n, NAUX)) * 10.0 ** RNG.integers(-3, 2, size=(n, NAUX))
+        q = RNG.uniform(-0.05, 0.05, n) if ring else None
+        k0 = int(RNG.integers(0, 3 * n))
+        ref = lac.yaw_sum_reference(aux, AUX_R, k0, k0 + count - 1, q)
+        out = backend.compiled.yaw_sum(aux, AUX_R, k0, k0 + count - 1, q)
+        assert type(out) is float and np.float64(out).tobytes() == np.float64(ref).tobytes(), count
+    with pytest.raises(ValueError):  # a window longer than the ring
+        backend.compiled.yaw_sum(aux, AUX_R, 0, n, q)
+    with pytest.raises(ValueError):  # a column out of range
+        backend.compiled.yaw_sum(aux, NAUX, 0, 3, q)
 
 
 # ------------------------------------------------------------------------------------------------

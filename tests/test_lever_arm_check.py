@@ -30,8 +30,8 @@ def _drive(true_x: float, configured_x: float, latency_error_s: float = 0.0, lat
         j = max(k - lag, 0)  # the course is that of step j, fused as if of step k
         course = psi[j] - math.atan2(vy[j] + r[j] * true_x, v[j]) + rng.normal(0.0, 0.1 / v[j])
         k0 = chk.k_last + 1
-        r_steps = r[k0:k + 1] + bias if chk.k_last >= 0 else None
-        chk.observe(k * DT, k, DT, r_steps, course, 0.1, v[k], v[k], vy[k], r[k] + bias, 0.0, latency_std_s)
+        r_sum = float(np.sum(r[k0:k + 1] + bias)) if chk.k_last >= 0 else None
+        chk.observe(k * DT, k, DT, r_sum, course, 0.1, v[k], v[k], vy[k], r[k] + bias, 0.0, latency_std_s)
         stds.append(chk.heading_std(k * DT))
     return chk, stds
 

@@ -28,7 +28,7 @@ def _drive(scale: float, r_of_t, duration: float, bias: float = 0.0, course_nois
             psi -= r_true * DT
             rs.append((1.0 + scale) * r_true + bias)
         course = psi + course_noise * rng.standard_normal()
-        chk.observe(t, k, DT, np.array(rs), course, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02,
+        chk.observe(t, k, DT, float(np.sum(rs)), course, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02,
                     math.radians(0.01))
     return chk
 
@@ -92,7 +92,7 @@ def _drive_applied(scale: float, r_of_t, duration: float, feed_raw: bool = True,
             stored.append((1.0 + scale) * r_true * (1.0 - a))
             ring.append(a)
         rs = np.array(stored) / (1.0 - np.array(ring)) if feed_raw else np.array(stored)
-        chk.observe(t, k, DT, rs, psi + math.radians(0.3) * rng.standard_normal(), 0.05, 10.0, 10.0, 0.0,
+        chk.observe(t, k, DT, float(np.sum(rs)), psi + math.radians(0.3) * rng.standard_normal(), 0.05, 10.0, 10.0, 0.0,
                     stored[-1], 0.0, 0.02, math.radians(0.01))
         trace.append((t, chk.scale, chk.scale_sd, chk.applied()))
     return chk, trace
@@ -138,7 +138,7 @@ def test_a_restored_scale_is_applied_from_the_start_and_kept_on_straights():
     # ten seconds of straight driving: the restored scale holds (fading only over WINDOW_S)
     rs = np.full(STEPS, 0.0)
     for i in range(1, 100):
-        chk.observe(i * STEPS * DT, i * STEPS, DT, rs if i > 1 else None, 0.3, 0.05, 10.0, 10.0, 0.0, 0.0, 0.0,
+        chk.observe(i * STEPS * DT, i * STEPS, DT, float(np.sum(rs)) if i > 1 else None, 0.3, 0.05, 10.0, 10.0, 0.0, 0.0, 0.0,
                     0.02, math.radians(0.01))
     assert chk.scale > 0.0075
     assert chk.applied() == chk.scale
@@ -271,7 +271,7 @@ def _drive_step(scale_after: float, t_step: float, r_of_t, duration: float, cour
             psi -= r_true * DT
             rs.append((1.0 + (scale_after if t >= t_step else 0.0)) * r_true)
         course = psi + course_noise * rng.standard_normal()
-        chk.observe(t, k, DT, np.array(rs), course, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02,
+        chk.observe(t, k, DT, float(np.sum(rs)), course, 0.05, 10.0, 10.0, 0.0, rs[-1], 0.0, 0.02,
                     math.radians(0.01))
         trace.append((t, chk.scale, chk.scale_std()))
     return chk, trace

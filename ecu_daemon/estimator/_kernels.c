@@ -876,6 +876,88 @@ g_done:
     return ret;
 }
 
+/* numpy's np.sum of a contiguous float64 array, bit for bit: its pairwise summation (numpy's
+ * loops_utils.h: below 8 values one chain from -0.0; up to 128 eight chains, combined
+ * ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7)), the rest added in order; above, split in two at a
+ * multiple of 8), added to the reduction's initial +0.0. tests/test_kernels.py compares it with
+ * np.sum itself on random arrays of every length it meets. */
+static double pairwise_sum(const double *a, Py_ssize_t n)
+{
+    if (n < 8) {
+        double res = -0.0;
+        for (Py_ssize_t i = 0; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    if (n <= 128) {
+        double r[8];
+        memcpy(r, a, sizeof(r));
+        Py_ssize_t i;
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int j = 0; j < 8; j++)
+                r[j] += a[i + j];
+        double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++)
+            res += a[i];
+        return res;
+    }
+    Py_ssize_t n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_sum(a, n2) + pairwise_sum(a + n2, n - n2);
+}
+
+/* yaw_sum(aux, r_col, k0, k1, ring) -> lever_arm_check.yaw_sum_reference, numpy's bits: the sum
+ * over steps k0..k1 of aux[k, r_col] (ring None) or aux[k, r_col] / (1 - ring[k]) (ring buffers
+ * of the same rows), as np.sum of the gathered (and divided) column. Why: the lever-arm and
+ * gyro-scale checks' gyro turn between fixes was ~8 numpy calls per fix. */
+static PyObject *k_yaw_sum(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "yaw_sum(aux, r_col, k0, k1, ring)");
+        return NULL;
+    }
+    long r_col = PyLong_AsLong(args[1]);
+    long long k0 = PyLong_AsLongLong(args[2]), k1 = PyLong_AsLongLong(args[3]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer ba, bq;
+    int has_ring = args[4] != Py_None;
+    double *aux = get_doubles(args[0], &ba, -1, "aux");
+    if (!aux)
+        return NULL;
+    double *ring = NULL, *buf = NULL;
+    PyObject *ret = NULL;
+    Py_ssize_t na = ba.len / (Py_ssize_t)sizeof(double), rows = ba.ndim == 2 ? ba.shape[0] : -1;
+    if (has_ring && !(ring = get_doubles(args[4], &bq, rows > 0 ? rows : 1, "ring"))) {
+        PyBuffer_Release(&ba);
+        return NULL;
+    }
+    long long count = k1 - k0 + 1;
+    if (rows <= 0 || r_col < 0 || r_col >= na / rows || count > rows) {
+        PyErr_SetString(PyExc_ValueError, "yaw_sum: column out of range or a window longer than the ring");
+        goto y_done;
+    }
+    if (count < 0)
+        count = 0;
+    buf = PyMem_Malloc((size_t)(count > 0 ? count : 1) * sizeof(double));
+    if (!buf) {
+        PyErr_NoMemory();
+        goto y_done;
+    }
+    Py_ssize_t ca = na / rows;
+    for (long long c = 0; c < count; c++) {
+        Py_ssize_t i = ring_row(k0 + c, rows);
+        buf[c] = has_ring ? aux[i * ca + r_col] / (1.0 - ring[i]) : aux[i * ca + r_col];
+    }
+    ret = PyFloat_FromDouble(0.0 + pairwise_sum(buf, (Py_ssize_t)count));
+    PyMem_Free(buf);
+y_done:
+    if (has_ring)
+        PyBuffer_Release(&bq);
+    PyBuffer_Release(&ba);
+    return ret;
+}
+
 /* window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay, std of the ay mean): over steps
  * lo..hi of the ring buffer, the least-squares line r = r + r_dot t (t = (k - s) dt) and the mean
  * of ay with the standard error of that mean. */
@@ -1321,6 +1403,52 @@ done:
     return ret;
 }
 
+/* K = P H' (H P H' + R)^-1 for m = 1 or 2 rows (sums in index order, the 2 x 2 inverse by its
+ * adjugate); -1 (a ValueError set, naming `who`) if H P H' + R is singular. */
+static int fused_gain(const double *P, const double *H, const double *R, int m, double *K, const char *who)
+{
+    double PHt[N * 2], Sm[4], Si[4];
+    for (int a = 0; a < N; a++) /* P H' */
+        for (int r = 0; r < m; r++) {
+            double v = 0.0;
+            for (int b = 0; b < N; b++)
+                v += P[a * N + b] * H[r * N + b];
+            PHt[a * m + r] = v;
+        }
+    for (int r = 0; r < m; r++) /* H P H' + R */
+        for (int q = 0; q < m; q++) {
+            double v = 0.0;
+            for (int a = 0; a < N; a++)
+                v += H[r * N + a] * PHt[a * m + q];
+            Sm[r * m + q] = v + R[r * m + q];
+        }
+    if (m == 1) {
+        if (Sm[0] == 0.0) {
+            PyErr_Format(PyExc_ValueError, "%s: singular innovation covariance", who);
+            return -1;
+        }
+        Si[0] = 1.0 / Sm[0];
+    } else {
+        double det = Sm[0] * Sm[3] - Sm[1] * Sm[2];
+        if (det == 0.0) {
+            PyErr_Format(PyExc_ValueError, "%s: singular innovation covariance", who);
+            return -1;
+        }
+        Si[0] = Sm[3] / det;
+        Si[1] = -Sm[1] / det;
+        Si[2] = -Sm[2] / det;
+        Si[3] = Sm[0] / det;
+    }
+    for (int a = 0; a < N; a++) /* K = P H' S^-1 */
+        for (int q = 0; q < m; q++) {
+            double v = 0.0;
+            for (int r = 0; r < m; r++)
+                v += PHt[a * m + r] * Si[r * m + q];
+            K[a * m + q] = v;
+        }
+    return 0;
+}
+
 /* sens_fused(S, A, P, H, R, h, s, last): a fix of m = 1 or 2 rows fused at stored step s with
  * Jacobian H and noise R against the covariance P it had before: with K = P H' (H P H' + R)^-1,
  * S_s <- S_s - K (H S_s - h), then S_j = A_j S_{j-1} for every later step j up to last. */
@@ -1363,45 +1491,9 @@ static PyObject *k_sens_fused(PyObject *self, PyObject *const *args, Py_ssize_t 
         PyErr_SetString(PyExc_ValueError, "sens_fused: step outside the history");
         goto f_hv;
     }
-    double PHt[N * 2], Sm[4], Si[4], K[N * 2], innov[2];
-    for (int a = 0; a < N; a++) /* P H' */
-        for (int r = 0; r < m; r++) {
-            double v = 0.0;
-            for (int b = 0; b < N; b++)
-                v += P[a * N + b] * H[r * N + b];
-            PHt[a * m + r] = v;
-        }
-    for (int r = 0; r < m; r++) /* H P H' + R */
-        for (int q = 0; q < m; q++) {
-            double v = 0.0;
-            for (int a = 0; a < N; a++)
-                v += H[r * N + a] * PHt[a * m + q];
-            Sm[r * m + q] = v + R[r * m + q];
-        }
-    if (m == 1) {
-        if (Sm[0] == 0.0) {
-            PyErr_SetString(PyExc_ValueError, "sens_fused: singular innovation covariance");
-            goto f_hv;
-        }
-        Si[0] = 1.0 / Sm[0];
-    } else {
-        double det = Sm[0] * Sm[3] - Sm[1] * Sm[2];
-        if (det == 0.0) {
-            PyErr_SetString(PyExc_ValueError, "sens_fused: singular innovation covariance");
-            goto f_hv;
-        }
-        Si[0] = Sm[3] / det;
-        Si[1] = -Sm[1] / det;
-        Si[2] = -Sm[2] / det;
-        Si[3] = Sm[0] / det;
-    }
-    for (int a = 0; a < N; a++) /* K = P H' S^-1 */
-        for (int q = 0; q < m; q++) {
-            double v = 0.0;
-            for (int r = 0; r < m; r++)
-                v += PHt[a * m + r] * Si[r * m + q];
-            K[a * m + q] = v;
-        }
+    double K[N * 2], innov[2];
+    if (fused_gain(P, H, R, m, K, "sens_fused") < 0)
+        goto f_hv;
     double *Ss = S + ring_row(s, n) * N;
     for (int r = 0; r < m; r++) { /* H S_s - h */
         double v = 0.0;
@@ -1441,6 +1533,94 @@ f_p:
 f_a:
     PyBuffer_Release(&bA);
 f_s:
+    PyBuffer_Release(&bS);
+    return ret;
+}
+
+/* scale_fused(S, A, P, H, R, s, last): scale_sensitivity.scale_fused_reference, the same math: a
+ * fix of m = 1 or 2 rows fused at stored step s (K as sens_fused's) changes S_s by
+ * delta = -K H S_s, and every later step j up to last by A_j ... A_{s+1} delta, carried one step
+ * at a time (d_j = A_j d_{j-1}: ~80 matrix-vector products where the reference's doubling takes
+ * ~450 matrix ones to keep numpy's bits, the largest part of a fused fix). */
+static PyObject *k_scale_fused(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "scale_fused(S, A, P, H, R, s, last)");
+        return NULL;
+    }
+    long long s = PyLong_AsLongLong(args[5]), last = PyLong_AsLongLong(args[6]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bS, bA, bP, bH, bR;
+    PyObject *ret = NULL;
+    double *S = get_doubles(args[0], &bS, -N, "S");
+    if (!S)
+        return NULL;
+    Py_ssize_t n = bS.len / (Py_ssize_t)(N * sizeof(double));
+    double *A = get_doubles(args[1], &bA, n * N * N, "A");
+    if (!A)
+        goto c_s;
+    double *P = get_doubles(args[2], &bP, N * N, "P");
+    if (!P)
+        goto c_a;
+    double *H = get_doubles(args[3], &bH, -N, "H");
+    if (!H)
+        goto c_p;
+    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
+    if (m > 2) {
+        PyErr_SetString(PyExc_ValueError, "scale_fused: H must have 1 or 2 rows");
+        goto c_h;
+    }
+    double *R = get_doubles(args[4], &bR, m * m, "R");
+    if (!R)
+        goto c_h;
+    if (last - s < 0 || last - s >= n) {
+        PyErr_SetString(PyExc_ValueError, "scale_fused: step outside the history");
+        goto c_r;
+    }
+    double K[N * 2], hs[2], d[N], v[N];
+    if (fused_gain(P, H, R, m, K, "scale_fused") < 0)
+        goto c_r;
+    double *Ss = S + ring_row(s, n) * N;
+    for (int r = 0; r < m; r++) { /* H S_s */
+        double t = 0.0;
+        for (int b = 0; b < N; b++)
+            t += H[r * N + b] * Ss[b];
+        hs[r] = t;
+    }
+    for (int a = 0; a < N; a++) { /* delta = -K (H S_s) */
+        double t = 0.0;
+        for (int r = 0; r < m; r++)
+            t += K[a * m + r] * hs[r];
+        d[a] = -t;
+        Ss[a] = Ss[a] + d[a];
+    }
+    for (long long j = s + 1; j <= last; j++) { /* d_j = A_j d_{j-1}; S_j += d_j */
+        Py_ssize_t i = ring_row(j, n);
+        const double *Aj = A + i * N * N;
+        double *Sj = S + i * N;
+        for (int a = 0; a < N; a++) {
+            double t = 0.0;
+            for (int b = 0; b < N; b++)
+                t += Aj[a * N + b] * d[b];
+            v[a] = t;
+        }
+        for (int a = 0; a < N; a++) {
+            d[a] = v[a];
+            Sj[a] = Sj[a] + v[a];
+        }
+    }
+    ret = Py_None;
+    Py_INCREF(ret);
+c_r:
+    PyBuffer_Release(&bR);
+c_h:
+    PyBuffer_Release(&bH);
+c_p:
+    PyBuffer_Release(&bP);
+c_a:
+    PyBuffer_Release(&bA);
+c_s:
     PyBuffer_Release(&bS);
     return ret;
 }
@@ -1854,6 +2034,8 @@ static PyMethodDef methods[] = {
      "axle_latency(x, P, tau, var): move the considered latency, the states through their covariance"},
     {"gyro_sum", (PyCFunction)(void (*)(void))k_gyro_sum, METH_FASTCALL,
      "gyro_sum(aux, r_col, X, br_col, k0, k1) -> sum of aux[k, r_col] + X[k, br_col], k0 <= k <= k1"},
+    {"yaw_sum", (PyCFunction)(void (*)(void))k_yaw_sum, METH_FASTCALL,
+     "yaw_sum(aux, r_col, k0, k1, ring) -> np.sum of aux[k, r_col] (/ (1 - ring[k])), k0 <= k <= k1, numpy's bits"},
     {"window_fit", (PyCFunction)(void (*)(void))k_window_fit, METH_FASTCALL,
      "window_fit(aux, r_col, ay_col, lo, hi, s, dt) -> (r_dot, r, ay mean, its standard error)"},
     {"sens_step", (PyCFunction)(void (*)(void))k_sens_step, METH_FASTCALL,
@@ -1866,6 +2048,8 @@ static PyMethodDef methods[] = {
      "carry_change(S, A, s, last, delta): S at steps s+1 .. last += (A_j ... A_{s+1}) delta, numpy's bits"},
     {"scale_step", (PyCFunction)(void (*)(void))k_scale_step, METH_FASTCALL,
      "scale_step(A, S_prev, S_out, i, r_dt): S_out = A S_prev, S_out[i] += r_dt, numpy's bits"},
+    {"scale_fused", (PyCFunction)(void (*)(void))k_scale_fused, METH_FASTCALL,
+     "scale_fused(S, A, P, H, R, s, last): S_s += delta = -K H S_s, carried to step last one step at a time"},
     {"across_secant", (PyCFunction)(void (*)(void))k_across_secant, METH_FASTCALL,
      "across_secant(aux, c, sn, u0, u1, lever_x, lever_y, dt, i0, span, slope) -> the timing secant of the across-track acceleration"},
     {"fit_update", (PyCFunction)(void (*)(void))k_fit_update, METH_FASTCALL,

@@ -6,11 +6,12 @@ The compiled kernels (``_kernels.c``, built at ``pip install``) replace, under t
 ``axle_*`` / ``gyro_sum`` / ``window_fit`` (``fusion/stiffness_regression.py``) and the
 single-track learner's ``rls_update`` (``fusion/single_track.py``) and the latency sensitivity's
 ``sens_step`` / ``sens_fused`` (``latency_sensitivity.py``) and the lever-arm checks'
-``fit_update`` / ``fit_predict`` (``lever_arm_check.py``) and the latency identification's
+``fit_update`` / ``fit_predict`` / ``yaw_sum`` (``lever_arm_check.py``; ``yaw_sum`` numpy's own bits, its pairwise sum) and the latency identification's
 ``latency_costs`` / ``accumulate`` / ``median`` (``latency.py``) and the prefix products
 doubling (``latency_sensitivity.prefix_doubling``) and the scale sensitivity's ``scale_step`` /
 ``carry_change`` (``scale_sensitivity.py``): unlike the others these three reproduce numpy's
-bits, and are installed only where a probe shows they do (:func:`blas_bits_match`); the pure-Python
+bits, and are installed only where a probe shows they do (:func:`blas_bits_match`); and the scale
+sensitivity's whole fix, ``scale_fused`` (the same math as its reference, its own bits); the pure-Python
 ``*_reference`` versions of the same math stay, for machines without the extension and for the
 tests that compare the two.
 """
@@ -30,9 +31,10 @@ KERNELS = ("predict", "predict_from", "scalar_update", "index_update", "late_upd
 STIFFNESS_KERNELS = ("axle_propagate", "axle_update", "axle_latency", "gyro_sum", "window_fit")
 SINGLE_TRACK_KERNELS = ("rls_update",)
 SENSITIVITY_KERNELS = ("sens_step", "sens_fused", "across_secant")
-LEVER_KERNELS = ("fit_update", "fit_predict")
+LEVER_KERNELS = ("fit_update", "fit_predict", "yaw_sum")
 LATENCY_KERNELS = ("latency_costs", "accumulate", "median")
 SCALE_KERNELS = ("scale_step", "carry_change")
+SCALE_FIT_KERNELS = ("scale_fused",)
 
 try:
     from . import _kernels as compiled
@@ -43,7 +45,7 @@ except ImportError as e:  # no compiler at install time, or a source checkout ne
 if compiled is not None and not all(hasattr(compiled, name)
                                     for name in KERNELS + STIFFNESS_KERNELS + SINGLE_TRACK_KERNELS
                                     + SENSITIVITY_KERNELS + LEVER_KERNELS + LATENCY_KERNELS
-                                    + ("prefix_doubling",) + SCALE_KERNELS):
+                                    + ("prefix_doubling",) + SCALE_KERNELS + SCALE_FIT_KERNELS):
     _import_error = f"{compiled.__file__} is an older build"  # a checkout updated without reinstalling
     compiled = None
 
@@ -114,6 +116,8 @@ def select(use_compiled: bool = True) -> str:
         setattr(lever_arm_check, name, getattr(compiled, name) if on else getattr(lever_arm_check, name + "_reference"))
     for name in LATENCY_KERNELS:
         setattr(latency, name, getattr(compiled, name) if on else getattr(latency, name + "_reference"))
+    for name in SCALE_FIT_KERNELS:
+        setattr(scale_sensitivity, name, getattr(compiled, name) if on else getattr(scale_sensitivity, name + "_reference"))
     blas = on and blas_bits_match()
     latency_sensitivity.prefix_doubling = (compiled.prefix_doubling if blas
                                            else latency_sensitivity.prefix_doubling_reference)

@@ -57,6 +57,7 @@ from . import latency_sensitivity
 from .latency_sensitivity import LatencySensitivity, timing_secant
 from .scale_sensitivity import ScaleSensitivity
 from .lateral_noise import LateralNoise
+from . import lever_arm_check
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
@@ -1261,13 +1262,15 @@ class Estimator:
                 # an altitude (NMEA GGA): grade from the climb over the distance travelled
                 self.road.fuse_altitude(g, speed, h.X[h.slot(h.last), VX] > 0)
 
-    def _yaw_rates_since(self, k_last: int, s: int):
-        """The stored bias-corrected yaw rates of steps k_last+1 .. s, the gyro turn a course check
-        integrates between two fixes (None if there is no previous fix or the history no longer holds it)."""
+    def _yaw_sum_since(self, k_last: int, s: int, ring=None):
+        """The sum of the stored bias-corrected yaw rates of steps k_last+1 .. s (each divided by its
+        applied 1 - scale if ``ring`` is the applied scales' ring), the gyro turn a course check
+        integrates between two fixes (None if there is no previous fix or the history no longer
+        holds it). One ``lever_arm_check.yaw_sum`` call: np.sum's bits."""
         h = self.hist
         k0 = k_last + 1
         if k_last >= 0 and h.oldest() <= k0 <= s:
-            return h.aux[np.arange(k0, s + 1) % h.n, AUX_R]
+            return lever_arm_check.yaw_sum(h.aux, AUX_R, k0, s, ring)
         return None
 
     def _check_lever_arm(self, g: GnssSample, s: int, fus: GnssVelocityFusion, lat: LatencyEstimator) -> None:
@@ -1275,28 +1278,23 @@ class Estimator:
         gyro's yaw rates since that receiver's previous fix; one log line when it finds the lever arm wrong."""
         h = self.hist
         chk = self.lever_checks[g.source]
-        k_prev = chk.k_last  # observe() moves it to s
-        r_steps = self._yaw_rates_since(k_prev, s)
         i = h.slot(s)
         x = h.X[i]
         was = chk.flagged
-        chk.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
-                    float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s)
+        chk.observe(s * self.dt, s, self.dt, self._yaw_sum_since(chk.k_last, s), fus.course(g), fus.sigma(g),
+                    g.speed_mps, float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s)
         ysc = self.yaw_scale_checks[g.source]
         if self.fdi.isolated & YAW_RATE:  # a substituted yaw rate says nothing of the gyro's scale
             ysc.restart()
         else:
-            k_from = ysc.k_last
-            if k_from != k_prev:  # the lever check's window unless one of them restarted
-                r_steps = self._yaw_rates_since(k_from, s)
-            if r_steps is not None:  # the raw gyro (each step / its applied 1 - scale): no feedback loop
-                r_steps = r_steps / (1.0 - self.yaw_scale_ring[np.arange(k_from + 1, s + 1) % h.n])
+            # the raw gyro (each step / its applied 1 - scale): no feedback loop
+            r_sum = self._yaw_sum_since(ysc.k_last, s, self.yaw_scale_ring)
             # the sideslip it reads the course against is the single-track model's, not the
             # filter's: the filter's vy takes part of a scale error (the fit saw a third of it)
             a = h.aux[i]
             vx_s = float(x[VX])
             vy_m, vy_m_std = self.single_track.model_error(vx_s, float(a[AUX_R]), float(a[AUX_AY]), float(a[AUX_RDOT]))
-            ysc.observe(s * self.dt, s, self.dt, r_steps, fus.course(g), fus.sigma(g), g.speed_mps,
+            ysc.observe(s * self.dt, s, self.dt, r_sum, fus.course(g), fus.sigma(g), g.speed_mps,
                         vx_s, vy_m, float(a[AUX_R]), fus.lever_y, lat.std_s,
                         math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std)
             e = ysc.take_change()

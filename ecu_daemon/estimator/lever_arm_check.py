@@ -81,8 +81,9 @@ def _regularised_cov(info: np.ndarray, prior_info: tuple[float, ...]) -> np.ndar
         return None
 
 
-# The two kernels every fix runs: numpy references here, swapped for the compiled ones
-# (``_kernels.c``: the same math in one call each, the inverse by Gauss-Jordan) by ``backend.select``.
+# The kernels every fix runs: numpy references here, swapped for the compiled ones (``_kernels.c``:
+# the same math in one call each, the inverse by Gauss-Jordan; ``yaw_sum`` numpy's own bits, its
+# pairwise summation) by ``backend.select``.
 
 def fit_update_reference(info: np.ndarray, rhs: np.ndarray, h: np.ndarray, z: float, var: float,
                          prior: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> bool:
@@ -116,8 +117,20 @@ def fit_predict_reference(h: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> 
     return float(h @ theta), float(h @ cov @ h)
 
 
+def yaw_sum_reference(aux: np.ndarray, r_col: int, k0: int, k1: int, ring: np.ndarray | None) -> float:
+    """The gyro turn the checks integrate between two fixes (per dt): the sum over the steps k0..k1
+    of the ring buffer's aux[:, r_col], each divided by 1 - ring (the yaw-rate scale applied at
+    that step) if ring is given."""
+    idx = np.arange(k0, k1 + 1) % len(aux)
+    r = aux[idx, r_col]
+    if ring is not None:
+        r = r / (1.0 - ring[idx])
+    return float(np.sum(r))
+
+
 fit_update = fit_update_reference
 fit_predict = fit_predict_reference
+yaw_sum = yaw_sum_reference
 
 
 class LeverArmCheck:
@@ -150,11 +163,11 @@ class LeverArmCheck:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
         self.k_last = -1
 
-    def observe(self, t: float, k: int, dt: float, r_steps, course: float, sigma_v: float, speed: float,
-                vx: float, vy: float, r: float, lever_y: float, latency_std_s: float) -> None:
+    def observe(self, t: float, k: int, dt: float, r_sum: float | None, course: float, sigma_v: float,
+                speed: float, vx: float, vy: float, r: float, lever_y: float, latency_std_s: float) -> None:
         """A GNSS course of time of validity ``t`` at stored step ``k``, with the filter's vx, vy
-        and the bias-corrected yaw rate r there; ``r_steps``: the bias-corrected yaw rates of the
-        steps k_last+1 .. k (None if the history no longer holds them)."""
+        and the bias-corrected yaw rate r there; ``r_sum``: the sum of the bias-corrected yaw rates
+        of the steps k_last+1 .. k (``yaw_sum``, np.sum's bits; None if the history no longer holds them)."""
         if self.t0 is None:
             self.t0 = t
         ratio = r / vx if vx > 1.0 else 0.0
@@ -163,11 +176,11 @@ class LeverArmCheck:
             self.k_last = -1
             return
         beta = math.atan2(vy + r * self.lever_x, vx - r * lever_y)
-        new_run = self.k_last < 0 or r_steps is None or t - self.t_last > MAX_GAP_S or k <= self.k_last
+        new_run = self.k_last < 0 or r_sum is None or t - self.t_last > MAX_GAP_S or k <= self.k_last
         if new_run:
             self._new_run(course + beta)
         else:
-            self.psi_gyro -= float(np.sum(r_steps)) * dt  # clockwise, as the heading
+            self.psi_gyro -= r_sum * dt  # clockwise, as the heading
         if self.n and t > self.t_last:  # forget: information decays as exp(-age / WINDOW_S)
             f = math.exp(-(t - self.t_last) / WINDOW_S)
             self.info *= f

@@ -54,13 +54,7 @@ class ScaleSensitivity:
     def fused(self, hist: StepHistory, s: int, P: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
         """A fix was fused at stored step s with Jacobian H and noise R against the covariance P it
         had before: S_s -= K H S_s, and every later step by the same change carried forward."""
-        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
-        n = len(self.S)
-        i = s % n
-        delta = -(K @ (H @ self.S[i]))
-        self.S[i] += delta
-        # the change, not S_s, is carried: unlike the latency's, every later step added its own r dt
-        carry_change(self.S, hist.A, s, hist.last, delta)
+        scale_fused(self.S, hist.A, P, H, R, s, hist.last)
 
     def set_heading(self, idx: np.ndarray, J: np.ndarray) -> None:
         """The heading was set from a course at every slot idx as course + J x."""
@@ -71,13 +65,27 @@ class ScaleSensitivity:
         self.S[np.arange(hist.oldest(), hist.last + 1) % hist.n, PSI] = 0.0
 
 
-# The kernels: numpy references here, swapped for the compiled ones (``_kernels.c``: the same
-# products with numpy's own bits, installed only where a probe shows they are) by ``backend.select``.
+# The kernels: numpy references here, swapped for the compiled ones by ``backend.select``
+# (``_kernels.c``): ``scale_step`` / ``carry_change`` the same products with numpy's own bits,
+# installed only where a probe shows they are; ``scale_fused`` the same math in one call (the gain
+# summed in index order, the change carried one step at a time: not numpy's last bits; perfg23).
 
 def scale_step_reference(A: np.ndarray, S_prev: np.ndarray, S_out: np.ndarray, i: int, r_dt: float) -> None:
     """S_out = A S_prev, then S_out[i] += r_dt (i: the heading's index)."""
     np.dot(A, S_prev, out=S_out)
     S_out[i] += r_dt
+
+
+def scale_fused_reference(S: np.ndarray, A: np.ndarray, P: np.ndarray, H: np.ndarray, R: np.ndarray,
+                          s: int, last: int) -> None:
+    """``ScaleSensitivity.fused``'s math: with K = P H' (H P H' + R)^-1, S_s += delta = -K H S_s and
+    every later step (ring of len(S) slots, up to step last) by the same change carried forward."""
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+    i = s % len(S)
+    delta = -(K @ (H @ S[i]))
+    S[i] += delta
+    # the change, not S_s, is carried: unlike the latency's, every later step added its own r dt
+    carry_change(S, A, s, last, delta)
 
 
 def carry_change_reference(S: np.ndarray, A: np.ndarray, s: int, last: int, delta: np.ndarray) -> None:
@@ -90,3 +98,4 @@ def carry_change_reference(S: np.ndarray, A: np.ndarray, s: int, last: int, delt
 
 scale_step = scale_step_reference
 carry_change = carry_change_reference
+scale_fused = scale_fused_reference

@@ -193,7 +193,7 @@ class YawScaleCheck:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
         self.k_last = -1
 
-    def observe(self, t: float, k: int, dt: float, r_steps, course: float, sigma_v: float, speed: float,
+    def observe(self, t: float, k: int, dt: float, r_sum: float | None, course: float, sigma_v: float, speed: float,
                 vx: float, vy: float, r: float, lever_y: float, latency_std_s: float, bias_std: float,
                 vy_std: float = 0.0) -> None:
         """As ``LeverArmCheck.observe``, plus ``bias_std``: the filter's yaw-rate bias std (rad/s);
@@ -204,12 +204,12 @@ class YawScaleCheck:
             return
         ratio = r / vx
         beta = math.atan2(vy + r * self.lever_x, vx - r * lever_y)
-        new_run = self.k_last < 0 or r_steps is None or t - self.t_last > MAX_GAP_S or k <= self.k_last
+        new_run = self.k_last < 0 or r_sum is None or t - self.t_last > MAX_GAP_S or k <= self.k_last
         if new_run:
             self._new_run(course + beta)
             self.t_run = t
         else:
-            turned = float(np.sum(r_steps)) * dt
+            turned = r_sum * dt
             self.psi_gyro -= turned  # clockwise, as the heading
             self.yaw_int += turned
         if (self.n or self.restored) and t > self.t_last > -math.inf:
