@@ -81,6 +81,48 @@ def test_whole_drives_compiled_and_plain_python_are_byte_identical():
     assert a[1:] == b[1:]
 
 
+# The replay's own per-step Python (pipeline, outputs, replay, step_grid, input_age are compiled
+# too): a whole replay with --out-csv --out-can, its output files' bytes printed as digests.
+REPLAY = r"""
+import hashlib, logging, sys
+from pathlib import Path
+logging.disable(logging.WARNING)
+from ecu_daemon import compiled_python, config
+from ecu_daemon.replay import run_replay
+from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+from ecu_daemon.sim.writer import write_all
+print(sorted(set(compiled_python.compiled_modules().values())))
+d = Path(sys.argv[1])
+sc = SCENARIOS["demo"].with_(duration_s=20.0)
+write_all(str(d), simulate(sc, vehicle_config(sc)))
+s = run_replay(config.load(str(d / "config.toml")), str(d / "drive.log"), str(d / "drive_gnss.log"),
+               out_csv=str(d / "out.csv"), out_can=str(d / "out.log"))
+for name in ("out.csv", "out.log"):
+    b = (d / name).read_bytes()
+    print(name, len(b), hashlib.sha256(b).hexdigest())
+print("steps", s["steps"])
+"""
+
+
+def test_a_whole_replay_compiled_and_plain_python_writes_the_same_bytes(tmp_path):
+    """The replay path's modules (the pipeline's step loop, the output encoder, the CSV/CAN
+    emitter) compiled are the same rules: a replay's estimate CSV and output CAN log, byte for
+    byte as the .py files write them."""
+    runs = []
+    for pure in (False, True):
+        d = tmp_path / ("pure" if pure else "compiled")
+        d.mkdir()
+        r = subprocess.run([sys.executable, "-c", REPLAY, str(d)], capture_output=True, text=True, timeout=900,
+                           cwd=ROOT, env={**{k: v for k, v in os.environ.items() if k != compiled_python.PURE_ENV},
+                                          **({compiled_python.PURE_ENV: "1"} if pure else {})})
+        assert r.returncode == 0, r.stderr[-2000:]
+        runs.append(r.stdout.splitlines())
+    a, b = runs
+    assert a[0] == "[True]" and b[0] == "[False]"  # each run really was what it claims
+    assert int(a[-1].split()[1]) > 2000 and all(int(ln.split()[1]) > 0 for ln in a[1:3]), a
+    assert a[1:] == b[1:]
+
+
 def test_a_source_edited_after_the_build_runs_as_python_with_one_warning(tmp_path):
     """An edit takes effect without a rebuild (the compiled module runs the current .py), and says
     once that it is slower until ``pip install -e .`` compiles it again."""
