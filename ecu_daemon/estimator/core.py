@@ -736,8 +736,9 @@ class Estimator:
         grade = float(self.road.grade.x[0])
         if si.first >= k:
             self.speed_run_grade = grade
-        si.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
-                imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and x[VX] > -0.1
+        # vx, xl: x as it stands here (Python floats, not numpy scalar reads; step's locals are C doubles)
+        si.step(k, vx, xl[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
+                imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and vx > -0.1
                 and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
         self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
@@ -786,15 +787,23 @@ class Estimator:
                 x[j] = xl[j] = hi
         road_ok = imu_ok and not iso & (ACCEL_X | ACCEL_Y)
         # every step: the road's grade and bank move on while the accelerometers cannot be heard (walks only)
-        self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY], x[VX], self.bank_walk.total, P[GAY, GAY],
-                       road_ok)
+        # the state from xl (clamped with x above: the same values, as Python floats instead of
+        # numpy scalar reads; road.step only adds, multiplies and divides by nonzero constants)
+        self.road.step(k, xl[BAX], P[BAX, BAX], xl[BAY], P[BAY, BAY], xl[GAY], xl[VX], self.bank_walk.total,
+                       P[GAY, GAY], road_ok)
         if road_ok:
             if self.road.roll_gyro_params is None:
-                self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
+                self.road.set_roll(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX])
             else:
-                self.road.set_roll_gyro(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX],
+                self.road.set_roll_gyro(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX],
                                         held[I_ROLL] if t - held_t[I_ROLL] <= tmo[I_ROLL] else math.nan, r)
-        h.auxr[i][:] = (r, ay, rdot, wheel_z, delta, ax)
+        aux = h.auxr[i]  # element by element: a slice assignment from a tuple builds an array first
+        aux[0] = r
+        aux[1] = ay
+        aux[2] = rdot
+        aux[3] = wheel_z
+        aux[4] = delta
+        aux[5] = ax
         h.last = k
         for cons in self.considers:
             if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
