@@ -3,6 +3,7 @@ built, the same bytes as the plain-Python run on whole drives, and never a stale
 from __future__ import annotations
 
 import ast
+import math
 import os
 import re
 import shutil
@@ -202,3 +203,43 @@ def _is_c(expr, typed: set) -> bool:
     names = [e.id for e in leaves if isinstance(e, ast.Name)]
     numbers = [e for e in leaves if isinstance(e, ast.Constant) and isinstance(e.value, (int, float))]
     return bool(names) and len(names) + len(numbers) == len(leaves) and all(n in typed for n in names)
+
+
+def test_the_steps_own_helpers_replaced_on_an_instance_are_the_ones_it_calls():
+    """The step's per-step helpers are cpdef in core.pxd (C calls, not Python method calls), which
+    must not take away what a plain method allows: wrapping one on an instance (the benchmarks and
+    tools/sideslip_budget.py do) still reaches the compiled step, and each is callable from Python."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from drive_samples import decoded_events
+
+    from ecu_daemon.estimator import Estimator
+    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+    sc = SCENARIOS["dlc_dry"].with_(duration_s=12.0)
+    cfg = vehicle_config(sc)
+    events = decoded_events(cfg, simulate(sc, cfg))
+    est = Estimator(cfg)
+    half = len(events) // 2
+    for t, kind, s in events[:half]:
+        (est.push_gnss if kind else est.push_input)(s)
+        est.advance_to(t - 1e-6)
+    calls = {"_step": 0, "_road": 0}
+    real_step, real_road = est._step, est._road
+
+    def step(k, t):
+        calls["_step"] += 1
+        return real_step(k, t)
+
+    def road(imu_ok, iso):
+        calls["_road"] += 1
+        return real_road(imu_ok, iso)
+
+    est._step, est._road = step, road
+    est._published_delay = lambda: 0.125
+    out = []
+    for t, kind, s in events[half:]:
+        (est.push_gnss if kind else est.push_input)(s)
+        out += est.advance_to(t - 1e-6)
+    assert len(out) > 100 and calls["_step"] == len(out) and calls["_road"] == len(out)
+    assert all(e.gnss_delay_s == 0.125 for e in out)
+    assert est._gnss_conflict(out[-1].t) in (True, False) and math.isnan(est._fresh_gnss_speed(1e9))

@@ -47,3 +47,5 @@ cdef class Estimator:
     cpdef _gnss_conflict(self, t)
     cpdef _fresh_gnss_speed(self, t)
     cpdef _model_bound(self, t, vx, vy, r, iso)
+    cpdef gnss_counts(self)
+    cpdef _latency_std(self)

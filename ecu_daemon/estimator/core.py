@@ -1128,8 +1128,12 @@ class Estimator:
         if len(self.receivers) == 1:  # every step: no generators for the usual single receiver
             f = self.receivers[0]
             return f.fused, f.rejected, f.late
-        return (sum(f.fused for f in self.receivers), sum(f.rejected for f in self.receivers),
-                sum(f.late for f in self.receivers))
+        fused = rejected = late = 0  # a loop, not sum() of generators: cpdef in core.pxd (no closures)
+        for f in self.receivers:
+            fused += f.fused
+            rejected += f.rejected
+            late += f.late
+        return fused, rejected, late
 
     def _latency_std(self) -> float:
         """The largest latency uncertainty of the velocity receivers (the heading error it causes
@@ -1137,7 +1141,11 @@ class Estimator:
         vel = self._velocity_latencies
         if len(vel) == 1:
             return vel[0].std_s
-        return max(lat.std_s for lat in vel)
+        m = vel[0].std_s  # max() as a loop (cpdef in core.pxd: no generator); max keeps the first of equals
+        for lat in vel[1:]:
+            if lat.std_s > m:
+                m = lat.std_s
+        return m
 
     def _vy_seen_by_data(self, k: int, vx: float, ay: float, rdot: float) -> bool:
         """Whether this fix's vy is the data's rather than the model's (LEARN_EXCITE_FIXES)."""
