@@ -43,6 +43,11 @@ MODULES = (
     "ecu_daemon/estimator/fusion/gnss_velocity.py",
     "ecu_daemon/estimator/fusion/gnss_heading.py",
     "ecu_daemon/estimator/fusion/stiffness_regression.py",
+    "ecu_daemon/estimator/input_age.py",  # InputAge.observe / at_mid: every sample, three a step
+    "ecu_daemon/step_grid.py",  # step_of: every sample and step of the pipeline (~6 a step)
+    "ecu_daemon/pipeline.py",  # Pipeline.advance / _publish: the replay's and daemon's per-step loop
+    "ecu_daemon/outputs.py",  # OutputEncoder.payloads: every output frame's fields
+    "ecu_daemon/replay.py",  # the replay's per-step emit (CSV rows, output frames)
 )
 PURE_ENV = "ECU_DAEMON_PURE_PYTHON"
 

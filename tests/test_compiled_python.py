@@ -3,6 +3,7 @@ built, the same bytes as the plain-Python run on whole drives, and never a stale
 from __future__ import annotations
 
 import ast
+import math
 import os
 import re
 import shutil
@@ -78,6 +79,48 @@ def test_whole_drives_compiled_and_plain_python_are_byte_identical():
     assert len(summaries) == 5 and len(a) > 4 * 3000, summaries
     # the faults were caught (the detector's branches ran), so the comparison covers them
     assert sum(ln.count(": 1") + ln.count(": 2") for ln in summaries[2:]) >= 3, summaries
+    assert a[1:] == b[1:]
+
+
+# The replay's own per-step Python (pipeline, outputs, replay, step_grid, input_age are compiled
+# too): a whole replay with --out-csv --out-can, its output files' bytes printed as digests.
+REPLAY = r"""
+import hashlib, logging, sys
+from pathlib import Path
+logging.disable(logging.WARNING)
+from ecu_daemon import compiled_python, config
+from ecu_daemon.replay import run_replay
+from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+from ecu_daemon.sim.writer import write_all
+print(sorted(set(compiled_python.compiled_modules().values())))
+d = Path(sys.argv[1])
+sc = SCENARIOS["demo"].with_(duration_s=20.0)
+write_all(str(d), simulate(sc, vehicle_config(sc)))
+s = run_replay(config.load(str(d / "config.toml")), str(d / "drive.log"), str(d / "drive_gnss.log"),
+               out_csv=str(d / "out.csv"), out_can=str(d / "out.log"))
+for name in ("out.csv", "out.log"):
+    b = (d / name).read_bytes()
+    print(name, len(b), hashlib.sha256(b).hexdigest())
+print("steps", s["steps"])
+"""
+
+
+def test_a_whole_replay_compiled_and_plain_python_writes_the_same_bytes(tmp_path):
+    """The replay path's modules (the pipeline's step loop, the output encoder, the CSV/CAN
+    emitter) compiled are the same rules: a replay's estimate CSV and output CAN log, byte for
+    byte as the .py files write them."""
+    runs = []
+    for pure in (False, True):
+        d = tmp_path / ("pure" if pure else "compiled")
+        d.mkdir()
+        r = subprocess.run([sys.executable, "-c", REPLAY, str(d)], capture_output=True, text=True, timeout=900,
+                           cwd=ROOT, env={**{k: v for k, v in os.environ.items() if k != compiled_python.PURE_ENV},
+                                          **({compiled_python.PURE_ENV: "1"} if pure else {})})
+        assert r.returncode == 0, r.stderr[-2000:]
+        runs.append(r.stdout.splitlines())
+    a, b = runs
+    assert a[0] == "[True]" and b[0] == "[False]"  # each run really was what it claims
+    assert int(a[-1].split()[1]) > 2000 and all(int(ln.split()[1]) > 0 for ln in a[1:3]), a
     assert a[1:] == b[1:]
 
 
@@ -160,3 +203,43 @@ def _is_c(expr, typed: set) -> bool:
     names = [e.id for e in leaves if isinstance(e, ast.Name)]
     numbers = [e for e in leaves if isinstance(e, ast.Constant) and isinstance(e.value, (int, float))]
     return bool(names) and len(names) + len(numbers) == len(leaves) and all(n in typed for n in names)
+
+
+def test_the_steps_own_helpers_replaced_on_an_instance_are_the_ones_it_calls():
+    """The step's per-step helpers are cpdef in core.pxd (C calls, not Python method calls), which
+    must not take away what a plain method allows: wrapping one on an instance (the benchmarks and
+    tools/sideslip_budget.py do) still reaches the compiled step, and each is callable from Python."""
+    sys.path.insert(0, str(ROOT / "tests"))
+    from drive_samples import decoded_events
+
+    from ecu_daemon.estimator import Estimator
+    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+
+    sc = SCENARIOS["dlc_dry"].with_(duration_s=12.0)
+    cfg = vehicle_config(sc)
+    events = decoded_events(cfg, simulate(sc, cfg))
+    est = Estimator(cfg)
+    half = len(events) // 2
+    for t, kind, s in events[:half]:
+        (est.push_gnss if kind else est.push_input)(s)
+        est.advance_to(t - 1e-6)
+    calls = {"_step": 0, "_road": 0}
+    real_step, real_road = est._step, est._road
+
+    def step(k, t):
+        calls["_step"] += 1
+        return real_step(k, t)
+
+    def road(imu_ok, iso):
+        calls["_road"] += 1
+        return real_road(imu_ok, iso)
+
+    est._step, est._road = step, road
+    est._published_delay = lambda: 0.125
+    out = []
+    for t, kind, s in events[half:]:
+        (est.push_gnss if kind else est.push_input)(s)
+        out += est.advance_to(t - 1e-6)
+    assert len(out) > 100 and calls["_step"] == len(out) and calls["_road"] == len(out)
+    assert all(e.gnss_delay_s == 0.125 for e in out)
+    assert est._gnss_conflict(out[-1].t) in (True, False) and math.isnan(est._fresh_gnss_speed(1e9))

@@ -36,3 +36,16 @@ cdef class Estimator:
                    vy_std=double, b=double, c=double, floor=double, turn=double, turn_var=double,
                    e=double, psi_std=double, vx_std=double)
     cpdef _estimate(self, t, x, pd, p_vxvy, r, status, imu_ok, wheels_ok, iso)
+
+    # Methods the compiled step calls on itself every step: cpdef, so such a call is a C call
+    # instead of a Python method call (a look-up plus an argument tuple, ~1 k instructions each).
+    # Untyped: every operation in them stays the .py's (the same bits). Still callable (and
+    # replaceable on an instance) from Python.
+    cpdef _step(self, k, t)
+    cpdef _road(self, imu_ok, iso)
+    cpdef _published_delay(self)
+    cpdef _gnss_conflict(self, t)
+    cpdef _fresh_gnss_speed(self, t)
+    cpdef _model_bound(self, t, vx, vy, r, iso)
+    cpdef gnss_counts(self)
+    cpdef _latency_std(self)

@@ -738,8 +738,9 @@ class Estimator:
         grade = float(self.road.grade.x[0])
         if si.first >= k:
             self.speed_run_grade = grade
-        si.step(k, x[VX], x[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
-                imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and x[VX] > -0.1
+        # vx, xl: x as it stands here (Python floats, not numpy scalar reads; step's locals are C doubles)
+        si.step(k, vx, xl[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
+                imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and vx > -0.1
                 and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
         self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
@@ -788,15 +789,23 @@ class Estimator:
                 x[j] = xl[j] = hi
         road_ok = imu_ok and not iso & (ACCEL_X | ACCEL_Y)
         # every step: the road's grade and bank move on while the accelerometers cannot be heard (walks only)
-        self.road.step(k, x[BAX], P[BAX, BAX], x[BAY], P[BAY, BAY], x[GAY], x[VX], self.bank_walk.total, P[GAY, GAY],
-                       road_ok)
+        # the state from xl (clamped with x above: the same values, as Python floats instead of
+        # numpy scalar reads; road.step only adds, multiplies and divides by nonzero constants)
+        self.road.step(k, xl[BAX], P[BAX, BAX], xl[BAY], P[BAY, BAY], xl[GAY], xl[VX], self.bank_walk.total,
+                       P[GAY, GAY], road_ok)
         if road_ok:
             if self.road.roll_gyro_params is None:
-                self.road.set_roll(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX])
+                self.road.set_roll(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX])
             else:
-                self.road.set_roll_gyro(ay_m, x[GAY], P[GAY, GAY], abs(self.fdi.e_a) * x[VX],
+                self.road.set_roll_gyro(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX],
                                         held[I_ROLL] if t - held_t[I_ROLL] <= tmo[I_ROLL] else math.nan, r)
-        h.auxr[i][:] = (r, ay, rdot, wheel_z, delta, ax)
+        aux = h.auxr[i]  # element by element: a slice assignment from a tuple builds an array first
+        aux[0] = r
+        aux[1] = ay
+        aux[2] = rdot
+        aux[3] = wheel_z
+        aux[4] = delta
+        aux[5] = ax
         h.last = k
         for cons in self.considers:
             if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
@@ -1121,8 +1130,12 @@ class Estimator:
         if len(self.receivers) == 1:  # every step: no generators for the usual single receiver
             f = self.receivers[0]
             return f.fused, f.rejected, f.late
-        return (sum(f.fused for f in self.receivers), sum(f.rejected for f in self.receivers),
-                sum(f.late for f in self.receivers))
+        fused = rejected = late = 0  # a loop, not sum() of generators: cpdef in core.pxd (no closures)
+        for f in self.receivers:
+            fused += f.fused
+            rejected += f.rejected
+            late += f.late
+        return fused, rejected, late
 
     def _latency_std(self) -> float:
         """The largest latency uncertainty of the velocity receivers (the heading error it causes
@@ -1130,7 +1143,11 @@ class Estimator:
         vel = self._velocity_latencies
         if len(vel) == 1:
             return vel[0].std_s
-        return max(lat.std_s for lat in vel)
+        m = vel[0].std_s  # max() as a loop (cpdef in core.pxd: no generator); max keeps the first of equals
+        for lat in vel[1:]:
+            if lat.std_s > m:
+                m = lat.std_s
+        return m
 
     def _vy_seen_by_data(self, k: int, vx: float, ay: float, rdot: float) -> bool:
         """Whether this fix's vy is the data's rather than the model's (LEARN_EXCITE_FIXES)."""

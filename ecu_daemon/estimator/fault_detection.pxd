@@ -48,6 +48,10 @@ cdef class FaultDetector:
     # instructions each). Untyped: every operation on the values stays the .py's.
     cpdef _unchanged(self, key, k, value, witness, tol)
     cpdef _all_wheels_stuck(self, k, wheels, wheels_ok, r)
+    # likewise, untyped: called by step / _yaw / _longitudinal every step (C calls, the .py's operations)
+    cpdef _wheels_return(self, v, vx, p_vx, wheel_r2)
+    cpdef _scale_test(self, r_w, d_w, d_a)
+    cpdef _attribute(self, k)
 
 
 # the hysteresis counters (a dozen latches updated every step): C ints and a C flag, so a latch's
