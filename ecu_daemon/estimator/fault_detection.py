@@ -93,6 +93,10 @@ YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesse
 YAW_SLOW_TOL_REL = 0.12
 SCALE_TOL = 0.15  # slope of (gyro - witness) against the yaw rate: a scale error (x1.3: 0.3)
 SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to tell scale from offset
+# the wheels' yaw rate may lag (or lead) the gyro by this much: the ABS ECU's filter and pulse-window
+# averaging (tens of ms; lag23 measured a RAV4's wheels 22-37 ms *ahead* of its accelerometer)
+WHEEL_YAW_LAG_MAX_S = 0.08
+SCALE_LAG_COND = 0.05  # r and rdot must be this far from collinear (1 - corr^2) to fit the lag apart
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
@@ -268,7 +272,8 @@ class FaultDetector:
         self.yaw_catch_up = 0.0
         self._gyro_suspect = False
         self._suspect_k = -(1 << 62)  # last step the gyro was suspect
-        self._scale = [0.0] * 7  # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a (scale test)
+        # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a, rdot, rdot^2, r rdot, rdot d_w (scale test)
+        self._scale = [0.0] * 11
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self.wheels_vouch_gyro = False  # the wheels' yaw rate passes the gyro (ay's substitute r vx)
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -584,7 +589,7 @@ class FaultDetector:
             e_as = self.e_as = e_as + a_slow * (d - e_as)
         # onset only: an isolated gyro returns by the level tests (a scaled one is right while r ~ 0,
         # and is out again within ON_STEPS of the next corner, the slope still in memory)
-        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d)
+        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d, rdot)
         ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
@@ -663,7 +668,7 @@ class FaultDetector:
             elif self._relearn[0] * self.dt >= RELEARN_S:
                 self._relearn_bias()
         elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
-            self._scale = [0.0] * 7
+            self._scale = [0.0] * 11
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
@@ -675,23 +680,42 @@ class FaultDetector:
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
 
-    def _scale_test(self, r_w: float, d_w: float, d_a: float) -> bool:
+    def _scale_test(self, r_w: float, d_w: float, d_a: float, rdot: float = 0.0) -> bool:
         """A scaled gyro (x1.3) disagrees by 0.3 r: inside the level tests' tolerances, which grow
         with |r| for track, radius and transient errors, but a slope of the disagreement against
         the yaw rate (weighted over YAW_SLOW_TAU_S) that neither witness has: the wheels' track and
         radius errors and ay's roll gravity give a few %. Both must show it, alike. The rate is
-        the wheels', low-passed: the gyro's own noise against itself would read as a slope."""
+        the wheels', low-passed: the gyro's own noise against itself would read as a slope.
+
+        The wheels' yaw rate comes through the ABS ECU's filtering and pulse-window averaging: a
+        lag ``tau`` against the gyro makes ``d_w = tau * rdot``, and while a lane change builds up
+        its yaw rate that rides on r (wheel_lag_0.04_gnss_1hz: slope 0.16-0.21 from a 0.04 s lag,
+        the gyro isolated and the heading 'repaired' by the lag's disagreement, 1.2 deg off). So
+        the wheels' slope is fitted together with a timing term (d_w = c + s r + tau rdot), tau
+        within +-WHEEL_YAW_LAG_MAX_S (either sign: the wheels may also lead the IMU); a scale
+        error stays in s (r and rdot are apart in any turn that has both a build-up and a hold)."""
         r_g = r_w
         m = self._scale
         a = self._a_slow
-        for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a)):
+        for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a,
+                               rdot, rdot * rdot, r_g * rdot, rdot * d_w)):
             m[j] += a * (v - m[j])
         w = m[0]
         mr = m[1] / w
         var_r = m[2] / w - mr * mr
         if not var_r > SCALE_MIN_SPREAD * SCALE_MIN_SPREAD:
             return False
-        s_w = (m[4] / w - mr * m[3] / w) / var_r
+        cov_rd = m[4] / w - mr * m[3] / w
+        mq = m[7] / w
+        var_q = m[8] / w - mq * mq
+        cov_rq = m[9] / w - mr * mq
+        det = var_r * var_q - cov_rq * cov_rq
+        tau = 0.0
+        if var_q > 0.0 and det > SCALE_LAG_COND * var_r * var_q:
+            cov_qd = m[10] / w - mq * m[3] / w
+            tau = (var_r * cov_qd - cov_rq * cov_rd) / det
+            tau = min(max(tau, -WHEEL_YAW_LAG_MAX_S), WHEEL_YAW_LAG_MAX_S)
+        s_w = (cov_rd - tau * cov_rq) / var_r
         s_a = (m[6] / w - mr * m[5] / w) / var_r
         return (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
 
