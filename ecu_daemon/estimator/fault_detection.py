@@ -255,6 +255,8 @@ class FaultDetector:
         self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
         self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
         self._rw_prev = math.nan
+        self._rg_lp = math.nan  # the gyro's rate through YAW_TAU_S, and its slope (the scale test's timing term)
+        self._rdot_g = 0.0
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
         nr = max(2, int(round(REPAIR_WINDOW_S / dt)))
         self._yaw_ring = [0.0] * nr  # per step: integral of (gyro - wheels' yaw rate) dt
@@ -545,6 +547,12 @@ class FaultDetector:
         kw = x[KW]
         r_g = r_m - x[BR]
         v_rear = 0.5 * (rl + rr) * kw
+        # the gyro's yaw acceleration through the same low-pass as e_w and the wheels' rate, so that
+        # the scale test's LP(d) = s LP(r) + tau LP(rdot) holds as the filters are linear (against the
+        # core's rdot, 0.05-0.08 s late, and a raw d_w, a wheel lead of 0.04 s read as a gyro scale)
+        rg_lp = self._rg_lp
+        self._rg_lp = r_g if rg_lp != rg_lp else rg_lp + a_yaw * (r_g - rg_lp)
+        self._rdot_g = 0.0 if rg_lp != rg_lp else (self._rg_lp - rg_lp) / self.dt
         wheels_yaw = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
         # the wheels' yaw rate still stands in for an isolated gyro while braking (nothing better),
         # but it judges the gyro only while the rear wheels roll free (BRAKE_WITNESS_MPS2)
@@ -589,7 +597,8 @@ class FaultDetector:
             e_as = self.e_as = e_as + a_slow * (d - e_as)
         # onset only: an isolated gyro returns by the level tests (a scaled one is right while r ~ 0,
         # and is out again within ON_STEPS of the next corner, the slope still in memory)
-        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d, rdot)
+        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, self.e_w, d,
+                                                                                    self._rdot_g)
         ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
@@ -685,7 +694,8 @@ class FaultDetector:
         with |r| for track, radius and transient errors, but a slope of the disagreement against
         the yaw rate (weighted over YAW_SLOW_TAU_S) that neither witness has: the wheels' track and
         radius errors and ay's roll gravity give a few %. Both must show it, alike. The rate is
-        the wheels', low-passed: the gyro's own noise against itself would read as a slope.
+        the wheels', low-passed: the gyro's own noise against itself would read as a slope; the
+        wheels' disagreement ``d_w`` is e_w, through the same low-pass, as is ``rdot`` (the gyro's).
 
         The wheels' yaw rate comes through the ABS ECU's filtering and pulse-window averaging: a
         lag ``tau`` against the gyro makes ``d_w = tau * rdot``, and while a lane change builds up
