@@ -274,8 +274,9 @@ class FaultDetector:
         self.yaw_catch_up = 0.0
         self._gyro_suspect = False
         self._suspect_k = -(1 << 62)  # last step the gyro was suspect
-        # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a, rdot, rdot^2, r rdot, rdot d_w (scale test)
-        self._scale = [0.0] * 11
+        # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a, rdot, rdot^2, r rdot, rdot e_w, e_w, r e_w
+        # (scale test)
+        self._scale = [0.0] * 13
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self.wheels_vouch_gyro = False  # the wheels' yaw rate passes the gyro (ay's substitute r vx)
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -597,8 +598,8 @@ class FaultDetector:
             e_as = self.e_as = e_as + a_slow * (d - e_as)
         # onset only: an isolated gyro returns by the level tests (a scaled one is right while r ~ 0,
         # and is out again within ON_STEPS of the next corner, the slope still in memory)
-        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, self.e_w, d,
-                                                                                    self._rdot_g)
+        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d,
+                                                                                    self._rdot_g, self.e_w)
         ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
@@ -677,7 +678,7 @@ class FaultDetector:
             elif self._relearn[0] * self.dt >= RELEARN_S:
                 self._relearn_bias()
         elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
-            self._scale = [0.0] * 11
+            self._scale = [0.0] * 13
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
@@ -689,43 +690,46 @@ class FaultDetector:
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
 
-    def _scale_test(self, r_w: float, d_w: float, d_a: float, rdot: float = 0.0) -> bool:
+    def _scale_test(self, r_w: float, d_w: float, d_a: float, rdot: float = 0.0, e_w: float = 0.0) -> bool:
         """A scaled gyro (x1.3) disagrees by 0.3 r: inside the level tests' tolerances, which grow
         with |r| for track, radius and transient errors, but a slope of the disagreement against
         the yaw rate (weighted over YAW_SLOW_TAU_S) that neither witness has: the wheels' track and
         radius errors and ay's roll gravity give a few %. Both must show it, alike. The rate is
-        the wheels', low-passed: the gyro's own noise against itself would read as a slope; the
-        wheels' disagreement ``d_w`` is e_w, through the same low-pass, as is ``rdot`` (the gyro's).
+        the wheels', low-passed: the gyro's own noise against itself would read as a slope.
 
         The wheels' yaw rate comes through the ABS ECU's filtering and pulse-window averaging: a
         lag ``tau`` against the gyro makes ``d_w = tau * rdot``, and while a lane change builds up
         its yaw rate that rides on r (wheel_lag_0.04_gnss_1hz: slope 0.16-0.21 from a 0.04 s lag,
         the gyro isolated and the heading 'repaired' by the lag's disagreement, 1.2 deg off). So
-        the wheels' slope is fitted together with a timing term (d_w = c + s r + tau rdot), tau
-        within +-WHEEL_YAW_LAG_MAX_S (either sign: the wheels may also lead the IMU); a scale
-        error stays in s (r and rdot are apart in any turn that has both a build-up and a hold)."""
+        the wheels' slope is also fitted together with a timing term (e_w = c + s r + tau rdot, the
+        three through the same low-pass YAW_TAU_S, rdot the gyro's), tau within
+        +-WHEEL_YAW_LAG_MAX_S (either sign: the wheels may also lead the IMU). The timing term may
+        explain a slope away, never make one: the smaller of the two slopes counts (a noisy rear
+        wheel fits any tau, and at the bound it made a slope of its own: a good gyro isolated)."""
         r_g = r_w
         m = self._scale
         a = self._a_slow
         for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a,
-                               rdot, rdot * rdot, r_g * rdot, rdot * d_w)):
+                               rdot, rdot * rdot, r_g * rdot, rdot * e_w, e_w, r_g * e_w)):
             m[j] += a * (v - m[j])
         w = m[0]
         mr = m[1] / w
         var_r = m[2] / w - mr * mr
         if not var_r > SCALE_MIN_SPREAD * SCALE_MIN_SPREAD:
             return False
-        cov_rd = m[4] / w - mr * m[3] / w
+        s_w = (m[4] / w - mr * m[3] / w) / var_r
         mq = m[7] / w
         var_q = m[8] / w - mq * mq
         cov_rq = m[9] / w - mr * mq
         det = var_r * var_q - cov_rq * cov_rq
-        tau = 0.0
         if var_q > 0.0 and det > SCALE_LAG_COND * var_r * var_q:
-            cov_qd = m[10] / w - mq * m[3] / w
-            tau = (var_r * cov_qd - cov_rq * cov_rd) / det
+            me = m[11] / w
+            cov_re = m[12] / w - mr * me
+            tau = (var_r * (m[10] / w - mq * me) - cov_rq * cov_re) / det
             tau = min(max(tau, -WHEEL_YAW_LAG_MAX_S), WHEEL_YAW_LAG_MAX_S)
-        s_w = (cov_rd - tau * cov_rq) / var_r
+            s_t = (cov_re - tau * cov_rq) / var_r
+            if abs(s_t) < abs(s_w):
+                s_w = s_t
         s_a = (m[6] / w - mr * m[5] / w) / var_r
         return (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
 
