@@ -286,7 +286,7 @@ def _turn_with_lagged_wheels(wheel_lag: float, gyro_scale: float = 1.0) -> int:
 def test_wheels_lagging_the_gyro_are_not_a_gyro_scale_error(lag):
     """A lag tau of the wheels' yaw rate makes gyro - wheels = tau * rdot, which rides on r while a
     turn builds up: the scale test took it for a scaled gyro (main isolated a good gyro at 0.04
-    and 0.06 s here, and on wheel_lag_0.04_gnss_1hz put the lag's disagreement into the heading,
+    and 0.06 s here, and on wheel_lag_0.04_dlc_1hz put the lag's disagreement into the heading,
     1.2 deg off). The test fits the timing term apart; a scaled gyro is still isolated."""
     assert _turn_with_lagged_wheels(lag) == 0
     assert _turn_with_lagged_wheels(lag, 1.3) >= 1

@@ -192,7 +192,7 @@ SUBSET = {
     # the wheel speeds 0.04 s late (the ABS ECU's filter): the scale test took the lag's disagreement
     # with the gyro for a gyro scale error in the lane change, isolated the gyro and 'repaired' the
     # heading by it (1.2 deg off; heading RMS 0.32, sideslip valid 82 %); its timing term since
-    "wheel_lag_0.04_gnss_1hz": {},
+    "wheel_lag_0.04_dlc_1hz": {},
 }
 
 

@@ -699,7 +699,7 @@ class FaultDetector:
 
         The wheels' yaw rate comes through the ABS ECU's filtering and pulse-window averaging: a
         lag ``tau`` against the gyro makes ``d_w = tau * rdot``, and while a lane change builds up
-        its yaw rate that rides on r (wheel_lag_0.04_gnss_1hz: slope 0.16-0.21 from a 0.04 s lag,
+        its yaw rate that rides on r (wheel_lag_0.04_dlc_1hz: slope 0.16-0.21 from a 0.04 s lag,
         the gyro isolated and the heading 'repaired' by the lag's disagreement, 1.2 deg off). So
         the wheels' slope is also fitted together with a timing term (e_w = c + s r + tau rdot, the
         three through the same low-pass YAW_TAU_S, rdot the gyro's), tau within

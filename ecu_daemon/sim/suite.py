@@ -280,7 +280,7 @@ def _wheel_lag() -> list[SuiteCase]:
     mixed demo drive and on the lane change with 1 Hz GNSS (the wheels carry the speed between fixes)."""
     out = []
     for name, kind, lag, extra in (("wheel_lag_0.04", "demo", 0.04, {}),
-                                   ("wheel_lag_0.04_gnss_1hz", "dlc_dry", 0.04, {"gnss_rate_hz": 1.0}),
+                                   ("wheel_lag_0.04_dlc_1hz", "dlc_dry", 0.04, {"gnss_rate_hz": 1.0}),
                                    ("wheel_lag_0.06_grade", "dlc_dry", 0.06, {"grade_rad": math.atan(0.1)})):
         out.append(SuiteCase(name, "wheel_lag", _base(name, kind, sensor_wheel_lag_s=lag, **extra)))
     return out
