@@ -17,6 +17,7 @@ from ecu_daemon.samples import INPUT_NAMES
 from ecu_daemon.signals import SignalDecoder
 from ecu_daemon.sim import SCENARIOS, simulate, tyre, vehicle_config
 from ecu_daemon.sim import manoeuvres as mn
+from ecu_daemon.sim import sensors as sens
 from ecu_daemon.sim.sensors import UTC_OFFSET_S
 from ecu_daemon.sim.vehicle import G, Road, VehicleParams, integrate
 from ecu_daemon.sim.writer import write_all
@@ -337,3 +338,24 @@ def test_registry_has_the_named_scenarios():
     # the road courses (sim/road.py) run several curves of a real road's length: up to 150 s
     assert all(30 <= sc.duration() <= (150 if sc.manoeuvre == "road_course" else 90) for sc in SCENARIOS.values())
     assert replace(SCENARIOS["dlc_dry"], duration_s=5.0).duration() == 5.0
+
+
+def test_wheel_lag_is_a_first_order_lag_of_the_wheel_speeds_and_zero_leaves_them_untouched():
+    """``SensorParams.wheel_lag_s``: the ABS ECU's filter. Accelerating at a constant rate, a
+    first-order lag tau reads the speed of tau ago (tau * ax low) once settled; the IMU is not
+    delayed; 0 (the default) is the truth column itself, so every existing scenario is unchanged."""
+    sc = SCENARIOS["dlc_dry"].with_(duration_s=14.0, **QUIET)
+    res = simulate(sc)
+    tr = res.truth
+    t = np.arange(tr.t[0] + 7.0, tr.t[0] + 12.0, 0.01)  # the launch at ~2.2 m/s^2
+    ax = np.interp(t, tr.t, tr.col("acc_x"))
+    assert ax.min() > 1.5
+    rng = np.random.default_rng(0)
+    plain = sens.CanSensors(tr, sc.sensors, rng)
+    exact = np.interp(t, tr.t, tr.col("omega_rl")) * (tr.params.wheel_radius_m / sc.sensors.wheel_scale)
+    assert np.array_equal(plain.measure("wheel_speed_rl", t), exact)
+    for tau in (0.02, 0.06):
+        lagged = sens.CanSensors(tr, replace(sc.sensors, wheel_lag_s=tau), rng)
+        late = lagged.measure("wheel_speed_rl", t)
+        assert np.allclose(exact - late, tau * ax / sc.sensors.wheel_scale, atol=0.1 * tau * ax.max())
+        assert np.array_equal(lagged.measure("accel_x", t), plain.measure("accel_x", t))

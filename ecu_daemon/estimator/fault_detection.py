@@ -93,6 +93,10 @@ YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesse
 YAW_SLOW_TOL_REL = 0.12
 SCALE_TOL = 0.15  # slope of (gyro - witness) against the yaw rate: a scale error (x1.3: 0.3)
 SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to tell scale from offset
+# the wheels' yaw rate may lag (or lead) the gyro by this much: the ABS ECU's filter and pulse-window
+# averaging (tens of ms; lag23 measured a RAV4's wheels 22-37 ms *ahead* of its accelerometer)
+WHEEL_YAW_LAG_MAX_S = 0.08
+SCALE_LAG_COND = 0.05  # r and rdot must be this far from collinear (1 - corr^2) to fit the lag apart
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
@@ -254,6 +258,8 @@ class FaultDetector:
         self.rdot_abs = 0.0  # slowly decaying peak of |yaw acceleration|
         self._r_prev = math.nan  # gyro and wheel yaw rate at the previous step
         self._rw_prev = math.nan
+        self._rg_lp = math.nan  # the gyro's rate through YAW_TAU_S, and its slope (the scale test's timing term)
+        self._rdot_g = 0.0
         self.yaw_suspect = False  # a yaw check fails but the culprit is not yet known
         nr = max(2, int(round(REPAIR_WINDOW_S / dt)))
         self._yaw_ring = [0.0] * nr  # per step: integral of (gyro - wheels' yaw rate) dt
@@ -271,7 +277,9 @@ class FaultDetector:
         self.yaw_catch_up = 0.0
         self._gyro_suspect = False
         self._suspect_k = -(1 << 62)  # last step the gyro was suspect
-        self._scale = [0.0] * 7  # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a (scale test)
+        # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a, rdot, rdot^2, r rdot, rdot e_w, e_w, r e_w
+        # (scale test)
+        self._scale = [0.0] * 13
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self.wheels_vouch_gyro = False  # the wheels' yaw rate passes the gyro (ay's substitute r vx)
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -543,6 +551,12 @@ class FaultDetector:
         kw = x[KW]
         r_g = r_m - x[BR]
         v_rear = 0.5 * (rl + rr) * kw
+        # the gyro's yaw acceleration through the same low-pass as e_w and the wheels' rate, so that
+        # the scale test's LP(d) = s LP(r) + tau LP(rdot) holds as the filters are linear (against the
+        # core's rdot, 0.05-0.08 s late, and a raw d_w, a wheel lead of 0.04 s read as a gyro scale)
+        rg_lp = self._rg_lp
+        self._rg_lp = r_g if rg_lp != rg_lp else rg_lp + a_yaw * (r_g - rg_lp)
+        self._rdot_g = 0.0 if rg_lp != rg_lp else (self._rg_lp - rg_lp) / self.dt
         wheels_yaw = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
         # the wheels' yaw rate still stands in for an isolated gyro while braking (nothing better),
         # but it judges the gyro only while the rear wheels roll free (BRAKE_WITNESS_MPS2)
@@ -587,7 +601,8 @@ class FaultDetector:
             e_as = self.e_as = e_as + a_slow * (d - e_as)
         # onset only: an isolated gyro returns by the level tests (a scaled one is right while r ~ 0,
         # and is out again within ON_STEPS of the next corner, the slope still in memory)
-        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d)
+        scale_fail = have_a and have_w and not self.gyro.active and self._scale_test(self._rw_lp, r_g - r_wheels, d,
+                                                                                    self._rdot_g, self.e_w)
         ref = abs(r_wheels) if have_w else abs(r_g)
         # the wheel relation is kinematic (no transient term); ay / vx misses dvy/dt / vx
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
@@ -666,7 +681,7 @@ class FaultDetector:
             elif self._relearn[0] * self.dt >= RELEARN_S:
                 self._relearn_bias()
         elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
-            self._scale = [0.0] * 7
+            self._scale = [0.0] * 13
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
@@ -688,16 +703,27 @@ class FaultDetector:
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
 
-    def _scale_test(self, r_w: float, d_w: float, d_a: float) -> bool:
+    def _scale_test(self, r_w: float, d_w: float, d_a: float, rdot: float = 0.0, e_w: float = 0.0) -> bool:
         """A scaled gyro (x1.3) disagrees by 0.3 r: inside the level tests' tolerances, which grow
         with |r| for track, radius and transient errors, but a slope of the disagreement against
         the yaw rate (weighted over YAW_SLOW_TAU_S) that neither witness has: the wheels' track and
         radius errors and ay's roll gravity give a few %. Both must show it, alike. The rate is
-        the wheels', low-passed: the gyro's own noise against itself would read as a slope."""
+        the wheels', low-passed: the gyro's own noise against itself would read as a slope.
+
+        The wheels' yaw rate comes through the ABS ECU's filtering and pulse-window averaging: a
+        lag ``tau`` against the gyro makes ``d_w = tau * rdot``, and while a lane change builds up
+        its yaw rate that rides on r (wheel_lag_0.04_dlc_1hz: slope 0.16-0.21 from a 0.04 s lag,
+        the gyro isolated and the heading 'repaired' by the lag's disagreement, 1.2 deg off). So
+        the wheels' slope is also fitted together with a timing term (e_w = c + s r + tau rdot, the
+        three through the same low-pass YAW_TAU_S, rdot the gyro's), tau within
+        +-WHEEL_YAW_LAG_MAX_S (either sign: the wheels may also lead the IMU). The timing term may
+        explain a slope away, never make one: the smaller of the two slopes counts (a noisy rear
+        wheel fits any tau, and at the bound it made a slope of its own: a good gyro isolated)."""
         r_g = r_w
         m = self._scale
         a = self._a_slow
-        for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a)):
+        for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a,
+                               rdot, rdot * rdot, r_g * rdot, rdot * e_w, e_w, r_g * e_w)):
             m[j] += a * (v - m[j])
         w = m[0]
         mr = m[1] / w
@@ -705,6 +731,18 @@ class FaultDetector:
         if not var_r > SCALE_MIN_SPREAD * SCALE_MIN_SPREAD:
             return False
         s_w = (m[4] / w - mr * m[3] / w) / var_r
+        mq = m[7] / w
+        var_q = m[8] / w - mq * mq
+        cov_rq = m[9] / w - mr * mq
+        det = var_r * var_q - cov_rq * cov_rq
+        if var_q > 0.0 and det > SCALE_LAG_COND * var_r * var_q:
+            me = m[11] / w
+            cov_re = m[12] / w - mr * me
+            tau = (var_r * (m[10] / w - mq * me) - cov_rq * cov_re) / det
+            tau = min(max(tau, -WHEEL_YAW_LAG_MAX_S), WHEEL_YAW_LAG_MAX_S)
+            s_t = (cov_re - tau * cov_rq) / var_r
+            if abs(s_t) < abs(s_w):
+                s_w = s_t
         s_a = (m[6] / w - mr * m[5] / w) / var_r
         return (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
 

@@ -184,6 +184,9 @@ class SensorParams:
     wheel_speed_noise_mps: float = 0.02
     steering_noise_rad: float = math.radians(0.1)
     wheel_speed_min_mps: float = 0.15
+    #: > 0: the ABS ECU's first-order low-pass (time constant, s) on the wheel speeds before they
+    #: reach CAN (pulse-window averaging and filtering): a low-frequency delay of about this much
+    wheel_lag_s: float = 0.0
     faults: tuple = ()  # Fault s on the CAN inputs
     magnetometer: MagParams | None = None  # a magnetometer on CAN ([inputs.mag_x/y/z])
     roll_rate: bool = False  # a roll-rate gyro on CAN ([inputs.roll_rate])
@@ -260,6 +263,7 @@ class CanSensors:
         self.rng = rng
         self.bank_rad, self.grade_rad = bank_rad, grade_rad
         self._mag: tuple | None = None  # (send times, field) of the last magnetometer frame times
+        self._lagged: dict[str, np.ndarray] = {}  # corner -> wheel spin through the ABS lag
 
     def measure(self, name: str, t: np.ndarray) -> np.ndarray:
         v = self._healthy(name, t)
@@ -273,7 +277,7 @@ class CanSensors:
         noise = self.rng.standard_normal(n)
         if name.startswith("wheel_speed_"):
             radius = tr.params.wheel_radius_m / p.wheel_scale
-            v = sample(tr, "omega_" + name[-2:], t) * radius
+            v = np.interp(t, tr.t, self._wheel_spin(name[-2:])) * radius
             v = v + p.wheel_speed_noise_mps * noise
             v[np.abs(v) < p.wheel_speed_min_mps] = 0.0
             return v
@@ -308,6 +312,23 @@ class CanSensors:
                 self._mag = (t.copy(), magnetometer(tr, p.magnetometer, t, self.rng, bank, grade))
             return self._mag[1][:, "xyz".index(name[-1])].copy()
         raise KeyError(f"unknown input {name!r}")
+
+    def _wheel_spin(self, corner: str) -> np.ndarray:
+        """The wheel's spin (rad/s) on the truth steps, through the ABS ECU's first-order lag
+        ``wheel_lag_s`` (exact discretisation per truth step; 0: the truth column itself)."""
+        omega = self.truth.col("omega_" + corner)
+        tau = self.p.wheel_lag_s
+        if tau <= 0.0:
+            return omega
+        if corner not in self._lagged:
+            t = self.truth.t
+            out = np.empty_like(omega)
+            out[0] = omega[0]  # settled at the start (a flying start is already at speed)
+            a = np.exp(-np.diff(t) / tau)
+            for i in range(1, len(omega)):
+                out[i] = a[i - 1] * out[i - 1] + (1.0 - a[i - 1]) * omega[i]
+            self._lagged[corner] = out
+        return self._lagged[corner]
 
     def _imu(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(specific force, angular rate) in the sensor's axes of the IMU at ``imu_position_m``,

@@ -273,9 +273,22 @@ def _gyro_scale() -> list[SuiteCase]:
     return out
 
 
+def _wheel_lag() -> list[SuiteCase]:
+    """Wheel speeds that reach CAN late: the ABS ECU filters and averages them over pulse windows
+    (``SensorParams.wheel_lag_s``, a first-order lag) while the IMU is not delayed. In braking and
+    accelerating the wheel speed then reads the speed of ``lag`` s ago, ``ax x lag`` off: on the
+    mixed demo drive and on the lane change with 1 Hz GNSS (the wheels carry the speed between fixes)."""
+    out = []
+    for name, kind, lag, extra in (("wheel_lag_0.04", "demo", 0.04, {}),
+                                   ("wheel_lag_0.04_dlc_1hz", "dlc_dry", 0.04, {"gnss_rate_hz": 1.0}),
+                                   ("wheel_lag_0.06_grade", "dlc_dry", 0.06, {"grade_rad": math.atan(0.1)})):
+        out.append(SuiteCase(name, "wheel_lag", _base(name, kind, sensor_wheel_lag_s=lag, **extra)))
+    return out
+
+
 def build_suite() -> list[SuiteCase]:
     return (_flying() + _conditions() + _sensor_faults() + _low_speed() + _road_profile() + _dual_antenna() + _two_receivers()
-            + _magnetometer() + _imu() + _gyro_scale())
+            + _magnetometer() + _imu() + _gyro_scale() + _wheel_lag())
 
 
 SUITE: list[SuiteCase] = build_suite()
