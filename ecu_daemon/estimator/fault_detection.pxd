@@ -50,7 +50,7 @@ cdef class FaultDetector:
     cpdef _all_wheels_stuck(self, k, wheels, wheels_ok, r)
     # likewise, untyped: called by step / _yaw / _longitudinal every step (C calls, the .py's operations)
     cpdef _wheels_return(self, v, vx, p_vx, wheel_r2)
-    cpdef _scale_test(self, r_w, d_w, d_a)
+    cpdef _scale_test(self, r_w, d_w, d_a, rdot=*, e_w=*)
     cpdef _attribute(self, k)
 
 
