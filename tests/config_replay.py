@@ -4,18 +4,45 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
+import tomli_w
+
+from ecu_daemon.sim import simulate, vehicle_config
+from ecu_daemon.sim.scenario import Scenario
+from ecu_daemon.sim.writer import write_all
 
 
-def replay_with(drive: Path, config: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(estimate rows, truth rows) as named arrays; the estimate CSV is written beside ``config``."""
+def simulated_drive(tmp_path_factory, name: str, scenario: Scenario) -> Path:
+    """A fresh folder holding ``scenario`` simulated with its own (right) configuration."""
+    d = tmp_path_factory.mktemp(name)
+    write_all(d, simulate(scenario, vehicle_config(scenario)))
+    return d
+
+
+def replay_with(drive: Path, config: Path, log_level: str = "error",
+                stderr: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(estimate rows, truth rows) as named arrays; the estimate CSV is written beside ``config``.
+    ``stderr``: a list the replay's log lines (at ``log_level``) are appended to."""
     out = config.with_suffix(".csv")
     r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(config),
                         "--can", str(drive / "drive.log"), "--gnss", str(drive / "drive_gnss.log"),
-                        "--out-csv", str(out), "--no-progress", "--log-level", "error"],
+                        "--out-csv", str(out), "--no-progress", "--log-level", log_level],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+    if stderr is not None:
+        stderr.extend(r.stderr.splitlines())
     return (np.genfromtxt(out, delimiter=",", names=True),
             np.genfromtxt(drive / "truth.csv", delimiter=",", names=True))
+
+
+def replay_edited(drive: Path, edit: Callable[[dict], None], name: str, **kw) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`replay_with` on the drive's own config.toml changed by ``edit`` (saved as ``name``.toml)."""
+    data = tomllib.loads((drive / "config.toml").read_text())
+    edit(data)
+    cfg = drive / f"{name}.toml"
+    cfg.write_text(tomli_w.dumps(data))
+    return replay_with(drive, cfg, **kw)

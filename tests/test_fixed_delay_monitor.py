@@ -8,49 +8,32 @@ fixed delay was taken as good to 0.01 s and its timing error went into the sides
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
-import tomllib
 
 import numpy as np
 import pytest
-import tomli_w
 
 from ecu_daemon.estimator.latency import FIXED_STD_S, LatencyEstimator
-from ecu_daemon.sim import simulate, vehicle_config
-from ecu_daemon.sim.scenario import Scenario
-from ecu_daemon.sim.writer import write_all
 
-from config_replay import replay_with
-
-
-@pytest.fixture(scope="module")
-def demo_drive(tmp_path_factory):
-    d = tmp_path_factory.mktemp("fixed_delay")
-    sc = Scenario("demo", "demo")
-    write_all(d, simulate(sc, vehicle_config(sc)))
-    return d
+from config_replay import replay_edited
 
 
 def _replay_fixed(d, delay_s):
-    """(estimate rows, truth rows, the replay's warning lines)."""
-    data = tomllib.loads((d / "config.toml").read_text())
-    data["gnss"]["delay_s"] = delay_s
-    data["gnss"]["estimate_delay"] = False
-    cfg = d / f"fixed_{delay_s}.toml"
-    cfg.write_text(tomli_w.dumps(data))
-    e, t = replay_with(d, cfg)
-    r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(cfg),
-                        "--can", str(d / "drive.log"), "--gnss", str(d / "drive_gnss.log"),
-                        "--out-csv", str(d / f"fixed_{delay_s}_warn.csv"), "--no-progress", "--log-level", "warning"],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    return e, t, [ln for ln in r.stderr.splitlines() if "estimate_delay = false" in ln]
+    """(estimate rows, truth rows, the replay's log lines at warning level)."""
+    def edit(c):
+        c["gnss"]["delay_s"] = delay_s
+        c["gnss"]["estimate_delay"] = False
+    log: list[str] = []
+    e, t = replay_edited(d, edit, f"fixed_{delay_s}", log_level="warning", stderr=log)
+    return e, t, log
+
+
+def _warned(log):
+    return [ln for ln in log if "estimate_delay = false" in ln]
 
 
 @pytest.mark.parametrize("delay_s", [0.3, 0.5])
 def test_a_wrong_fixed_delay_keeps_the_sideslip_promise(demo_drive, delay_s):
-    e, t, warned = _replay_fixed(demo_drive, delay_s)
+    e, t, log = _replay_fixed(demo_drive, delay_s)
     assert np.all(e["gnss_delay_s"] == delay_s)  # the user's delay is used as it is
     beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
     err = np.abs(e["sideslip_rad"] - beta)
@@ -58,12 +41,12 @@ def test_a_wrong_fixed_delay_keeps_the_sideslip_promise(demo_drive, delay_s):
     assert valid.sum() > 1000
     assert (err[valid] <= 3.0 * e["sideslip_std_rad"][valid]).mean() >= 0.99
     assert math.degrees(err[valid].max()) < 2.0
-    assert len(warned) == 1 and "Traceback" not in warned[0], warned
+    assert len(_warned(log)) == 1 and not any("Traceback" in ln for ln in log), log
 
 
 def test_the_right_fixed_delay_is_not_widened(demo_drive):
-    e, t, warned = _replay_fixed(demo_drive, 0.4)
-    assert not warned
+    e, t, log = _replay_fixed(demo_drive, 0.4)
+    assert not _warned(log)
     beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
     valid = e["sideslip_valid"].astype(bool)
     assert valid.mean() > 0.8

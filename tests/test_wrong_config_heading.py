@@ -10,45 +10,27 @@ course 0.7 s older than assumed at the turn-in: 6.6 deg off with a 1.3 deg std."
 from __future__ import annotations
 
 import math
-import tomllib
 
 import numpy as np
 import pytest
-import tomli_w
 
-from ecu_daemon.sim import simulate, vehicle_config
 from ecu_daemon.sim.scenario import Scenario
-from ecu_daemon.sim.writer import write_all
 
-from config_replay import replay_with
+from config_replay import replay_edited, simulated_drive
 
 LOW = Scenario("lowspeed_r15", "low_speed", params=(("radius_m", 15.0), ("v_max", 10.0)))  # 75 s
 
 
-def _replay(d, edit, name):
-    data = tomllib.loads((d / "config.toml").read_text())
-    edit(data)
-    cfg = d / f"{name}.toml"
-    cfg.write_text(tomli_w.dumps(data))
-    return replay_with(d, cfg)
-
-
 def _heading_rows(d, edit, name):
-    e, t = _replay(d, edit, name)
+    e, t = replay_edited(d, edit, name)
     psi = np.interp(e["t"], t["t"], np.unwrap(t["heading_rad"]))
     err = np.degrees(np.abs((e["heading_rad"] - psi + math.pi) % (2 * math.pi) - math.pi))
     return e["heading_valid"].astype(bool), err
 
 
-def _drive(tmp_path_factory, name, sc):
-    d = tmp_path_factory.mktemp(name)
-    write_all(d, simulate(sc, vehicle_config(sc)))
-    return d
-
-
 @pytest.fixture(scope="module")
 def low_drive(tmp_path_factory):
-    return _drive(tmp_path_factory, "lever", LOW)
+    return simulated_drive(tmp_path_factory, "lever", LOW)
 
 
 @pytest.mark.parametrize("dx", [1.5, -2.0], ids=["too_far_forward", "too_far_back"])
@@ -66,7 +48,7 @@ def test_gnss_lever_arm_y_configured_wrong_keeps_vx_within_its_std(low_drive, ed
     off in the circle, within 3 published std on only 60-68 % of the valid rows."""
     def edit(c):
         c["gnss"]["lever_arm_m"] = [c["gnss"]["lever_arm_m"][0], edit_y(c["gnss"]["lever_arm_m"][1])]
-    e, t = _replay(low_drive, edit, "lever_y")
+    e, t = replay_edited(low_drive, edit, "lever_y")
     vx = np.interp(e["t"], t["t"], t["vx_mps"])
     rows = e["velocity_valid"].astype(bool) & (e["vx_mps"] > 3.0)
     within = np.abs(e["vx_mps"] - vx)[rows] <= 3.0 * e["vx_std_mps"][rows]
@@ -84,13 +66,13 @@ def test_latency_prior_far_off_is_not_promised(tmp_path_factory, true_s, prior_s
     takes as a secant over the instants an unidentified latency allows (latency_sensitivity.py
     ``timing_secant``). With the tangent there (r = 0.01 rad/s) 0.1 / 0.8 was 4.99 deg off at
     1.2 deg std (102 of 136 valid rows beyond 3 sigma), 0.1 / 0.4 4.6 deg (265 of 299)."""
-    d = _drive(tmp_path_factory, f"latency{true_s}",
+    d = simulated_drive(tmp_path_factory, f"latency{true_s}",
                LOW.with_(name=f"lat{true_s}", gnss_latency_s=true_s, duration_s=25.0))
 
     def edit(c):
         c["gnss"]["delay_s"] = prior_s
         c["gnss"]["max_delay_s"] = max(c["gnss"]["max_delay_s"], prior_s, true_s)
-    e, t = _replay(d, edit, f"latency{prior_s}")
+    e, t = replay_edited(d, edit, f"latency{prior_s}")
     psi = np.interp(e["t"], t["t"], np.unwrap(t["heading_rad"]))
     err = np.abs((e["heading_rad"] - psi + math.pi) % (2 * math.pi) - math.pi)
     valid = e["heading_valid"].astype(bool)

@@ -9,34 +9,19 @@ next turn-in published sideslip up to 2.7 deg off as valid (98.8 % of the valid 
 from __future__ import annotations
 
 import math
-import tomllib
 
 import numpy as np
 import pytest
-import tomli_w
 
 from ecu_daemon.estimator.estimate import STATUS_ACCEL_Y_ISOLATED
-from ecu_daemon.sim import simulate, vehicle_config
-from ecu_daemon.sim.scenario import Scenario
-from ecu_daemon.sim.writer import write_all
 
-from config_replay import replay_with
-
-
-@pytest.fixture(scope="module")
-def demo_drive(tmp_path_factory):
-    d = tmp_path_factory.mktemp("wrong_sign")
-    sc = Scenario("demo", "demo")
-    write_all(d, simulate(sc, vehicle_config(sc)))
-    return d
+from config_replay import replay_edited
 
 
 def _replay_flipped(d, name):
-    data = tomllib.loads((d / "config.toml").read_text())
-    data["inputs"][name]["scale"] = -data["inputs"][name]["scale"]
-    cfg = d / f"flipped_{name}.toml"
-    cfg.write_text(tomli_w.dumps(data))
-    return replay_with(d, cfg)
+    def edit(c):
+        c["inputs"][name]["scale"] = -c["inputs"][name]["scale"]
+    return replay_edited(d, edit, f"flipped_{name}")
 
 
 @pytest.mark.parametrize("name", ["accel_y", "yaw_rate", "accel_x"])

@@ -1449,6 +1449,62 @@ static int fused_gain(const double *P, const double *H, const double *R, int m, 
     return 0;
 }
 
+/* The operands sens_fused and scale_fused share: S (n slots of N), the n stored transitions A,
+ * the covariance P before the fix, its m = 1 or 2 Jacobian rows H and noise R, and the stored step
+ * s it is fused at, which the history must still hold up to last. 0 (every view released, the
+ * error set) when one is missing or wrong. */
+typedef struct {
+    Py_buffer S, A, P, H, R;
+    double *s, *a, *p, *h, *r;
+    Py_ssize_t n;
+    int m;
+} FusedOperands;
+
+static void release_fused(FusedOperands *o)
+{
+    PyBuffer_Release(&o->R);
+    PyBuffer_Release(&o->H);
+    PyBuffer_Release(&o->P);
+    PyBuffer_Release(&o->A);
+    PyBuffer_Release(&o->S);
+}
+
+static int get_fused_operands(PyObject *const *args, long long s, long long last, const char *who,
+                              FusedOperands *o)
+{
+    if (!(o->s = get_doubles(args[0], &o->S, -N, "S")))
+        return 0;
+    o->n = o->S.len / (Py_ssize_t)(N * sizeof(double));
+    if (!(o->a = get_doubles(args[1], &o->A, o->n * N * N, "A")))
+        goto f_s;
+    if (!(o->p = get_doubles(args[2], &o->P, N * N, "P")))
+        goto f_a;
+    if (!(o->h = get_doubles(args[3], &o->H, -N, "H")))
+        goto f_p;
+    o->m = (int)(o->H.len / (Py_ssize_t)(N * sizeof(double)));
+    if (o->m > 2) {
+        PyErr_Format(PyExc_ValueError, "%s: H must have 1 or 2 rows", who);
+        goto f_h;
+    }
+    if (!(o->r = get_doubles(args[4], &o->R, o->m * o->m, "R")))
+        goto f_h;
+    if (last - s < 0 || last - s >= o->n) {
+        PyErr_Format(PyExc_ValueError, "%s: step outside the history", who);
+        PyBuffer_Release(&o->R);
+        goto f_h;
+    }
+    return 1;
+f_h:
+    PyBuffer_Release(&o->H);
+f_p:
+    PyBuffer_Release(&o->P);
+f_a:
+    PyBuffer_Release(&o->A);
+f_s:
+    PyBuffer_Release(&o->S);
+    return 0;
+}
+
 /* sens_fused(S, A, P, H, R, h, s, last): a fix of m = 1 or 2 rows fused at stored step s with
  * Jacobian H and noise R against the covariance P it had before: with K = P H' (H P H' + R)^-1,
  * S_s <- S_s - K (H S_s - h), then S_j = A_j S_{j-1} for every later step j up to last. */
@@ -1461,40 +1517,21 @@ static PyObject *k_sens_fused(PyObject *self, PyObject *const *args, Py_ssize_t 
     long long s = PyLong_AsLongLong(args[6]), last = PyLong_AsLongLong(args[7]);
     if (PyErr_Occurred())
         return NULL;
-    Py_buffer bS, bA, bP, bH, bR, bh;
-    PyObject *ret = NULL;
-    double *S = get_doubles(args[0], &bS, -N, "S");
-    if (!S)
+    FusedOperands o;
+    if (!get_fused_operands(args, s, last, "sens_fused", &o))
         return NULL;
-    Py_ssize_t n = bS.len / (Py_ssize_t)(N * sizeof(double));
-    double *A = get_doubles(args[1], &bA, n * N * N, "A");
-    if (!A)
-        goto f_s;
-    double *P = get_doubles(args[2], &bP, N * N, "P");
-    if (!P)
-        goto f_a;
-    double *H = get_doubles(args[3], &bH, -N, "H");
-    if (!H)
-        goto f_p;
-    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
-    if (m > 2) {
-        PyErr_SetString(PyExc_ValueError, "sens_fused: H must have 1 or 2 rows");
-        goto f_h;
-    }
-    double *R = get_doubles(args[4], &bR, m * m, "R");
-    if (!R)
-        goto f_h;
+    PyObject *ret = NULL;
+    Py_buffer bh;
+    const int m = o.m;
+    const double *H = o.h, *A = o.a;
+    double *S = o.s;
     double *hv = get_doubles(args[5], &bh, m, "h");
     if (!hv)
-        goto f_r;
-    if (last - s < 0 || last - s >= n) {
-        PyErr_SetString(PyExc_ValueError, "sens_fused: step outside the history");
-        goto f_hv;
-    }
+        goto done;
     double K[N * 2], innov[2];
-    if (fused_gain(P, H, R, m, K, "sens_fused") < 0)
+    if (fused_gain(o.p, H, o.r, m, K, "sens_fused") < 0)
         goto f_hv;
-    double *Ss = S + ring_row(s, n) * N;
+    double *Ss = S + ring_row(s, o.n) * N;
     for (int r = 0; r < m; r++) { /* H S_s - h */
         double v = 0.0;
         for (int b = 0; b < N; b++)
@@ -1509,7 +1546,7 @@ static PyObject *k_sens_fused(PyObject *self, PyObject *const *args, Py_ssize_t 
     }
     const double *prev = Ss;
     for (long long j = s + 1; j <= last; j++) { /* S_j = A_j S_{j-1} */
-        Py_ssize_t i = ring_row(j, n);
+        Py_ssize_t i = ring_row(j, o.n);
         const double *Aj = A + i * N * N;
         double *Sj = S + i * N;
         for (int a = 0; a < N; a++) {
@@ -1524,16 +1561,8 @@ static PyObject *k_sens_fused(PyObject *self, PyObject *const *args, Py_ssize_t 
     Py_INCREF(ret);
 f_hv:
     PyBuffer_Release(&bh);
-f_r:
-    PyBuffer_Release(&bR);
-f_h:
-    PyBuffer_Release(&bH);
-f_p:
-    PyBuffer_Release(&bP);
-f_a:
-    PyBuffer_Release(&bA);
-f_s:
-    PyBuffer_Release(&bS);
+done:
+    release_fused(&o);
     return ret;
 }
 
@@ -1551,37 +1580,17 @@ static PyObject *k_scale_fused(PyObject *self, PyObject *const *args, Py_ssize_t
     long long s = PyLong_AsLongLong(args[5]), last = PyLong_AsLongLong(args[6]);
     if (PyErr_Occurred())
         return NULL;
-    Py_buffer bS, bA, bP, bH, bR;
-    PyObject *ret = NULL;
-    double *S = get_doubles(args[0], &bS, -N, "S");
-    if (!S)
+    FusedOperands o;
+    if (!get_fused_operands(args, s, last, "scale_fused", &o))
         return NULL;
-    Py_ssize_t n = bS.len / (Py_ssize_t)(N * sizeof(double));
-    double *A = get_doubles(args[1], &bA, n * N * N, "A");
-    if (!A)
-        goto c_s;
-    double *P = get_doubles(args[2], &bP, N * N, "P");
-    if (!P)
-        goto c_a;
-    double *H = get_doubles(args[3], &bH, -N, "H");
-    if (!H)
-        goto c_p;
-    int m = (int)(bH.len / (Py_ssize_t)(N * sizeof(double)));
-    if (m > 2) {
-        PyErr_SetString(PyExc_ValueError, "scale_fused: H must have 1 or 2 rows");
-        goto c_h;
-    }
-    double *R = get_doubles(args[4], &bR, m * m, "R");
-    if (!R)
-        goto c_h;
-    if (last - s < 0 || last - s >= n) {
-        PyErr_SetString(PyExc_ValueError, "scale_fused: step outside the history");
-        goto c_r;
-    }
+    PyObject *ret = NULL;
+    const int m = o.m;
+    const double *H = o.h, *A = o.a;
+    double *S = o.s;
     double K[N * 2], hs[2], d[N], v[N];
-    if (fused_gain(P, H, R, m, K, "scale_fused") < 0)
-        goto c_r;
-    double *Ss = S + ring_row(s, n) * N;
+    if (fused_gain(o.p, H, o.r, m, K, "scale_fused") < 0)
+        goto done;
+    double *Ss = S + ring_row(s, o.n) * N;
     for (int r = 0; r < m; r++) { /* H S_s */
         double t = 0.0;
         for (int b = 0; b < N; b++)
@@ -1596,7 +1605,7 @@ static PyObject *k_scale_fused(PyObject *self, PyObject *const *args, Py_ssize_t
         Ss[a] = Ss[a] + d[a];
     }
     for (long long j = s + 1; j <= last; j++) { /* d_j = A_j d_{j-1}; S_j += d_j */
-        Py_ssize_t i = ring_row(j, n);
+        Py_ssize_t i = ring_row(j, o.n);
         const double *Aj = A + i * N * N;
         double *Sj = S + i * N;
         for (int a = 0; a < N; a++) {
@@ -1612,16 +1621,8 @@ static PyObject *k_scale_fused(PyObject *self, PyObject *const *args, Py_ssize_t
     }
     ret = Py_None;
     Py_INCREF(ret);
-c_r:
-    PyBuffer_Release(&bR);
-c_h:
-    PyBuffer_Release(&bH);
-c_p:
-    PyBuffer_Release(&bP);
-c_a:
-    PyBuffer_Release(&bA);
-c_s:
-    PyBuffer_Release(&bS);
+done:
+    release_fused(&o);
     return ret;
 }
 
