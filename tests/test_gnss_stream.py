@@ -157,7 +157,8 @@ def test_nav_velned_is_cm_per_s_and_needs_the_epoch_fix_state():
     (s,), _ = parse_all(status + vel)
     assert (s.vel_n_mps, s.vel_e_mps, s.speed_acc_mps) == (12.34, -5.67, 0.4)
     assert s.fix_ok and s.fix_type == 3
-    other_epoch = enc.nav_velned(itow_ms=6000, vel_n_mps=1.0, vel_e_mps=0.0)
+    # a status more than 1 s older says nothing of this epoch's fix (ubx._STATUS_MAX_AGE_MS)
+    other_epoch = enc.nav_velned(itow_ms=6200, vel_n_mps=1.0, vel_e_mps=0.0)
     assert parse_all(status + other_epoch)[0] == []
     # once NAV-PVT is seen, NAV-VELNED is redundant and ignored
     samples, _ = parse_all(pvt(T0, 1.0, 1.0) + status + vel)

@@ -13,9 +13,19 @@ Format (a public contract; the CAN log uses the same clock)::
 
 ``read_gnss_log`` gives payloads back as the raw bytes (NMEA text + CR LF, hex decoded), so
 feeding them to a ``GnssStreamParser`` reproduces the original stream.
+
+A capture of a serial port starts wherever the receiver is, and a logger killed mid-write leaves
+its last line cut; other tools' captures also carry stray text. So the reader passes on, as raw
+bytes for the parser to skip and count (``garbage_bytes``, one log line, exactly what the live
+daemon does with the same bytes on the port): a payload that is the tail of an NMEA sentence
+(printable text with a ``,`` or ``*``: ``N,01134.49981,E,...*5C``) when it is the first line of its
+port or its port already gave a message; and a last line cut short (no line end). Anything else
+that is not a capture line is still refused at its line, so a wrong file given as the capture (a
+candump log, a CSV) is an error naming it, not a replay without GNSS.
 """
 from __future__ import annotations
 
+import logging
 import math
 import os
 import re
@@ -31,6 +41,10 @@ _LINE = re.compile(r"^\((?P<t>[^)]*)\) (?P<port>\S+) (?P<payload>\S.*)$")
 _TIME = re.compile(r"^\d+\.\d+$")
 _HEX = re.compile(r"^[0-9A-Fa-f]+$")
 _CHECKSUM_TAIL = re.compile(rb"\*[0-9A-Fa-f]{2}$")
+#: the tail of an NMEA sentence: printable text with a field separator or the checksum star
+_NMEA_TAIL = re.compile(r"^[\x20-\x7e]*[,*][\x20-\x7e]*$")
+
+log = logging.getLogger("ecu_daemon.gnss")
 
 
 #: What a receiver's own output saved as it came (``cat /dev/ttyACM0``, u-center's .ubx) lacks: the
@@ -63,16 +77,28 @@ def read_gnss_log(path: str | os.PathLike) -> Iterator[tuple[float, str, bytes]]
         raise GnssLogError(f"{path}: cannot read GNSS log: {exc.strerror or exc}") from None
     with f:
         lineno = 0
+        ports: dict[str, bool] = {}  # port -> it gave a whole message
         try:
             for lineno, raw in enumerate(f, 1):
-                item = _parse_line(path, lineno, raw)
+                # only the last line can lack its line end: a capture's, once lines were read
+                cut = not raw.endswith(b"\n") and any(ports.values())
+                try:
+                    item = _parse_line(path, lineno, raw, ports, cut)
+                except GnssLogError as exc:
+                    if not cut:
+                        raise
+                    log.warning("%s (the last line, cut short: skipped)", exc)
+                    return
                 if item is not None:
                     yield item
         except OSError as exc:
             raise GnssLogError(f"{path}:{lineno + 1}: read error: {exc.strerror or exc}") from None
 
 
-def _parse_line(path, lineno: int, raw: bytes) -> tuple[float, str, bytes] | None:
+def _parse_line(path, lineno: int, raw: bytes, ports: dict[str, bool] | None = None,
+                cut: bool = False) -> tuple[float, str, bytes] | None:
+    """One line's ``(t, port, payload)``, None for a comment; ``ports`` (updated) and ``cut`` (the
+    line has no line end) decide whether a partial message is passed on (module doc) or refused."""
     line = raw.rstrip(b"\r\n")
     stripped = line.strip()
     if not stripped or stripped.startswith(b"#"):
@@ -91,14 +117,24 @@ def _parse_line(path, lineno: int, raw: bytes) -> tuple[float, str, bytes] | Non
         raise GnssLogError(f"{where}: expected '(seconds.micros) PORT PAYLOAD', got {text[:60]!r}")
     if not _TIME.match(m["t"]):
         raise GnssLogError(f"{where}: bad timestamp {m['t']!r} (expected seconds.micros)")
-    payload = m["payload"]
+    payload, port = m["payload"], m["port"]
+    whole = ports is None or ports.get(port)  # the port gave a message (None: no context given)
     if payload[0] in "$!":
-        return float(m["t"]), m["port"], payload.encode("ascii") + b"\r\n"
-    if not _HEX.match(payload):
-        raise GnssLogError(f"{where}: payload is neither an NMEA sentence nor hex: {payload[:40]!r}")
-    if len(payload) % 2:
-        raise GnssLogError(f"{where}: odd-length hex payload ({len(payload)} digits)")
-    return float(m["t"]), m["port"], bytes.fromhex(payload)
+        item = float(m["t"]), port, payload.encode("ascii") + b"\r\n"
+    elif not _HEX.match(payload):
+        if not (ports is not None and (cut or port not in ports or whole) and _NMEA_TAIL.match(payload)):
+            raise GnssLogError(f"{where}: payload is neither an NMEA sentence nor hex: {payload[:40]!r}")
+        ports.setdefault(port, False)
+        return float(m["t"]), port, payload.encode("ascii") + b"\r\n"  # the parser skips and counts it
+    elif len(payload) % 2:
+        if not cut:
+            raise GnssLogError(f"{where}: odd-length hex payload ({len(payload)} digits)")
+        item = float(m["t"]), port, bytes.fromhex(payload[:-1])  # the parser counts the cut frame
+    else:
+        item = float(m["t"]), port, bytes.fromhex(payload)
+    if ports is not None:
+        ports[port] = True
+    return item
 
 
 def _nmea_text(payload: bytes) -> str | None:

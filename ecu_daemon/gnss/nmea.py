@@ -116,7 +116,8 @@ def _tod_ms(msg, i: int = 0) -> int | None:
     if raw == "":
         return None
     m = _TIME.match(raw)
-    if not m or int(m[1]) > 23 or int(m[2]) > 59 or int(m[3]) > 60:
+    # second 60 only as a leap second, 23:59:60 (its time of day is then >= _DAY_MS)
+    if not m or int(m[1]) > 23 or int(m[2]) > 59 or int(m[3]) > 60 or (int(m[3]) == 60 and raw[:4] != "2359"):
         raise NmeaError(f"{msg.sentence_type} time is not hhmmss.ss: {raw!r}")
     return (int(m[1]) * 3600 + int(m[2]) * 60 + int(m[3])) * 1000 + round(float(m[4] or 0) * 1000)
 
@@ -262,6 +263,7 @@ class NmeaEpochAssembler:
         self._gst: tuple[int, float] | None = None  # tod_ms, horizontal 1-sigma m
         self._date: tuple[int, int] | None = None  # (days since 1970, tod_ms) of the last RMC/ZDA date
         self._last_tod: int | None = None
+        self._leap_end: float | None = None  # POSIX time at the end of a leap second this stream sent
 
     def add(self, t: float, text: str) -> list[GnssSample]:
         kind = text[3:6]
@@ -394,21 +396,34 @@ class NmeaEpochAssembler:
             self._last_tod = tod
 
     def _utc(self, tod: int | None) -> float:
-        """UTC seconds of an epoch from its time of day and the last date seen (midnight-safe)."""
+        """UTC seconds of an epoch from its time of day and the last date seen (midnight-safe).
+
+        A leap second (23:59:60.xx) has no POSIX time of its own: read plainly it is the next
+        day's 00:00:00.xx, and the times would step back 1 s. It is put where it is (after
+        23:59:59.xx) and the stream's later times run 1 s ahead of POSIX, so the times stay
+        monotone and their differences (what the estimator uses: epoch matching, the distance
+        between altitudes) stay true."""
         if tod is None or self._date is None:
             return math.nan
         day, date_tod = self._date
         diff = tod - date_tod
         day += 1 if diff < -_DAY_MS // 2 else -1 if diff > _DAY_MS // 2 else 0
-        return day * 86400.0 + tod / 1000.0
+        utc = day * 86400.0 + tod / 1000.0
+        if tod >= _DAY_MS:  # 23:59:60.xx
+            self._leap_end = day * 86400.0 + 86400.0
+        elif self._leap_end is not None and utc >= self._leap_end:
+            utc += 1.0
+        return utc
 
     def _aux(self, tod: int | None):
         """GGA/GNS and GST of this epoch or the previous one (<= 1.5 s older), else None."""
         def fresh(rec):
             if rec is None or tod is None:
                 return None
-            age = (tod - rec[0]) % _DAY_MS
-            return rec if age <= _AUX_MAX_AGE_MS else None
+            age = tod - rec[0]
+            if age < -_DAY_MS // 2:  # across midnight (from a leap second 23:59:60: 1 s more)
+                age += _DAY_MS + (1000 if rec[0] >= _DAY_MS else 0)
+            return rec if 0 <= age <= _AUX_MAX_AGE_MS else None
         return fresh(self._gga), fresh(self._gst)
 
     def _emit(self, rmc: _Rmc | None, vtg: _Vtg | None, tod: int | None, out: list) -> None:

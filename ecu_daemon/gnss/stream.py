@@ -448,7 +448,7 @@ class GnssStreamParser:
                     " needs); enable NAV-STATUS, or NAV-PVT")
         if velocity:
             return (f"{velocity} velocity messages but no epoch could be dated (NMEA VTG needs GGA/GNS/ZDA"
-                    " and a date from RMC or ZDA; UBX NAV-VELNED needs NAV-STATUS or NAV-SOL of its epoch)")
+                    " and a date from RMC or ZDA; UBX NAV-VELNED needs NAV-STATUS or NAV-SOL of its epoch, or one at most 1 s older)")
         seen = sorted(((n, _ubx_name(k)) for k, n in self.seen_ubx.items()), reverse=True)
         seen += sorted(((n, k) for k, n in self.seen_nmea.items()), reverse=True)
         listed = ", ".join(f"{name} x{n}" for n, name in seen[:4]) + (", ..." if len(seen) > 4 else "")

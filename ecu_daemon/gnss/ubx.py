@@ -12,7 +12,12 @@ send NAV-SOL: an ECEF velocity, turned into north/east at the ECEF position
 (pynmeagps' ``ecef2llh``), stamped with GPS week/time of week minus the leap seconds (NAV-TIMEGPS
 when it says they are valid, else the IERS table below). HNR-PVT (u-blox 8 ADR/UDR high-rate
 output) carries ground speed and course of motion. NAV-VELNED is paired with NAV-STATUS/NAV-SOL
-of the same epoch; one sample per epoch (iTOW) whichever of them come.
+of the same epoch (iTOW) in either order: receivers send the NAV messages in the order the user
+enabled them, so a NAV-VELNED waits (at most until the next epoch's message, or
+``stream.NAV_SOL_HOLD_S`` of receive time) for its status; one whose epoch has none (NAV-STATUS
+at a lower rate) takes the fix state of the last status at most ``_STATUS_MAX_AGE_MS`` older. It is
+dated by its own iTOW once any message told the GPS week (NAV-SOL, NAV-TIMEGPS, NAV-TIMEUTC).
+One sample per epoch whichever of them come.
 
 Unit traps handled here, once:
 * NAV-PVT velN/velE/velD/gSpeed/sAcc are **mm/s**, hAcc mm; pyubx2 returns them unscaled.
@@ -55,6 +60,11 @@ _NAV_RELPOSNED_LEN = 64
 _NAV_RELPOSNED_V0_LEN = 40
 _NAV_STATUS = (0x01, 0x03)
 _NAV_TIMEGPS = (0x01, 0x20)
+_NAV_TIMEUTC = (0x01, 0x21)
+#: A NAV-VELNED without a NAV-STATUS/NAV-SOL of its own epoch uses the last one at most this much older
+#: (NAV-STATUS enabled at a lower rate than NAV-VELNED); older, the sample is dropped.
+_STATUS_MAX_AGE_MS = 1000
+_WEEK_MS = 604_800_000
 _NAV_PVT_LEN = 92
 #: u-blox 7 (protocol 14: NEO-7M and its many clones) sends NAV-PVT with 84 bytes: the same fields up to
 #: pDOP, then reserved bytes, no flags3 (invalidLlh) and no headVeh/magDec/magAcc (PX4's driver takes both)
@@ -163,10 +173,13 @@ class UbxDecoder:
         self._legacy_itow: int | None = None  # epoch of the last NAV-SOL / NAV-VELNED sample
         self._held: GnssSample | None = None  # NAV-SOL sample waiting to see whether NAV-PVT follows
         self._pvt_epoch: tuple[int, float] | None = None  # iTOW and UTC of the last NAV-PVT
+        self._velned: tuple[float, object] | None = None  # NAV-VELNED (receive t, msg) waiting for its status
+        self._tow_base: tuple[int, float] | None = None  # (iTOW, UTC s) of one epoch: dates any iTOW
 
     @staticmethod
     def supported(cls_id: tuple[int, int]) -> bool:
-        return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, NAV_SOL, _NAV_TIMEGPS, HNR_PVT, NAV_RELPOSNED)
+        return cls_id in (NAV_PVT, NAV_VELNED, _NAV_STATUS, NAV_SOL, _NAV_TIMEGPS, _NAV_TIMEUTC, HNR_PVT,
+                          NAV_RELPOSNED)
 
     def decode(self, t: float, frame: bytes) -> list[GnssSample]:
         """The samples completed by this frame (any UBX frame: it may release a held NAV-SOL).
@@ -210,24 +223,56 @@ class UbxDecoder:
         if cls_id == _NAV_TIMEGPS:
             if msg.leapSValid:
                 self._leap_s = int(msg.leapS)
+            if msg.towValid and msg.weekValid:
+                self._tow_base = (msg.iTOW, self._gps_to_utc(msg.week, msg.iTOW, msg.fTOW))
+        elif cls_id == _NAV_TIMEUTC:
+            if msg.validUTC and msg.sec < 60:  # POSIX has no 23:59:60: the next one dates the week
+                self._tow_base = (msg.iTOW, _utc_of(True, msg.year, msg.month, msg.day, msg.hour, msg.min,
+                                                    msg.sec, msg.nano))
         elif cls_id == HNR_PVT:
             out.append(self._hnr_pvt(t, msg))
         elif cls_id in (_NAV_STATUS, NAV_SOL):
+            pending = self._velned
+            if pending is not None and pending[1].iTOW != msg.iTOW:
+                self._release_velned(out)  # its epoch's status never came: the last one (if fresh)
             ok = bool(msg.gpsFixOk if cls_id == _NAV_STATUS else msg.gpsfixOK)  # pyubx2 spells them so
             self._status = (msg.iTOW, int(msg.gpsFix), ok, int(getattr(msg, "numSV", 0)))
+            if cls_id == NAV_SOL and msg.wknSet and msg.towSet:
+                self._tow_base = (msg.iTOW, self._gps_to_utc(msg.week, msg.iTOW, msg.fTOW))
+            self._release_velned(out)  # the NAV-VELNED of this epoch came first
             if cls_id == NAV_SOL:
                 self._held = self._nav_sol(t, msg)
         else:  # NAV_VELNED
-            velned = self._nav_velned(t, msg)
-            out += [velned] if velned is not None else []
+            self._release_velned(out)  # an earlier epoch's, never completed
+            st = self._status
+            if st is not None and st[0] == msg.iTOW:
+                velned = self._nav_velned(t, msg, st)
+                out += [velned] if velned is not None else []
+            else:
+                self._velned = (t, msg)  # its NAV-STATUS / NAV-SOL may follow
         return out
 
+    def _release_velned(self, out: list) -> None:
+        """The waiting NAV-VELNED with the status of its epoch, else with the last one if at most
+        ``_STATUS_MAX_AGE_MS`` older; dropped otherwise (the fix state it needs is unknown)."""
+        if self._velned is None:
+            return
+        (t, msg), self._velned = self._velned, None
+        st = self._status
+        if st is not None and 0 <= (msg.iTOW - st[0]) % _WEEK_MS <= _STATUS_MAX_AGE_MS:
+            velned = self._nav_velned(t, msg, st)
+            out += [velned] if velned is not None else []
+
     def flush(self, before: float = math.inf) -> list[GnssSample]:
-        """The held NAV-SOL sample, if received before ``before`` (default: any; end of stream)."""
-        if self._held is None or not self._held.t < before:
-            return []
-        held, self._held = self._held, None
-        return [held]
+        """The held NAV-SOL sample and the NAV-VELNED waiting for its status, if received before
+        ``before`` (default: any; end of stream)."""
+        out: list[GnssSample] = []
+        if self._velned is not None and self._velned[0] < before:
+            self._release_velned(out)
+        if self._held is not None and self._held.t < before:
+            held, self._held = self._held, None
+            out.append(held)
+        return sorted(out, key=lambda s: s.t) if len(out) > 1 else out
 
     @staticmethod
     def _parse(frame: bytes):
@@ -307,14 +352,23 @@ class UbxDecoder:
             head_acc_rad=math.radians(m.headAcc), lat_deg=float(m.lat), lon_deg=float(m.lon), h_acc_m=m.hAcc / 1000,
         )
 
-    def _nav_velned(self, t: float, m) -> GnssSample | None:
-        """Legacy velocity (cm/s); needs NAV-STATUS or NAV-SOL of the same epoch for the fix state."""
-        st = self._status
-        if st is None or st[0] != m.iTOW or self._legacy_itow == m.iTOW:
+    def _nav_velned(self, t: float, m, st: tuple[int, int, bool, int]) -> GnssSample | None:
+        """Legacy velocity (cm/s) with the fix state ``st`` of a NAV-STATUS or NAV-SOL (None: this
+        epoch already gave a sample)."""
+        if self._legacy_itow == m.iTOW:
             return None
         self._legacy_itow = m.iTOW
         _, fix_type, fix_ok, num_sv = st
         return GnssSample(
             t=t, vel_n_mps=m.velN / 100, vel_e_mps=m.velE / 100, vel_d_mps=m.velD / 100,
-            speed_acc_mps=m.sAcc / 100, fix_type=fix_type, fix_ok=fix_ok, num_sv=int(num_sv), protocol="ubx", head_acc_rad=math.radians(m.cAcc),
+            speed_acc_mps=m.sAcc / 100, fix_type=fix_type, fix_ok=fix_ok, num_sv=int(num_sv), protocol="ubx",
+            head_acc_rad=math.radians(m.cAcc), fix_time_utc_s=self._utc_of_itow(m.iTOW),
         )
+
+    def _utc_of_itow(self, itow_ms: int) -> float:
+        """UTC seconds of a time of week, from the last message that dated one (NaN before any)."""
+        if self._tow_base is None:
+            return math.nan
+        itow0, utc0 = self._tow_base
+        d = (itow_ms - itow0) % _WEEK_MS
+        return utc0 + (d - _WEEK_MS if d > _WEEK_MS // 2 else d) / 1000
