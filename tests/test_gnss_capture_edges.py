@@ -198,3 +198,33 @@ def test_second_60_other_than_at_23_59_is_not_a_time():
     p = GnssStreamParser("nmea")
     p.feed(1.0, _sentence("GNRMC,120060.00,A,4808.21919,N,01134.50110,E,20.0,45.0,010624,,,A,V"))
     assert p.stats["malformed"] == 1 and "RMC time is not hhmmss.ss: '120060.00'" in p.last_error
+
+
+# ---------------------------------------------------------------------- NMEA 1.5/2.0 VTG
+
+def _vtg_gga_epochs(vtg_bodies, quality=1):
+    p = GnssStreamParser("nmea")
+    out = []
+    for k, vtg in enumerate(vtg_bodies):
+        out += p.feed(10.0 + k, _sentence(vtg))
+        out += p.feed(10.0 + k + 0.01, _sentence(f"GPGGA,0800{k:02d}.00,4808.21919,N,01134.50110,E,{quality},08,0.9,520.0,M,0.0,M,,"))
+    return out + p.finish(), p
+
+
+def test_a_vtg_without_unit_letters_is_read_as_course_course_knots_kmh():
+    """Older receivers (NMEA 1.5/2.0) send '$GPVTG,054.7,034.4,005.5,010.2': pynmea2 maps it onto the
+    lettered layout, so the speed read as missing and every epoch as "no fix"."""
+    out, p = _vtg_gga_epochs(["GPVTG,054.7,034.4,005.5,010.2", "GPVTG,090.0,,019.4,036.0", "GPVTG,,,,"])
+    assert p.stats["malformed"] == 0 and len(out) == 3
+    a, b, c = out
+    assert a.fix_ok and math.hypot(a.vel_n_mps, a.vel_e_mps) == pytest.approx(5.5 * 1852 / 3600)
+    assert math.degrees(math.atan2(a.vel_e_mps, a.vel_n_mps)) == pytest.approx(54.7)
+    assert b.fix_ok and b.vel_e_mps == pytest.approx(19.4 * 1852 / 3600) and abs(b.vel_n_mps) < 1e-9
+    assert not c.fix_ok  # no fix: empty fields
+    out, _ = _vtg_gga_epochs(["GPVTG,054.7,034.4,005.5,010.2"], quality=0)
+    assert not out[0].fix_ok  # GGA says no fix
+
+
+def test_a_vtg_of_neither_layout_is_malformed_with_its_fields():
+    _, p = _vtg_gga_epochs(["GPVTG,054.7,X,,M,005.5,N,010.2,K,A"])
+    assert p.stats["malformed"] == 1 and "VTG fields are neither" in p.last_error

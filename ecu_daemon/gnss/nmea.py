@@ -10,7 +10,8 @@ pynmea2 splits the fields, but three measured pynmea2 traps are avoided here
   latitude becomes 0.0; every number is therefore checked here. A bad speed rejects the sentence
   (counted as malformed); a bad date, position or course drops only that field (reported through
   ``field_errors``) so one corrupt field does not throw away a valid velocity.
-* VTG knots are ``Decimal``; everything is converted to float.
+* VTG knots are ``Decimal``; everything is converted to float. The old VTG without unit letters
+  (NMEA 1.5/2.0: course, course, knots, km/h) is mapped onto the lettered fields: it is read here.
 
 Epochs are assembled by **time of day, whatever the talker**: receivers switch talker ids
 between epochs (Trimble: GN -> GP -> GN) and some repeat an epoch per constellation (GPRMC +
@@ -204,13 +205,32 @@ def _decode_rmc(t: float, msg, errors: list[str]) -> _Rmc:
 
 
 def _decode_vtg(t: float, msg) -> _Vtg:
+    if len(msg.data) == 4:  # NMEA 1.5/2.0 had no unit letters: "054.7,034.4,005.5,010.2"
+        return _vtg_without_units(t, msg)
     kn = _num(msg, "spd_over_grnd_kts")
     kmh = _num(msg, "spd_over_grnd_kmph")
     speed = kn * MPS_PER_KNOT if kn is not None else None if kmh is None else kmh / 3.6
-    # pre-NMEA-2.3 VTG had no unit letters: "054.7,034.4,005.5,010.2"; pynmea2 maps that wrongly
     if _field(msg, 1) not in ("T", "") or _field(msg, 5) not in ("N", ""):
-        raise NmeaError("VTG without T/N unit markers (NMEA 2.0 layout) is not supported")
+        raise NmeaError(f"VTG fields are neither course,T,course,M,knots,N,km/h,K nor course,course,knots,km/h:"
+                        f" {','.join(msg.data)[:40]!r}")
     return _Vtg(t=t, speed=speed, course=_num(msg, "true_track"), mode=_field(msg, 8))
+
+
+def _vtg_without_units(t: float, msg) -> _Vtg:
+    """The old VTG layout, course true, course magnetic, knots, km/h (no mode: pynmea2 maps it to
+    the newer fields, so the speed would read as missing and the epoch as fix-less)."""
+    def num(i: int, what: str) -> float | None:
+        raw = _field(msg, i)
+        try:
+            v = float(raw) if raw else None
+        except ValueError:
+            v = math.inf
+        if v is not None and not (math.isfinite(v) and v >= 0.0):
+            raise NmeaError(f"VTG {what} is not a number: {raw!r}")
+        return v
+    kn, kmh = num(2, "speed (knots)"), num(3, "speed (km/h)")
+    speed = kn * MPS_PER_KNOT if kn is not None else None if kmh is None else kmh / 3.6
+    return _Vtg(t=t, speed=speed, course=num(0, "course"), mode="")
 
 
 def _int_field(msg, i: int, what: str) -> int | None:
