@@ -6,8 +6,12 @@ forward. What real logs get wrong, and the policy:
 * **A line stamped before the previous one** (a capture of two interfaces slightly out of step,
   a hand-edited log) is dropped and counted (``backwards``): the estimator has already run the
   steps it belonged to. A log in which that is not the exception -- at least
-  :data:`MAX_BACKWARDS` lines and more than :data:`MAX_BACKWARDS_FRACTION` of those read (a
-  reversed or unsorted log) -- is refused with one line saying how to sort it.
+  :data:`MAX_BACKWARDS` lines and more than :data:`MAX_BACKWARDS_FRACTION` of those read each
+  going back from the line before it (a reversed or unsorted log) -- is refused with one line
+  saying how to sort it. A logger's clock stepped back (NTP) is one jump back, after which the
+  lines go forward again: the lines stamped before the last one replayed are dropped (as many as
+  the step is long) and the replay goes on, with the jump named in the summary; sorting such a log
+  would interleave the two stretches.
 * **A single line far ahead** (a typo'd digit: 3000 s, 1e7 s) would otherwise make every line
   after it "go back": a line more than ``gap_s`` after the previous one is held until the next
   arrives, and dropped as an ``outlier`` when the next one is back more than ``gap_s`` before
@@ -36,6 +40,7 @@ class TimeOrder:
         self.gap_s = gap_s
         self.items = 0
         self.backwards = 0
+        self.jumps = 0  # lines stamped before the line read just before them (a step back starts)
         self.outliers = 0
         self.first_problem = ""
 
@@ -45,6 +50,7 @@ class TimeOrder:
 
     def __call__(self, items: Iterable[tuple]) -> Iterator[tuple]:
         last = -math.inf
+        prev = -math.inf  # the line read before this one (not a stray stamp far ahead)
         pending = None
         gap = self.gap_s
         for item in items:
@@ -55,14 +61,17 @@ class TimeOrder:
                     self.outliers += 1
                     self._note(f"entry {self.items - 1} stamped {pending[0]:.6f}, {pending[0] - last:.6g} s"
                                f" after the one before it and {pending[0] - t:.6g} s after the one behind it")
+                    prev = last
                 else:
-                    last = pending[0]
+                    last = prev = pending[0]
                     yield pending
                 pending = None
+            jump, prev = t < prev, t
             if t < last:
                 self.backwards += 1
+                self.jumps += jump
                 self._note(f"entry {self.items} stamped {t:.6f}, {last - t:.6g} s before the one before it")
-                if self.backwards >= MAX_BACKWARDS and self.backwards > MAX_BACKWARDS_FRACTION * self.items:
+                if self.jumps >= MAX_BACKWARDS and self.jumps > MAX_BACKWARDS_FRACTION * self.items:
                     raise TimeOrderError(
                         f"{self.what} is not in time order: {self.backwards} of its first {self.items} lines"
                         f" go back in time (first: {self.first_problem}); sort it by timestamp"
@@ -80,5 +89,7 @@ class TimeOrder:
         """One line, empty when nothing was dropped."""
         if not (self.backwards or self.outliers):
             return ""
+        step = (f"; {self.jumps} jump(s) back: a clock stepped back loses the lines until it is past the"
+                " last one replayed" if self.backwards > 2 * self.jumps else "")
         return (f"{self.what}: dropped {self.backwards} line(s) stamped before the one before them and"
-                f" {self.outliers} stray timestamp(s) far ahead (first: {self.first_problem})")
+                f" {self.outliers} stray timestamp(s) far ahead (first: {self.first_problem}){step}")

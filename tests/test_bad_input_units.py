@@ -47,6 +47,26 @@ def test_time_order_refuses_a_reversed_log_early():
     assert o.items == MAX_BACKWARDS + 1  # stopped at once, not after reading the whole log
 
 
+def test_time_order_takes_a_clock_stepped_back_as_one_jump_and_drops_only_the_overlap():
+    """NTP stepping the logger's clock back 2 s: 200 lines (100 Hz) stamped before the last one
+    replayed are dropped, the rest goes on; not refused as an unsorted log (sorting would interleave)."""
+    o = TimeOrder("CAN log x.log", gap_s=2.0)
+    times = [0.01 * i for i in range(1000)] + [9.99 - 2.0 + 0.005 + 0.01 * i for i in range(1000)]
+    got = [t for t, _ in o(ts(*times))]
+    assert len(got) == 1000 + 800 and got == sorted(got)
+    assert (o.backwards, o.jumps) == (200, 1)
+    assert "1 jump(s) back: a clock stepped back" in o.summary()
+
+
+def test_time_order_refuses_a_shuffled_log_whose_lines_each_jump():
+    import random
+
+    times = [0.01 * i for i in range(20_000)]
+    random.Random(2).shuffle(times)
+    with pytest.raises(TimeOrderError, match="not in time order"):
+        list(TimeOrder("log", gap_s=2.0)(ts(*times)))
+
+
 # ----------------------------------------------------------------------------------- output files
 def test_partial_names_keep_the_suffix_that_selects_the_format():
     assert partial_name(Path("/a/out.csv")) == Path("/a/out.partial.csv")

@@ -228,3 +228,30 @@ def test_a_vtg_without_unit_letters_is_read_as_course_course_knots_kmh():
 def test_a_vtg_of_neither_layout_is_malformed_with_its_fields():
     _, p = _vtg_gga_epochs(["GPVTG,054.7,X,,M,005.5,N,010.2,K,A"])
     assert p.stats["malformed"] == 1 and "VTG fields are neither" in p.last_error
+
+
+# ---------------------------------------------------------------------- logger clock stepped back
+
+def test_a_drive_whose_logger_clock_stepped_back_2_s_replays_past_the_step(drive, tmp_path, capsys):
+    """NTP steps the host clock back mid-drive: both logs jump back 2 s at the same instant. Before:
+    refused whole as "not in time order ... sort it" (sorting would interleave the two stretches)."""
+    can = (drive / "drive.log").read_text().splitlines()
+    t_step = float(can[len(can) // 2][1:can[len(can) // 2].index(")")])
+
+    def stepped(lines):
+        out = []
+        for line in lines:
+            t = float(line[1:line.index(")")])
+            out.append(f"({t - 2.0 if t >= t_step else t:.6f}){line[line.index(')') + 1:]}")
+        return "\n".join(out) + "\n"
+
+    (tmp_path / "can.log").write_text(stepped(can))
+    (tmp_path / "g.log").write_text(stepped((drive / "drive_gnss.log").read_text().splitlines()))
+    capsys.readouterr()
+    rc = cli_main(["replay", "--config", str(drive / "config.toml"), "--can", str(tmp_path / "can.log"),
+                   "--gnss", str(tmp_path / "g.log"), "--out-csv", str(tmp_path / "est.csv")])
+    err = capsys.readouterr().err
+    assert rc == 0, err.strip().splitlines()[-1]
+    assert "1 jump(s) back: a clock stepped back" in err
+    rows = list(csv.DictReader(open(tmp_path / "est.csv")))
+    assert float(rows[-1]["t"]) > t_step + 5.0 and int(rows[-1]["gnss_fused"]) >= 80
