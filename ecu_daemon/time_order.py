@@ -11,7 +11,8 @@ forward. What real logs get wrong, and the policy:
   saying how to sort it. A logger's clock stepped back (NTP) is one jump back, after which the
   lines go forward again: the lines stamped before the last one replayed are dropped (as many as
   the step is long) and the replay goes on, with the jump named in the summary; sorting such a log
-  would interleave the two stretches.
+  would interleave the two stretches. Lines that stay behind for more than :data:`MAX_STEP_BACK_S`
+  are not a clock step (logs concatenated out of order): refused.
 * **A single line far ahead** (a typo'd digit: 3000 s, 1e7 s) would otherwise make every line
   after it "go back": a line more than ``gap_s`` after the previous one is held until the next
   arrives, and dropped as an ``outlier`` when the next one is back more than ``gap_s`` before
@@ -26,6 +27,9 @@ from typing import Iterable, Iterator
 
 MAX_BACKWARDS = 100
 MAX_BACKWARDS_FRACTION = 0.01
+#: A jump back whose lines stay behind the last one replayed for longer than this (their own time) is
+#: not a clock step (NTP steps a running logger by seconds) but logs put together out of order.
+MAX_STEP_BACK_S = 60.0
 
 
 class TimeOrderError(ValueError):
@@ -51,6 +55,7 @@ class TimeOrder:
     def __call__(self, items: Iterable[tuple]) -> Iterator[tuple]:
         last = -math.inf
         prev = -math.inf  # the line read before this one (not a stray stamp far ahead)
+        behind_since, run = math.inf, 0  # the line that jumped back, and the lines behind since (forward)
         pending = None
         gap = self.gap_s
         for item in items:
@@ -70,6 +75,14 @@ class TimeOrder:
             if t < last:
                 self.backwards += 1
                 self.jumps += jump
+                if jump:
+                    behind_since, run = t, 0
+                run += 1
+                if run > MAX_BACKWARDS and t - behind_since > MAX_STEP_BACK_S:  # going forward, still behind
+                    raise TimeOrderError(
+                        f"{self.what} goes back {last - behind_since:.6g} s and stays behind for more than"
+                        f" {MAX_STEP_BACK_S:g} s (first: {self.first_problem}): logs put together out of"
+                        " order? sort it by timestamp (a candump -L log: sort -s -k1,1)")
                 self._note(f"entry {self.items} stamped {t:.6f}, {last - t:.6g} s before the one before it")
                 if self.jumps >= MAX_BACKWARDS and self.jumps > MAX_BACKWARDS_FRACTION * self.items:
                     raise TimeOrderError(

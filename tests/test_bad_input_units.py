@@ -58,6 +58,15 @@ def test_time_order_takes_a_clock_stepped_back_as_one_jump_and_drops_only_the_ov
     assert "1 jump(s) back: a clock stepped back" in o.summary()
 
 
+def test_time_order_refuses_logs_concatenated_out_of_order():
+    """Not a clock step: the second drive stays behind the first for longer than MAX_STEP_BACK_S."""
+    times = [1000.0 + 0.01 * i for i in range(10_000)] + [500.0 + 0.01 * i for i in range(10_000)]
+    o = TimeOrder("log", gap_s=2.0)
+    with pytest.raises(TimeOrderError, match=r"goes back 599.99 s and stays behind for more than 60 s"):
+        list(o(ts(*times)))
+    assert o.items < 10_000 + 6100  # refused about a minute into the second drive
+
+
 def test_time_order_refuses_a_shuffled_log_whose_lines_each_jump():
     import random
 
