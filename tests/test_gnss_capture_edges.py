@@ -255,3 +255,24 @@ def test_a_drive_whose_logger_clock_stepped_back_2_s_replays_past_the_step(drive
     assert "1 jump(s) back: a clock stepped back" in err
     rows = list(csv.DictReader(open(tmp_path / "est.csv")))
     assert float(rows[-1]["t"]) > t_step + 5.0 and int(rows[-1]["gnss_fused"]) >= 80
+
+
+def test_a_nav_pvt_leap_second_keeps_the_epoch_times_monotone_and_their_steps_true():
+    """u-blox NAV-PVT counts sec to 60 in a leap second; the RELPOSNED of each epoch takes its date."""
+    epochs = [(23, 59, 59, 600), (23, 59, 59, 800)] + [(23, 59, 60, ms) for ms in (0, 200, 400, 600, 800)] \
+        + [(0, 0, 0, 0), (0, 0, 0, 200)]
+    data = b""
+    for k, (h, mi, sec, ms) in enumerate(epochs):
+        day = (2017, 1, 1) if h == 0 else (2016, 12, 31)
+        itow = 100_000 + 200 * k
+        data += encode.nav_pvt(itow_ms=itow, year=day[0], month=day[1], day=day[2], hour=h, minute=mi,
+                               second=sec, nano=ms * 1_000_000, lat_deg=48.1, lon_deg=11.5, vel_n_mps=10.0,
+                               vel_e_mps=0.0)
+        data += encode.nav_relposned(itow_ms=itow, heading_deg=10.0, baseline_m=1.0)
+    p = GnssStreamParser("ubx")
+    out = p.feed(1.0, data) + p.finish()
+    vel = [s.fix_time_utc_s for s in out if hasattr(s, "vel_n_mps")]
+    head = [s.fix_time_utc_s for s in out if not hasattr(s, "vel_n_mps")]
+    assert len(vel) == len(epochs) and head == vel
+    assert [b - a for a, b in zip(vel, vel[1:])] == pytest.approx([0.2] * (len(epochs) - 1), abs=1e-6)
+    assert vel[0] == pytest.approx(1483228799.6, abs=1e-6)

@@ -32,6 +32,7 @@ from __future__ import annotations
 import calendar
 import math
 import struct
+from dataclasses import replace
 from itertools import accumulate
 
 from pynmeagps import ecef2llh
@@ -175,6 +176,7 @@ class UbxDecoder:
         self._pvt_epoch: tuple[int, float] | None = None  # iTOW and UTC of the last NAV-PVT
         self._velned: tuple[float, object] | None = None  # NAV-VELNED (receive t, msg) waiting for its status
         self._tow_base: tuple[int, float] | None = None  # (iTOW, UTC s) of one epoch: dates any iTOW
+        self._leap_end: float | None = None  # POSIX time at the end of a leap second NAV-PVT sent
 
     @staticmethod
     def supported(cls_id: tuple[int, int]) -> bool:
@@ -203,6 +205,8 @@ class UbxDecoder:
                                f" (or {_NAV_PVT_LEN_UBX7}, u-blox 7)")
             self.seen_nav_pvt = True
             pvt = nav_pvt_sample(t, frame)
+            if frame[16] == 60 or self._leap_end is not None:  # payload byte 10: sec
+                pvt = self._leap_second(pvt, frame)
             self._pvt_epoch = (struct.unpack_from("<I", frame, 6)[0], pvt.fix_time_utc_s)  # payload's iTOW
             return out + [pvt]  # a held NAV-SOL of the same receiver is dropped
         if held is not None:
@@ -262,6 +266,18 @@ class UbxDecoder:
         if st is not None and 0 <= (msg.iTOW - st[0]) % _WEEK_MS <= _STATUS_MAX_AGE_MS:
             velned = self._nav_velned(t, msg, st)
             out += [velned] if velned is not None else []
+
+    def _leap_second(self, pvt: GnssSample, frame: bytes) -> GnssSample:
+        """NAV-PVT's sec is 60 in a leap second (23:59:60), which POSIX reads as the next day's
+        00:00:00: kept in its place, and the later epochs of this stream 1 s ahead of POSIX, so
+        fix times stay monotone with true differences (as ``nmea.py`` does)."""
+        ft = pvt.fix_time_utc_s
+        if not math.isfinite(ft):
+            return pvt
+        if frame[16] == 60:
+            self._leap_end = ft - struct.unpack_from("<i", frame, 22)[0] * 1e-9  # payload's nano
+            return pvt
+        return replace(pvt, fix_time_utc_s=ft + 1.0) if ft >= self._leap_end - 1e-3 else pvt
 
     def flush(self, before: float = math.inf) -> list[GnssSample]:
         """The held NAV-SOL sample and the NAV-VELNED waiting for its status, if received before
