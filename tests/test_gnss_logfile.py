@@ -149,3 +149,29 @@ def test_parse_all_helper_agrees_with_log_replay(tmp_path):
     with GnssLogWriter(path) as w:
         GnssStreamParser(raw_sink=w.write).feed(5.0, data)
     assert [key(s) for s in samples_from_log(path)] == [key(s) for s in parse_all(data, t=5.0)[0]]
+
+
+# ---------------------------------------------------------------------- gpsd's gpspipe -r -u / -uu
+
+def test_a_gpspipe_capture_with_host_microseconds_is_read_on_the_host_clock(tmp_path):
+    """gpspipe.c writes "%.24s%s: " before each line: strftime("%F %T") of CLOCK_REALTIME in UTC,
+    then ".usec" (-u) or " sec.usec" (-uu); -Z makes it ISO 8601 (and -u then loses a digit to 'Z')."""
+    rmc = "$GNRMC,080000.00,A,4808.21919,N,01134.50110,E,0.165,328.32,010624,,,A,V*0D"
+    path = tmp_path / "pipe.log"
+    path.write_bytes((f"2024-06-01 08:00:00.123456: {rmc}\r\n"
+                      f"2024-06-01 08:00:00 1717228800.323456: {rmc}\r\n"
+                      f"2024-06-01T08:00:00.52345Z: {rmc}\r\n").encode())
+    got = list(read_gnss_log(path))
+    assert [t for t, _, _ in got] == pytest.approx([1717228800.123456, 1717228800.323456, 1717228800.52345])
+    assert {port for _, port, _ in got} == {"gpspipe"} and got[0][2] == rmc.encode() + b"\r\n"
+
+
+@pytest.mark.parametrize("line, what", [
+    ("2024-06-01 08:00:00: $GNRMC,080000.00,A*0D", "whole seconds (-t)"),
+    ('2024-06-01 08:00:00.123456: {"class":"TPV","mode":3}', "gpspipe -w output"),
+])
+def test_gpspipe_captures_that_cannot_be_replayed_are_refused_with_the_command_that_can(tmp_path, line, what):
+    path = tmp_path / "pipe.log"
+    path.write_text(line + "\n")
+    with pytest.raises(GnssLogError, match=rf"pipe\.log:1: .*{re.escape(what)}.*gpspipe -r -uu"):
+        list(read_gnss_log(path))

@@ -14,6 +14,11 @@ Format (a public contract; the CAN log uses the same clock)::
 ``read_gnss_log`` gives payloads back as the raw bytes (NMEA text + CR LF, hex decoded), so
 feeding them to a ``GnssStreamParser`` reproduces the original stream.
 
+gpsd's ``gpspipe -r`` with host times (``-u``: ``2024-06-01 08:00:00.123456: $GPRMC,...``; ``-uu``: the
+same with `` 1717228800.123456`` after the date; ``-Z``: ISO 8601) is read too, as port ``gpspipe``:
+gpspipe stamps each line with the host's CLOCK_REALTIME in UTC, the clock candump uses. Whole
+seconds (``-t`` alone) are refused: they cannot line GNSS up with CAN.
+
 A capture of a serial port starts wherever the receiver is, and a logger killed mid-write leaves
 its last line cut; other tools' captures also carry stray text. So the reader passes on, as raw
 bytes for the parser to skip and count (``garbage_bytes``, one log line, exactly what the live
@@ -25,10 +30,12 @@ candump log, a CSV) is an error naming it, not a replay without GNSS.
 """
 from __future__ import annotations
 
+import calendar
 import logging
 import math
 import os
 import re
+import time
 from collections.abc import Iterator
 from typing import IO
 
@@ -39,6 +46,9 @@ __all__ = ["GnssLogError", "read_gnss_log", "GnssLogWriter", "samples_from_log"]
 
 _LINE = re.compile(r"^\((?P<t>[^)]*)\) (?P<port>\S+) (?P<payload>\S.*)$")
 _TIME = re.compile(r"^\d+\.\d+$")
+#: a gpspipe -t/-u/-uu/-Z line: date, time [.usec][Z] [ unix.usec]: payload (gpspipe.c's "%.24s%s: ")
+_GPSPIPE = re.compile(r"^(?P<date>\d{4}-\d\d-\d\d)[ T](?P<time>\d\d:\d\d:\d\d)(?P<frac>\.\d{1,6})?Z?"
+                      r"(?: (?P<unix>\d+\.\d{6}))?: (?P<payload>.*)$")
 _HEX = re.compile(r"^[0-9A-Fa-f]+$")
 _CHECKSUM_TAIL = re.compile(rb"\*[0-9A-Fa-f]{2}$")
 #: the tail of an NMEA sentence: printable text with a field separator or the checksum star
@@ -111,6 +121,8 @@ def _parse_line(path, lineno: int, raw: bytes, ports: dict[str, bool] | None = N
             raise GnssLogError(f"{where}: {_RAW_STREAM.format('UBX frames')}") from None
         raise GnssLogError(f"{where}: line is not ASCII text") from None
     m = _LINE.match(text)
+    if not m and (g := _GPSPIPE.match(text)):
+        return _gpspipe_line(where, g, ports)
     if not m:
         if stripped[:1] in (b"$", b"!"):
             raise GnssLogError(f"{where}: {_RAW_STREAM.format('NMEA sentences')}")
@@ -135,6 +147,27 @@ def _parse_line(path, lineno: int, raw: bytes, ports: dict[str, bool] | None = N
     if ports is not None:
         ports[port] = True
     return item
+
+
+def _gpspipe_line(where: str, g: re.Match, ports: dict[str, bool] | None) -> tuple[float, str, bytes]:
+    """A line of ``gpspipe -r -u`` / ``-uu`` (module doc): its host time and NMEA sentence."""
+    payload = g["payload"].rstrip("\r")
+    if payload[:1] == "{":
+        raise GnssLogError(f"{where}: gpspipe -w output (gpsd's JSON reports), not the receiver's sentences:"
+                           " record with 'gpspipe -r -uu'")
+    if g["unix"]:
+        t = float(g["unix"])
+    elif g["frac"]:
+        t = calendar.timegm(time.strptime(f"{g['date']} {g['time']}", "%Y-%m-%d %H:%M:%S")) + float(g["frac"])
+    else:
+        raise GnssLogError(f"{where}: gpspipe time stamps in whole seconds (-t) cannot line GNSS up with CAN:"
+                           " record with 'gpspipe -r -uu' (seconds.micros)")
+    if payload[:1] not in ("$", "!"):
+        raise GnssLogError(f"{where}: gpspipe line without an NMEA sentence (record with 'gpspipe -r -uu'):"
+                           f" {payload[:40]!r}")
+    if ports is not None:
+        ports["gpspipe"] = True
+    return t, "gpspipe", payload.encode("ascii") + b"\r\n"
 
 
 def _nmea_text(payload: bytes) -> str | None:
