@@ -365,6 +365,7 @@ class Estimator:
         self.gnss_conflict_last_t = -math.inf
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
+        self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self.bank_walk = BankWalk(dt)
@@ -643,6 +644,20 @@ class Estimator:
                        float(Pp[VX, VX]), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
         wheel_z = fdi.wheel_z
+        # ay alone stale (its samples dropped: a g scale on a signal already in m/s^2 reads a 3 m/s^2
+        # turn past the 30 m/s^2 range): the gyro and ax are fresh, so the step still integrates
+        # them, ay substituted (r vx) as when isolated. Holding the whole IMU instead left the
+        # heading unrotated through each turn, 3.7-6.8 deg off and promised again after it (the
+        # demo drive). Nothing else changes: the fault detector saw imu_ok false (it judges
+        # nothing on a stale sample), and what is published is held to that imu_ok.
+        imu_published = imu_ok
+        iso_fdi = iso
+        ay_out = (not imu_ok and t - held_t[I_YAW] <= tmo[I_YAW] and t - held_t[I_AX] <= tmo[I_AX])
+        self.ay_out_new = ay_out and not self.ay_out
+        self.ay_out = ay_out
+        if ay_out:
+            imu_ok = True
+            iso = iso | ACCEL_Y
         if iso & (WHEELS | ACCEL_X):  # a sensor fault the fault detector has isolated
             self.lon_scale.reset()
         else:
@@ -780,6 +795,9 @@ class Estimator:
         if frozen:
             for j, v in frozen.items():
                 x[j] = v
+        if ay_out:  # ay's bias and gain have nothing to be learned from while its substitute is fused
+            x[BAY] = xpl[BAY]
+            x[GAY] = xpl[GAY]
         xl = x.tolist()
         for j, lo, hi in LEARNED_BOUNDS_LIST:  # clamp_learned, on the list and the row together
             v = xl[j]
@@ -818,7 +836,7 @@ class Estimator:
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
             return self._invalid(t)
-        return self._estimate(t, xl, pd, P[VX, VY], r, status | iso, imu_ok, wheels_ok, iso)
+        return self._estimate(t, xl, pd, P[VX, VY], r, status | iso_fdi, imu_published, wheels_ok, iso)
 
     def _on_mag(self, t: float, x, P, A, ay_m: float) -> None:
         """The magnetometer's sample (all three axes of one frame) at this step: tilt-compensated
@@ -870,7 +888,7 @@ class Estimator:
     def _widen(self, iso: int, P: np.ndarray, vx: float) -> None:
         """Covariance for the states a substitute (or nothing) now drives; a step on isolation
         (the fault acted before it was caught), a random walk while it lasts."""
-        new = self.fdi.new_isolation
+        new = self.fdi.new_isolation | (ACCEL_Y if self.ay_out_new else 0)
         dt = self.dt
         if iso & (ACCEL_X | WHEELS):
             # the random walk only while ax is substituted: with the wheels out and a trusted

@@ -50,12 +50,16 @@ the simulator's ``vehicle.py``; all in rad.
 """
 from __future__ import annotations
 
+import logging
 import math
 
 import numpy as np
 
 from . import kalman
 from .altitude_grade import ALT_GATE_SIGMA, AltitudeGrade
+from .roll_gyro_check import RollGyroCheck
+
+log = logging.getLogger(__name__)
 
 G = 9.80665
 UPDATE_EVERY = 17  # main-filter steps between updates from its bias states (~0.1 s)
@@ -240,6 +244,7 @@ class RoadAttitude:
         self._ring = np.full((max(history, 1), 3), np.nan) if any(self.baselines) else None
         self.roll_gyro_params = roll_gyro
         self.gyro: RollGyro | None = None
+        self.roll_check: RollGyroCheck | None = None  # the gyro's mapping against the lateral force
         # the roll gyro's bias from an earlier drive (value, std), kept even while no gyro is mapped
         self.roll_bias0: tuple[float, float] | None = None
         if "roll_rate_bias_radps" in learned:
@@ -331,18 +336,39 @@ class RoadAttitude:
 
     def set_roll_gyro(self, ay_m: float, g_ay: float, var_gay: float, ay_doubt: float, p_m: float, r: float) -> None:
         """Body roll with a roll-rate gyro (``p_m``, rad/s; NaN when stale) and the body yaw rate
-        ``r``: :class:`RollGyro`, started from the suspension model of :meth:`set_roll`."""
-        fy = (ay_m - self.bank.x[1]) / (1.0 + g_ay)
-        lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
+        ``r``: :class:`RollGyro`, started from the suspension model of :meth:`set_roll`.
+
+        The gyro's mapping is judged by :class:`roll_gyro_check.RollGyroCheck`: found wrong, the
+        roll is the suspension model's (:meth:`set_roll`, which also keeps the force's low-pass);
+        not yet judged (before the first turn), the gyro's, with a std that also covers its
+        disagreement with the model (a right gyro is then invalid at worst, in the first turn-in,
+        while the model's early roll gradient is still poor: 1.6 deg off in roll_rate_dlc's)."""
+        self.set_roll(ay_m, g_ay, var_gay, ay_doubt)
+        lp = self.fy_lp
         var_f = self.bank.P[1, 1] + ay_doubt * ay_doubt
         gy = self.gyro
         if gy is None:
             k_std = math.sqrt(var_gay + GAIN_FLOOR ** 2) / G
             gy = self.gyro = RollGyro(self.dt, *self.roll_gyro_params, g_ay / G * lp, g_ay / G, k_std, lp,
                                       *(self.roll_bias0 or ()))
-        gy.step(p_m, r, float(self.grade.x[0]), lp, var_f)
+            self.roll_check = RollGyroCheck(self.dt)
+        grade = float(self.grade.x[0])
+        p = p_m - gy.x[1] - r * math.sin(grade)
+        gy.step(p_m, r, grade, lp, var_f)
+        chk = self.roll_check
+        was = chk.wrong
+        if chk.step(p, lp) and not was:
+            log.warning("[inputs.roll_rate]: its roll does not follow the lateral force (roll gradient %.2f "
+                        "deg/g, correlation %.2f): %s; roll from the suspension model until it does",
+                        math.degrees(chk.gradient * G), chk.corr, chk.likely())
+        if chk.wrong:  # the suspension model's roll (set_roll's, above)
+            return
+        roll_m, std_m = self.roll, self.roll_std
         self.roll = float(gy.x[0])
         self.roll_std = math.sqrt(max(gy.P[0, 0], 0.0) + gy.x[2] * gy.x[2] * var_f) if gy.plausible() else math.pi
+        if not chk.trusted:
+            d = self.roll - roll_m
+            self.roll_std = math.sqrt(self.roll_std * self.roll_std + std_m * std_m + d * d)
         if self._ring is not None:
             self._ring[self._k % len(self._ring)] = (self._k, self.roll, self.roll_std)
 

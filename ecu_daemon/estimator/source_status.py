@@ -70,7 +70,7 @@ def roll_gyro_status(road, configured: bool, last_t: float, t: float, timeout_s:
     gy = road.gyro
     if gy is None or not math.isfinite(last_t):
         return WAITING
-    if not gy.plausible():
+    if not gy.plausible() or road.roll_check.wrong:  # a mapping a car cannot have / its roll against the force
         return ISOLATED
     if t - last_t > timeout_s:
         return TIMED_OUT
