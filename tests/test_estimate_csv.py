@@ -32,7 +32,9 @@ def _row(rng: random.Random) -> Estimate:
     vals = []
     for name in ESTIMATE_FIELDS:
         if name in _INTS:
-            vals.append(rng.choice((True, False, 0, 7, 2 ** 40, -3, rng.getrandbits(62))))
+            vals.append(rng.choice((True, False, 0, 7, 2 ** 40, -3, rng.getrandbits(62), -rng.getrandbits(63),
+                                    rng.randint(-10 ** 6, 10 ** 6), 10 ** rng.randint(0, 18),
+                                    -10 ** rng.randint(0, 18), 2 ** 63 - 1, -2 ** 63)))
         elif name == "t":
             vals.append(rng.choice((rng.uniform(0, 1e6), rng.uniform(-1e9, 1e9), 0.0, -0.0, math.nan,
                                     math.inf, -math.inf, 2.5e-7, 0.0000005, 1e15 + 0.5)))
