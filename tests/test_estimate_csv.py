@@ -32,7 +32,9 @@ def _row(rng: random.Random) -> Estimate:
     vals = []
     for name in ESTIMATE_FIELDS:
         if name in _INTS:
-            vals.append(rng.choice((True, False, 0, 7, 2 ** 40, -3, rng.getrandbits(62))))
+            vals.append(rng.choice((True, False, 0, 7, 2 ** 40, -3, rng.getrandbits(62), -rng.getrandbits(63),
+                                    rng.randint(-10 ** 6, 10 ** 6), 10 ** rng.randint(0, 18),
+                                    -10 ** rng.randint(0, 18), 2 ** 63 - 1, -2 ** 63)))
         elif name == "t":
             vals.append(rng.choice((rng.uniform(0, 1e6), rng.uniform(-1e9, 1e9), 0.0, -0.0, math.nan,
                                     math.inf, -math.inf, 2.5e-7, 0.0000005, 1e15 + 0.5)))
@@ -92,3 +94,41 @@ def test_repeated_column_values_reuse_their_text_only_for_the_same_bits():
             rows.append(r)  # the same row again after another
     got = estimate_csv._format_rows_compiled(estimate_csv._KINDS, rows)
     assert got == "".join(ROW_FORMAT % tuple(r) for r in rows)
+
+
+def _near_ties(rng: random.Random) -> float:
+    """Values where a shortcut in the digits would show: decimal ties and their neighbours at 9
+    significant digits and at 6 decimals, carries into a new digit (999999999.5), the switches
+    between fixed and exponent layout, step times (k * 0.006), subnormals, 2**52 and beyond."""
+    pick = rng.random()
+    if pick < 0.3:
+        v = rng.randint(-10 ** 10, 10 ** 10) / 10 ** rng.randint(0, 16)
+        v = rng.choice((v, math.nextafter(v, math.inf), math.nextafter(v, -math.inf)))
+    elif pick < 0.45:
+        v = (rng.randint(0, 10 ** 9) + 0.5) * 10.0 ** rng.randint(-20, 5)
+    elif pick < 0.6:
+        v = rng.randint(0, 10 ** 7) * 0.006
+    elif pick < 0.8:
+        v = rng.uniform(-1, 1) * 10.0 ** rng.randint(-13, 12)
+    else:
+        v = rng.choice((0.0, 1e9, 999999999.5, 999999999.4999999, 9999999995.0, 1e-5, 1e-4, 9.9999999995e-5,
+                        9.99999999e-5, 2.0 ** 52, 2.0 ** 52 - 1, 2.0 ** 53, 1e-11, 1e-12, 5e-324,
+                        2.2250738585072014e-308, 5e-7, 1.5e-6, 2.5e-6, 1e16, 123456789.0, 1234567890.0,
+                        0.1, 1 / 3, 100.0, 1e100, 1e-100, 0.0000005, 0.0000015))
+    return v if rng.random() < 0.5 else -v
+
+
+@pytest.mark.parametrize("kind,fmt", [(b"\x02", "%.9g"), (b"\x00", "%.6f")])
+def test_float_digits_are_percent_formattings_at_ties_and_layout_switches(kind, fmt):
+    """One float column at a time (so no text is reused from the row before): the compiled
+    digits (exact 128-bit rounding, ties left to Python) give %-formatting's text."""
+    if estimate_csv._format_rows_compiled is None:
+        pytest.skip("the compiled CSV formatter is not built (pip install builds it)")
+    rng = random.Random(11)
+    xs = [_near_ties(rng) for _ in range(40000)]
+    xs = [x for x in xs if len(fmt % x) < 60]  # %.6f of a huge value: Python's (the other test)
+    got = estimate_csv._format_rows_compiled(kind, [(x,) for x in xs])
+    if got != "".join(fmt % x + "\n" for x in xs):
+        for x in xs:
+            assert estimate_csv._format_rows_compiled(kind, [(x,)]) == fmt % x + "\n", repr(x)
+    assert got == "".join(fmt % x + "\n" for x in xs)
