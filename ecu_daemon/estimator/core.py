@@ -135,6 +135,15 @@ COURSE_CONFIRM_RAD = math.radians(1.0)  # margin of a course confirming a baseli
 # The IMU is not at the CG: it reads x_imu * dr/dt more (and the CG moves with the load); where
 # it sits is known to about this (m). Zero in a steady corner, large in a lane change.
 IMU_LEVER_STD_M = 0.3
+# An IMU hold (its samples stopped: a CAN gap, a logger hiccup, a sensor reset) predicts no
+# rotation, so the heading misses the car's turn for as long as it lasts: a bias, grown linearly.
+# The turn is bounded by the yaw rate at the last sample plus a yaw acceleration (a lane change
+# reaches ~1-2 rad/s^2), by the tightest circle at the speed (radius HOLD_MIN_RADIUS_M: no yaw
+# without motion) and by an absolute yaw rate no road car exceeds in normal driving.
+HOLD_RDOT_MAX = 2.0  # rad/s^2
+HOLD_MIN_RADIUS_M = 4.0
+HOLD_R_MAX = 1.0  # rad/s
+HOLD_ACCEL_MAX = 10.0  # m/s^2: how fast the speed (so the circle bound) can grow during the hold
 # A yaw-rate scale error (sensor sensitivity, and the tilt of a banked road: the heading turns at
 # r / cos(bank)) turns the heading by scale x r. In a steady corner GNSS course cannot tell that
 # from sideslip, and the filter takes it into vy through the accelerometer states (a 6 % banked
@@ -218,6 +227,24 @@ def _learned_key(key: str, receiver: int) -> str:
     """Learned-state key of a receiver's value: the primary keeps the single-receiver name."""
     return key if receiver == 0 else f"{key}_{receiver}"
 
+
+
+def hold_heading_step(since_gyro: float, timeout: float, r_last: float, vx: float, dt: float) -> float:
+    """The heading error one held step adds (rad): the rotation the hold leaves out.
+
+    ``since_gyro`` is the time since the last gyro sample. While that sample is still within its
+    timeout the gyro is known and only the other IMU inputs are missing: the step leaves out
+    exactly ``r_last dt``. Past it the yaw rate is unknown; it can have moved from ``r_last`` by
+    ``HOLD_RDOT_MAX`` per second, within the circle and absolute bounds at the speed the car may
+    have reached. The bound itself, not a fraction: a gap ends in whatever turn the car is in
+    (dlc_dry, CAN and GNSS gone for 2 s: 2.7 deg off at 0.34 deg std, valid again at once).
+    """
+    r0 = abs(r_last)
+    if since_gyro <= timeout:
+        return r0 * dt
+    v_hi = abs(vx) + HOLD_ACCEL_MAX * since_gyro
+    r_max = min(HOLD_R_MAX, v_hi / HOLD_MIN_RADIUS_M)
+    return min(r_max, r0 + HOLD_RDOT_MAX * since_gyro) * dt
 
 class Estimator:
     def __init__(self, cfg: Config, learned: dict | None = None):
@@ -701,6 +728,9 @@ class Estimator:
                 self.model.predict_from(xp, x, Pp, P, A, r_m, ax_m, ay_m)
             else:  # hold: no rotation, no acceleration, covariance still grows
                 self.model.predict_from(xp, x, Pp, P, A, xp[BR], xp[BAX], xp[BAY])
+                # ... and the heading by the rotation the hold leaves out (hold_heading_step)
+                e = hold_heading_step(t - held_t[I_YAW], tmo[I_YAW], r_m - xp[BR], xp[VX], self.dt)
+                P[PSI, PSI] = (math.sqrt(max(P[PSI, PSI], 0.0)) + e) ** 2
             if imu_ok:
                 # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
                 e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * x[VX])
