@@ -49,7 +49,7 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_age import InputAge
-from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
+from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck, WheelScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
@@ -365,6 +365,7 @@ class Estimator:
         self.gnss_conflict_last_t = -math.inf
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
+        self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self.bank_walk = BankWalk(dt)
@@ -1069,7 +1070,8 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
-                     and not self._gnss_conflict(t) and not self.lon_scale.failing)
+                     and not self._gnss_conflict(t) and not self.lon_scale.failing
+                     and self.wheel_scale_check.confirmed)
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
@@ -1196,6 +1198,10 @@ class Estimator:
         self.fix_steps[g.source] = (g.fix_time_utc_s, s)
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
+        if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
+            wsc = self.wheel_scale_check
+            if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed):
+                log.warning("%s", wsc.message())
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
         verdict = self.fdi.check_gnss(
             s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,
