@@ -187,6 +187,11 @@ WSC_AGREE_REL = 0.15  # |wheels - GNSS| within this share of the larger: ratio 0
 WSC_WRONG_REL = 0.25  # ... beyond this share: ratio outside 0.75-1.33, no tyre does that
 WSC_FIXES = 2  # consecutive wrong fixes before the verdict (one fix may be a glitch); one agreeing
 #               fix confirms (a glitch that happens to match a unit error's ratio is not a risk)
+# Before the first fix a velocity from the wheels rests on a mapping nobody checked: its std says
+# so by a wheel scale anywhere from a quarter of the truth up (the slowest unit error below is
+# 1/3.6): vx up to 3 |vx| off, at 3 sigma |vx| itself (a too-fast unit error is off by less than
+# its reading). Standing still (vx 0) is right whatever the scale.
+WSC_UNCHECKED_REL = 1.0
 # the unit errors a mapping makes, as the ratio wheels / true speed they give
 WSC_UNITS = ((3.6, "km/h read as m/s"), (1 / 3.6, "m/s given a km/h scale (1/3.6)"),
              (1 / 0.44704, "mph read as m/s"), (0.44704, "m/s given an mph scale (0.447)"),
@@ -209,7 +214,8 @@ class WheelScaleCheck:
 
     :attr:`confirmed`: a fix found the wheels' scale within
     ``WSC_AGREE_REL``; until then a velocity from the wheels rests on a mapping nobody checked
-    (a flying start has nothing else until its first fix) and is not promised. A configuration
+    (a flying start has nothing else until its first fix): its std carries ``WSC_UNCHECKED_REL``
+    and sideslip, which that vx integrates into vy, is not promised. A configuration
     does not change while the daemon runs: once confirmed, later disagreements are sensor or
     GNSS faults, the fault detector's and the GNSS-conflict rule's. :attr:`wrong`: ``WSC_FIXES``
     consecutive fixes beyond ``WSC_WRONG_REL`` before that; :meth:`observe` returns True once, for
