@@ -1,6 +1,7 @@
 """Wheel speeds mapped with the wrong unit are not promised (issue 7, wrong configurations): the
 wheels' scale is checked against GNSS speed over ground (estimator/input_consistency.py,
-WheelScaleCheck) before a velocity from them is valid, and a ratio no tyre explains is logged once.
+WheelScaleCheck): a ratio no tyre explains is logged once and velocity is not promised; before the
+first fix the std of the wheels' velocity covers a unit error and sideslip waits.
 
 Before the check (main 859da5f): dlc_dry with an mph factor on wheel speeds already in m/s (0.45x)
 published vx valid 11.6 m/s off for 10 s (1599 rows beyond 3 std); a flying start at 30 m/s with
@@ -67,8 +68,19 @@ def test_right_wheel_scale_keeps_velocity_promised(demo_drive, flying_drive, whi
     lines: list[str] = []
     bad_v, bad_b, share = _wrong_valid_rows(drive, 1.0, "wheels_x1", lines)
     assert (bad_v, bad_b) == (0, 0)
-    assert share > 0.85  # a flying start waits for its first fix (0.6 s), a standstill start for 2 m/s
+    assert share > 0.99  # before its first fix a flying start's vx is valid with an unchecked std
     assert not [ln for ln in lines if "[inputs.wheel_speed_fl/fr/rl/rr]" in ln]
+
+
+def test_unchecked_wheels_std_covers_a_unit_error_until_the_first_fix(flying_drive):
+    """A flying start with km/h scale on m/s wheels: 0.28x, the slowest unit error; the wheels are
+    all there is until the first fix (0.6 s), then the mapping is refused."""
+    e, t = replay_edited(flying_drive, _scaled(1 / 3.6), "wheels_kmh_scale")
+    vx = np.interp(e["t"], t["t"], t["vx_mps"])
+    v = e["velocity_valid"].astype(bool)
+    assert v.any() and e["t"][v].max() - e["t"][0] < 1.0  # valid until the first fixes only
+    assert np.all(np.abs(e["vx_mps"] - vx)[v] <= 3.0 * e["vx_std_mps"][v])
+    assert not e["sideslip_valid"].astype(bool).any()
 
 
 def _fixes(check, ratio, speeds):

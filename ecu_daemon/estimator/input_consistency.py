@@ -188,10 +188,11 @@ WSC_WRONG_REL = 0.25  # ... beyond this share: ratio outside 0.75-1.33, no tyre 
 WSC_FIXES = 2  # consecutive wrong fixes before the verdict (one fix may be a glitch); one agreeing
 #               fix confirms (a glitch that happens to match a unit error's ratio is not a risk)
 # Before the first fix a velocity from the wheels rests on a mapping nobody checked: its std says
-# so by a wheel scale anywhere from a quarter of the truth up (the slowest unit error below is
-# 1/3.6): vx up to 3 |vx| off, at 3 sigma |vx| itself (a too-fast unit error is off by less than
-# its reading). Standing still (vx 0) is right whatever the scale.
-WSC_UNCHECKED_REL = 1.0
+# so by a wheel scale anywhere from a fifth of the truth up (the slowest unit error below is 1/3.6;
+# the filter's vx fell to 0.24x of the truth on a flying start in a 14 m circle with 0.28x wheels):
+# vx up to 4 |vx| off, at 3 sigma 4/3 |vx| (a too-fast unit error is off by less than its reading).
+# Standing still (vx 0) is right whatever the scale.
+WSC_UNCHECKED_REL = 4.0 / 3.0
 # the unit errors a mapping makes, as the ratio wheels / true speed they give
 WSC_UNITS = ((3.6, "km/h read as m/s"), (1 / 3.6, "m/s given a km/h scale (1/3.6)"),
              (1 / 0.44704, "mph read as m/s"), (0.44704, "m/s given an mph scale (0.447)"),
