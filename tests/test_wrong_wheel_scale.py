@@ -125,5 +125,5 @@ def test_message_names_the_unit():
     _fixes(c, 1.6, [10.0, 12.0])
     assert "mph given a km/h scale" in c.message()
     c = WheelScaleCheck()
-    _fixes(c, 0.52, [10.0, 12.0])
+    _fixes(c, 0.36, [10.0, 12.0])
     assert "a wrong scale or wheel radius" in c.message()

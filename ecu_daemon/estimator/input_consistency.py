@@ -266,7 +266,7 @@ class WheelScaleCheck:
         r = math.sqrt(self._lo * self._hi) if self._hi < math.inf else self._hi
         guess = "a wrong scale or wheel radius"
         for q, what in WSC_UNITS:
-            if 0.0 < r < math.inf and abs(math.log(r / q)) < 0.1:
+            if 0.0 < r < math.inf and abs(math.log(r / q)) < 0.15:  # the units are >= 0.33 apart
                 guess = f"looks like {what}"
                 break
         return (f"[inputs.wheel_speed_fl/fr/rl/rr]: the wheel speeds read {r:.2f}x the GNSS speed "
