@@ -127,3 +127,14 @@ def test_message_names_the_unit():
     c = WheelScaleCheck()
     _fixes(c, 0.36, [10.0, 12.0])
     assert "a wrong scale or wheel radius" in c.message()
+
+
+@pytest.mark.parametrize("port, checked", [("", True), ("/dev/ttyACM0", False)])
+def test_without_gnss_the_wheels_are_taken_as_mapped(port, checked):
+    """GNSS off: nothing will ever check the wheels; the unchecked std would withhold velocity for
+    good (the CAN VX_STD range), so the check stands aside as before it existed."""
+    from ecu_daemon.config import Config
+    from ecu_daemon.estimator.core import Estimator
+    cfg = Config()
+    cfg.gnss.port = port
+    assert Estimator(cfg).wheel_scale_check.confirmed is checked

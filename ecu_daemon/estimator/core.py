@@ -366,6 +366,11 @@ class Estimator:
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
+        if not any(rx.port for rx in gn.receivers() if rx.role == "velocity"):
+            # GNSS off: nothing will ever check the wheels, and the user chose to run without a
+            # witness; the unchecked std would withhold velocity for good (the CAN VX_STD range):
+            # as before the check, the wheels are taken as mapped
+            self.wheel_scale_check.confirmed = True
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self.bank_walk = BankWalk(dt)
