@@ -49,7 +49,7 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_age import InputAge
-from .input_consistency import LateralScaleCheck, LongitudinalScaleCheck
+from .input_consistency import WSC_UNCHECKED_REL, LateralScaleCheck, LongitudinalScaleCheck, WheelScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
@@ -393,6 +393,12 @@ class Estimator:
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
+        self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
+        if not any(rx.port for rx in gn.receivers() if rx.role == "velocity"):
+            # GNSS off: nothing will ever check the wheels, and the user chose to run without a
+            # witness; the unchecked std would withhold velocity for good (the CAN VX_STD range):
+            # as before the check, the wheels are taken as mapped
+            self.wheel_scale_check.confirmed = True
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self.bank_walk = BankWalk(dt)
@@ -1112,12 +1118,15 @@ class Estimator:
         if self.lever_flagged:  # a wrong antenna lever arm y moves the GNSS speed by |dy| r
             for chy in self.lever_y_checks:
                 vx_std = math.hypot(vx_std, chy.vx_std(t))
+        wsc = self.wheel_scale_check
+        if not wsc.confirmed:  # no fix has checked the wheels' scale yet (WheelScaleCheck)
+            vx_std = math.hypot(vx_std, WSC_UNCHECKED_REL * vx)
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
-                     and not self._gnss_conflict(t) and not self.lon_scale.failing)
+                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong)
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
@@ -1140,7 +1149,7 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
-            and not self.lat_scale.failing,
+            and not self.lat_scale.failing and wsc.confirmed,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
@@ -1244,6 +1253,10 @@ class Estimator:
         self.fix_steps[g.source] = (g.fix_time_utc_s, s)
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
+        if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
+            wsc = self.wheel_scale_check
+            if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed):
+                log.warning("%s", wsc.message())
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
         verdict = self.fdi.check_gnss(
             s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,

@@ -177,3 +177,99 @@ class LateralScaleCheck:
                     self.failures += 1
         self.failing = k - self._last_fail_k <= self._hold
         return self.failing
+
+
+# --- the wheels' scale against GNSS speed over ground: a wrong unit is not tyre wear
+WSC_MIN_SPEED = 2.0  # m/s, the larger of the two speeds: below it a ratio is noise and lever arm
+WSC_SLACK_MPS = 0.4  # GNSS speed noise, the antenna's lever arm x yaw rate, a latency error x accel
+WSC_AGREE_REL = 0.15  # |wheels - GNSS| within this share of the larger: ratio 0.85-1.18, what tyre
+#                       wear, pressure, load and slip explain (the filter's wheel scale learns the rest)
+WSC_WRONG_REL = 0.25  # ... beyond this share: ratio outside 0.75-1.33, no tyre does that
+WSC_FIXES = 2  # consecutive wrong fixes before the verdict (one fix may be a glitch); one agreeing
+#               fix confirms (a glitch that happens to match a unit error's ratio is not a risk)
+# Before the first fix a velocity from the wheels rests on a mapping nobody checked: its std says
+# so by a wheel scale anywhere from a fifth of the truth up (the slowest unit error below is 1/3.6;
+# the filter's vx fell to 0.24x of the truth on a flying start in a 14 m circle with 0.28x wheels):
+# vx up to 4 |vx| off, at 3 sigma 4/3 |vx| (a too-fast unit error is off by less than its reading).
+# Standing still (vx 0) is right whatever the scale.
+WSC_UNCHECKED_REL = 4.0 / 3.0
+# the unit errors a mapping makes, as the ratio wheels / true speed they give
+WSC_UNITS = ((3.6, "km/h read as m/s"), (1 / 3.6, "m/s given a km/h scale (1/3.6)"),
+             (1 / 0.44704, "mph read as m/s"), (0.44704, "m/s given an mph scale (0.447)"),
+             (1.609344, "mph given a km/h scale"), (1 / 1.609344, "km/h given an mph scale"))
+
+
+class WheelScaleCheck:
+    """The fused wheel speed against each GNSS speed over ground: has anyone checked the wheels'
+    scale, and is it a scale a tyre can have?
+
+    Why: a wheel speed mapped in the wrong unit (an mph factor on a signal already in m/s: 0.45x;
+    km/h read as m/s: 3.6x) is four agreeing sensors, so the filter trusts them over the one
+    receiver; :class:`LongitudinalScaleCheck` sees only the *change* of speed, within a
+    tolerance a 0.45x scale at 2 m/s^2 does not break, and the GNSS-conflict rule waits 8 s for a
+    glitch to end. dlc_dry with 0.45x wheels published vx valid 11.6 m/s off for 10 s, a flying
+    start at 30 m/s 16.7 m/s off from its first step. GNSS speed measures |v| directly: a ratio
+    far outside what tyre wear, pressure and slip explain (``WSC_WRONG_REL``) is a configuration
+    error, not something for the wheel-scale state to learn slowly (it is bounded, and the fix
+    that would teach it is rejected as disagreeing with the wheels).
+
+    :attr:`confirmed`: a fix found the wheels' scale within
+    ``WSC_AGREE_REL``; until then a velocity from the wheels rests on a mapping nobody checked
+    (a flying start has nothing else until its first fix): its std carries ``WSC_UNCHECKED_REL``
+    and sideslip, which that vx integrates into vy, is not promised. A configuration
+    does not change while the daemon runs: once confirmed, later disagreements are sensor or
+    GNSS faults, the fault detector's and the GNSS-conflict rule's. :attr:`wrong`: ``WSC_FIXES``
+    consecutive fixes beyond ``WSC_WRONG_REL`` before that; :meth:`observe` returns True once, for
+    the one log line (:meth:`message`).
+    """
+
+    def __init__(self) -> None:
+        self.confirmed = False
+        self.wrong = False
+        self.ratio = math.nan  # wheels / GNSS of the last fix judged
+        self._disagree = 0
+        self._lo = math.inf  # the ratios of the current disagreeing run
+        self._hi = -math.inf
+        self._speed = math.nan  # the larger speed of the current disagreeing run's last fix
+
+    def observe(self, wheels: float, gnss: float) -> bool:
+        """One GNSS fix: ``wheels`` the fused, scaled wheel speed at its time of validity,
+        ``gnss`` its speed over ground (both m/s; NaN wheels: nothing to judge). True when this
+        fix makes :attr:`wrong` (the caller logs :meth:`message`)."""
+        if self.confirmed or not (wheels == wheels and gnss == gnss):
+            return False
+        w, g = abs(wheels), abs(gnss)
+        top = max(w, g)
+        if top < WSC_MIN_SPEED:
+            return False
+        d = abs(w - g)
+        self.ratio = w / g if g > 0.0 else math.inf
+        if d <= WSC_SLACK_MPS + WSC_AGREE_REL * top:
+            self._disagree = 0
+            self._lo, self._hi = math.inf, -math.inf
+            self.confirmed = True
+            self.wrong = False
+            return False
+        if d <= WSC_SLACK_MPS + WSC_WRONG_REL * top:
+            return False  # neither a tyre nor clearly a unit: wait for the next fix
+        self._disagree += 1
+        self._lo = min(self._lo, self.ratio)
+        self._hi = max(self._hi, self.ratio)
+        self._speed = g
+        if self._disagree >= WSC_FIXES and not self.wrong:
+            self.wrong = True
+            return True
+        return False
+
+    def message(self) -> str:
+        """The log line: which inputs, the ratio, the likely unit error."""
+        r = math.sqrt(self._lo * self._hi) if self._hi < math.inf else self._hi
+        guess = "a wrong scale or wheel radius"
+        for q, what in WSC_UNITS:
+            if 0.0 < r < math.inf and abs(math.log(r / q)) < 0.15:  # the units are >= 0.33 apart
+                guess = f"looks like {what}"
+                break
+        return (f"[inputs.wheel_speed_fl/fr/rl/rr]: the wheel speeds read {r:.2f}x the GNSS speed "
+                f"over ground ({self._lo:.2f}-{self._hi:.2f} over {self._disagree} fixes, GNSS "
+                f"{self._speed:.1f} m/s): no tyre does that, the mapping's scale is wrong ({guess}); "
+                f"velocity and sideslip are not promised until the wheels agree with GNSS")

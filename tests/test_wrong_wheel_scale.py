@@ -1,0 +1,140 @@
+"""Wheel speeds mapped with the wrong unit are not promised (issue 7, wrong configurations): the
+wheels' scale is checked against GNSS speed over ground (estimator/input_consistency.py,
+WheelScaleCheck): a ratio no tyre explains is logged once and velocity is not promised; before the
+first fix the std of the wheels' velocity covers a unit error and sideslip waits.
+
+Before the check (main 859da5f): dlc_dry with an mph factor on wheel speeds already in m/s (0.45x)
+published vx valid 11.6 m/s off for 10 s (1599 rows beyond 3 std); a flying start at 30 m/s with
+0.45x or 2.2x wheels 16.7 / 35 m/s off from its first step (1464 rows), since four agreeing wheels
+outvote the one receiver and the GNSS-conflict rule waits 8 s for a glitch to end."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ecu_daemon.estimator.input_consistency import WheelScaleCheck
+from ecu_daemon.sim.scenario import Scenario
+
+from config_replay import replay_edited, simulated_drive
+
+WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
+FLYING = Scenario("flying_10_r14l", "flying", params=(("v", 10.0), ("radius_m", 14.3), ("left", True)),
+                  heading0_rad=math.radians(45.0), duration_s=20.0)
+
+
+@pytest.fixture(scope="module")
+def flying_drive(tmp_path_factory):
+    return simulated_drive(tmp_path_factory, "flying_wheels", FLYING)
+
+
+def _scaled(factor):
+    def edit(c):
+        for n in WHEELS:
+            c["inputs"][n].update(scale=c["inputs"][n]["scale"] * factor, max=500.0)
+    return edit
+
+
+def _wrong_valid_rows(drive, factor, name, lines=None):
+    """(velocity rows valid beyond 3 std, sideslip rows valid beyond 3 std, velocity valid share)."""
+    e, t = replay_edited(drive, _scaled(factor), name, log_level="warning", stderr=lines)
+    vx = np.interp(e["t"], t["t"], t["vx_mps"])
+    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
+    v = e["velocity_valid"].astype(bool)
+    b = e["sideslip_valid"].astype(bool)
+    bad_v = v & (np.abs(e["vx_mps"] - vx) > 3.0 * e["vx_std_mps"])
+    bad_b = b & (np.abs(e["sideslip_rad"] - beta) > 3.0 * e["sideslip_std_rad"])
+    return int(bad_v.sum()), int(bad_b.sum()), float(v.mean())
+
+
+@pytest.mark.parametrize("factor, unit", [(0.45, "mph scale"), (2.2, "mph read as m/s")],
+                         ids=["mph_factor_on_mps", "mps_as_mph"])
+@pytest.mark.parametrize("which", ["demo", "flying"])
+def test_wheel_speed_unit_error_is_not_promised_and_is_named(demo_drive, flying_drive, factor, unit, which):
+    drive = demo_drive if which == "demo" else flying_drive
+    lines: list[str] = []
+    bad_v, bad_b, _ = _wrong_valid_rows(drive, factor, f"wheels_x{factor:g}", lines)
+    assert (bad_v, bad_b) == (0, 0)
+    said = [ln for ln in lines if "[inputs.wheel_speed_fl/fr/rl/rr]" in ln and "GNSS speed" in ln]
+    assert len(said) == 1, lines
+    ratio = float(said[0].split("the wheel speeds read ")[1].split("x")[0])
+    assert unit in said[0] and abs(ratio / factor - 1.0) < 0.1, said[0]
+
+
+@pytest.mark.parametrize("which", ["demo", "flying"])
+def test_right_wheel_scale_keeps_velocity_promised(demo_drive, flying_drive, which):
+    drive = demo_drive if which == "demo" else flying_drive
+    lines: list[str] = []
+    bad_v, bad_b, share = _wrong_valid_rows(drive, 1.0, "wheels_x1", lines)
+    assert (bad_v, bad_b) == (0, 0)
+    assert share > 0.99  # before its first fix a flying start's vx is valid with an unchecked std
+    assert not [ln for ln in lines if "[inputs.wheel_speed_fl/fr/rl/rr]" in ln]
+
+
+def test_unchecked_wheels_std_covers_a_unit_error_until_the_first_fix(flying_drive):
+    """A flying start with km/h scale on m/s wheels: 0.28x, the slowest unit error; the wheels are
+    all there is until the first fix (0.6 s), then the mapping is refused."""
+    e, t = replay_edited(flying_drive, _scaled(1 / 3.6), "wheels_kmh_scale")
+    vx = np.interp(e["t"], t["t"], t["vx_mps"])
+    v = e["velocity_valid"].astype(bool)
+    assert v.any() and e["t"][v].max() - e["t"][0] < 1.0  # valid until the first fixes only
+    assert np.all(np.abs(e["vx_mps"] - vx)[v] <= 3.0 * e["vx_std_mps"][v])
+    assert not e["sideslip_valid"].astype(bool).any()
+
+
+def _fixes(check, ratio, speeds):
+    return [check.observe(ratio * v, v) for v in speeds]
+
+
+def test_a_tyre_is_confirmed_a_unit_is_not():
+    for ratio in (0.85, 0.9, 1.1, 1.18):
+        c = WheelScaleCheck()
+        assert _fixes(c, ratio, [1.0, 3.0]) == [False, False] and c.confirmed and not c.wrong
+    for ratio in (0.28, 0.45, 2.2, 3.6):
+        c = WheelScaleCheck()
+        out = _fixes(c, ratio, [0.5, 3.0, 3.2, 3.4, 3.6])
+        assert out == [False, False, True, False, False] and c.wrong and not c.confirmed, (ratio, out)
+
+
+def test_below_walking_pace_nothing_is_judged():
+    c = WheelScaleCheck()
+    _fixes(c, 0.45, [0.5, 1.0, 1.5])
+    assert not c.confirmed and not c.wrong
+
+
+def test_once_confirmed_a_later_disagreement_is_not_a_unit():
+    """A configuration does not change while the daemon runs: later disagreements are faults."""
+    c = WheelScaleCheck()
+    _fixes(c, 1.0, [5.0])
+    assert _fixes(c, 0.3, [10.0, 10.0, 10.0]) == [False] * 3 and c.confirmed and not c.wrong
+
+
+def test_a_glitch_at_the_first_fix_does_not_decide():
+    c = WheelScaleCheck()
+    assert c.observe(10.0, 25.0) is False and not c.wrong  # one disagreeing fix
+    c.observe(10.0, 10.2)
+    assert c.confirmed and not c.wrong
+
+
+def test_message_names_the_unit():
+    c = WheelScaleCheck()
+    _fixes(c, 1 / 3.6, [10.0, 10.0])
+    assert "km/h scale" in c.message() and "0.28x" in c.message()
+    c = WheelScaleCheck()
+    _fixes(c, 1.6, [10.0, 12.0])
+    assert "mph given a km/h scale" in c.message()
+    c = WheelScaleCheck()
+    _fixes(c, 0.36, [10.0, 12.0])
+    assert "a wrong scale or wheel radius" in c.message()
+
+
+@pytest.mark.parametrize("port, checked", [("", True), ("/dev/ttyACM0", False)])
+def test_without_gnss_the_wheels_are_taken_as_mapped(port, checked):
+    """GNSS off: nothing will ever check the wheels; the unchecked std would withhold velocity for
+    good (the CAN VX_STD range), so the check stands aside as before it existed."""
+    from ecu_daemon.config import Config
+    from ecu_daemon.estimator.core import Estimator
+    cfg = Config()
+    cfg.gnss.port = port
+    assert Estimator(cfg).wheel_scale_check.confirmed is checked
