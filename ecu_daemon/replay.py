@@ -474,7 +474,8 @@ def gnss_rejection_warning(row: dict | None) -> str | None:
     return (f"gnss: {rejected} of {decided} samples ({100.0 * rejected / decided:.0f} %) rejected by the"
             " estimator (quality check, gate, or disagreement with the wheels): velocity and heading"
             " rest on the wheels alone; check the GNSS accuracy and the wheel speed mapping"
-            " ([inputs.wheel_speed_*] scale: km/h read as m/s is 3.6x too fast)")
+            " ([inputs.wheel_speed_*] scale: a unit error, e.g. km/h read as m/s is 3.6x too fast, an mph"
+            " factor on m/s 0.45x; the estimator's wheel-speed line, when it says one, names the ratio)")
 
 
 def unusable_inputs(rows: dict[str, dict]) -> list[str]:
