@@ -49,8 +49,7 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_age import InputAge
-from .input_consistency import (WSC_UNCHECKED_REL, WSC_UNCHECKED_VALID_STD, LateralScaleCheck,
-                                LongitudinalScaleCheck, WheelScaleCheck)
+from .input_consistency import WSC_UNCHECKED_REL, LateralScaleCheck, LongitudinalScaleCheck, WheelScaleCheck
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
@@ -1127,8 +1126,7 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
-                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
-                     and (wsc.confirmed or vx_std < WSC_UNCHECKED_VALID_STD))
+                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong)
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch

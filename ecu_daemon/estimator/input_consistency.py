@@ -193,11 +193,6 @@ WSC_FIXES = 2  # consecutive wrong fixes before the verdict (one fix may be a gl
 # vx up to 4 |vx| off, at 3 sigma 4/3 |vx| (a too-fast unit error is off by less than its reading).
 # Standing still (vx 0) is right whatever the scale.
 WSC_UNCHECKED_REL = 4.0 / 3.0
-# ... and such a velocity is promised only while that std stays below this (m/s): beyond, the promise
-# says nothing (a std of a third of the speed and more), and the CAN frame's VX_STD (0-1.275 m/s)
-# could not carry it anyway: the estimate, its recording and the frame agree on "not valid" instead
-# of the frame clearing a flag the estimate set, with a saturation warning on every drive's start.
-WSC_UNCHECKED_VALID_STD = 1.0
 # the unit errors a mapping makes, as the ratio wheels / true speed they give
 WSC_UNITS = ((3.6, "km/h read as m/s"), (1 / 3.6, "m/s given a km/h scale (1/3.6)"),
              (1 / 0.44704, "mph read as m/s"), (0.44704, "m/s given an mph scale (0.447)"),
