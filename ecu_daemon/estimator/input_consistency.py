@@ -261,6 +261,13 @@ class WheelScaleCheck:
             return True
         return False
 
+    def confirm(self) -> None:
+        """Another witness found the wheels' scale right (the gyro against the rear axle's speed
+        difference, wheel_yaw_check.py; a restart's learned state): as an agreeing fix would. Not
+        after GNSS has found it wrong (two fixes beyond any tyre outweigh an indirect witness)."""
+        if not self.wrong:
+            self.confirmed = True
+
     def message(self) -> str:
         """The log line: which inputs, the ratio, the likely unit error."""
         r = math.sqrt(self._lo * self._hi) if self._hi < math.inf else self._hi
