@@ -25,8 +25,27 @@ def feed(est, t0: float, t1: float, speed: float = 15.0) -> list:
     return out
 
 
+def launch(est, t0: float, t1: float, speed: float = 15.0, accel: float = 2.0, rest: float = 2.0) -> list:
+    """Push 100 Hz inputs of a car at rest for ``rest`` s, then accelerating at ``accel`` up to
+    ``speed`` and driving on straight until t1: a launch, on which the accelerometer confirms the
+    wheels' scale without GNSS (wheel_launch_check.py)."""
+    out = []
+    for j in range(round((t1 - t0) / 0.01)):
+        t = t0 + 0.01 * j
+        moving = max(t - t0 - rest, 0.0)
+        v = min(accel * moving, speed)
+        a = accel if 0.0 < moving and v < speed else 0.0
+        for name in INPUT_INDEX:
+            est.push_input(InputSample(t, INPUT_INDEX[name], v if name.startswith("wheel") else
+                                       a if name == "accel_x" else 0.0))
+        out += est.advance_to(t - 1e-9)
+    return out
+
+
 def test_a_gap_is_skipped_marked_stale_and_the_filter_reinitialised():
     est = Estimator(config.load(None))
+    launch(est, 90.0, 100.0)  # (no GNSS) the wheels' scale is confirmed on the launch from rest
+    assert est.wheel_scale_check.confirmed and est.wheel_launch.confirmed
     before = feed(est, 100.0, 103.0)
     assert before[-1].velocity_valid and est.gaps == 0
     after = feed(est, 100.0 + 1e7, 100.0 + 1e7 + 3.0)  # a 1e7 s jump: 1.7e9 steps if stepped through
@@ -40,7 +59,7 @@ def test_a_gap_is_skipped_marked_stale_and_the_filter_reinitialised():
     assert len(after) < 3.0 / DT + 2
     assert after[0].status & STATUS_RESET  # re-initialised on the first step after the gap
     assert est.resets == 1
-    assert after[-1].velocity_valid  # and the filter comes back on the new data
+    assert after[-1].velocity_valid  # and the filter comes back on the new data (the wheels stay checked)
 
 
 def test_a_short_outage_is_stepped_through_and_not_a_gap():

@@ -16,6 +16,7 @@ import pytest
 from ecu_daemon import config as config_mod
 from ecu_daemon.estimator import Estimator
 from ecu_daemon.evaluate import read_csv
+from ecu_daemon.estimator.core import VX_STD_VALID
 from ecu_daemon.estimator.kinematic import PSI, VX
 from ecu_daemon.replay import run_replay
 from ecu_daemon.samples import INPUT_INDEX, GnssSample, InputSample
@@ -170,7 +171,36 @@ def _feed(est: Estimator, t: float, speed: float, yaw_rate: float = 0.0) -> list
     return est.advance_to(t)
 
 
+def _feed_turning(est: Estimator, t: float, speed: float, yaw_rate: float) -> list:
+    """As :func:`_feed`, each wheel at its own speed in the turn: ``speed -/+ yaw_rate x track / 2``
+    (ISO 8855: the left wheels inside a left turn), what the gyro's check of the wheels' scale reads."""
+    half = 0.5 * est.cfg.vehicle.track_m * yaw_rate
+    for name, v in (("wheel_speed_fl", speed - half), ("wheel_speed_fr", speed + half),
+                    ("wheel_speed_rl", speed - half), ("wheel_speed_rr", speed + half)):
+        est.push_input(InputSample(t, INPUT_INDEX[name], v))
+    est.push_input(InputSample(t, INPUT_INDEX["steering_wheel_angle"], 0.0))
+    est.push_input(InputSample(t, INPUT_INDEX["yaw_rate"], yaw_rate))
+    est.push_input(InputSample(t, INPUT_INDEX["accel_x"], 0.0))
+    est.push_input(InputSample(t, INPUT_INDEX["accel_y"], yaw_rate * speed))
+    return est.advance_to(t)
+
+
+def _lane_change(est: Estimator, t: float, speed: float, seconds: float = 3.0) -> tuple[float, list]:
+    """Straight for a second, then a lane change after another (0.3 rad/s peak, 2 s a period):
+    enough turning for the gyro to confirm the wheels' scale (wheel_yaw_check.py)."""
+    rows = []
+    for j in range(int(round(seconds * 100))):
+        tj = j * 0.01
+        r = 0.3 * math.sin(math.pi * (tj - 1.0)) if tj >= 1.0 else 0.0
+        rows += _feed_turning(est, t, speed, r)
+        t += 0.01
+    return t, rows
+
+
 def test_waits_for_the_wheels_then_starts_at_their_speed():
+    """Without GNSS yet, the wheels' velocity is published at once, and promised once a witness
+    has checked their scale (here the gyro, in the first lane change): before, its std covers any
+    unit error, more than the frame's VX_STD carries, and it is not promised."""
     est = Estimator(_cfg())
     t = 100.0
     for _ in range(20):  # IMU only: no velocity to start from, nothing valid
@@ -184,15 +214,27 @@ def test_waits_for_the_wheels_then_starts_at_their_speed():
     out = _feed(est, t, 31.0)
     assert est.initialized
     assert out[-1].vx_mps == pytest.approx(31.0, abs=0.1)
-    assert out[-1].velocity_valid and not out[-1].heading_valid
+    assert not out[-1].heading_valid
     assert out[-1].heading_std_rad > 1.0  # no heading yet, and it says so
+    # unchecked: a std that covers a unit error (4/3 of the speed), not promised (not on the frame)
+    assert not out[-1].velocity_valid and out[-1].vx_std_mps > 31.0
+    t, rows = _lane_change(est, t + 0.01, 31.0)
+    assert est.wheel_scale_check.confirmed and est.wheel_yaw.confirmed
+    valid = np.array([e.velocity_valid for e in rows])
+    assert valid[-1] and rows[-1].vx_mps == pytest.approx(31.0, abs=0.2)
+    # promised from the confirmation on (in the lane change's second half: 20 deg of turning), not
+    # before, and only with a std the frame carries
+    first = int(np.argmax(valid))
+    assert valid[first:].all() and 2.0 < rows[first].t - rows[0].t < 3.0
+    assert all(e.vx_std_mps <= VX_STD_VALID for e in rows if e.velocity_valid)
 
 
 def test_diverged_velocity_is_reinitialised_from_the_wheels():
     """A filter whose vx has gone (vx -24 m/s, heading 150 deg off) while the wheels say 30 m/s
     re-initialises instead of publishing it, and does not call the diverged rows valid."""
     est = Estimator(_cfg())
-    t = 100.0
+    t, _ = _lane_change(est, 97.0, 30.0)  # the wheels' scale confirmed by the gyro
+    assert est.wheel_scale_check.confirmed
     for _ in range(100):
         _feed(est, t, 30.0)
         t += 0.01
@@ -208,7 +250,7 @@ def test_diverged_velocity_is_reinitialised_from_the_wheels():
     vx = np.array([e.vx_mps for e in rows])
     valid = np.array([e.velocity_valid for e in rows])
     assert np.all(np.abs(vx[valid] - 30.0) < 1.0)
-    assert rows[-1].velocity_valid and abs(rows[-1].vx_mps - 30.0) < 0.2
+    assert rows[-1].velocity_valid and abs(rows[-1].vx_mps - 30.0) < 0.2  # the check outlives a reset
 
 
 DRIVE_START = 100.0
@@ -318,3 +360,38 @@ def test_heading_valid_within_1_s_of_a_flying_starts_corner_end(tmp_path, latenc
     assert row["heading_coverage_3sigma"] >= 0.99
     assert row["heading_worst_valid_deg"] < 5.0
     assert row["sideslip_coverage_3sigma"] >= 0.99 and row["sideslip_worst_valid_deg"] < 2.0
+
+
+def test_wheels_checked_before_a_restart_need_no_new_check():
+    """The learned state keeps the fingerprint of the wheel mapping a witness confirmed: a restart
+    with the same mapping promises the wheels' velocity from its first step (restart_* of the
+    suite waited for a fix); another mapping (a scale edited) is checked afresh."""
+    est = Estimator(_cfg())
+    t, _ = _lane_change(est, 100.0, 25.0)
+    assert est.wheel_scale_check.confirmed
+    learned = est.learned_state()
+    assert "wheel_mapping_checked" in learned
+    again = Estimator(_cfg(), learned)
+    assert again.wheel_scale_check.confirmed
+    out = _feed(again, 200.0, 25.0) + _feed(again, 200.01, 25.0)
+    assert out[-1].velocity_valid and out[-1].vx_std_mps < 1.0
+    assert "wheel_mapping_checked" in again.learned_state()  # kept for the next restart
+    edited = _cfg()
+    edited.inputs["wheel_speed_fl"].scale *= 3.6
+    other = Estimator(edited, learned)
+    assert not other.wheel_scale_check.confirmed
+    out = _feed(other, 200.0, 25.0) + _feed(other, 200.01, 25.0)
+    assert not out[-1].velocity_valid
+    assert "wheel_mapping_checked" not in other.learned_state()
+
+
+def test_wheels_taken_as_mapped_without_gnss_are_not_recorded_as_checked():
+    """GNSS off: the wheels are taken as mapped (nothing would ever check them), not checked: the
+    learned state must not tell a later run with GNSS that they were."""
+    cfg = _cfg()
+    cfg.gnss.port = ""
+    est = Estimator(cfg)
+    assert est.wheel_scale_check.confirmed
+    _feed(est, 100.0, 20.0)
+    _feed(est, 100.01, 20.0)
+    assert "wheel_mapping_checked" not in est.learned_state()

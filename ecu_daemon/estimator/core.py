@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import math
+import zlib
 from collections import deque
 
 import numpy as np
@@ -59,6 +60,8 @@ from .scale_sensitivity import ScaleSensitivity
 from .lateral_noise import LateralNoise
 from . import lever_arm_check
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
+from .wheel_launch_check import WheelLaunchCheck
+from .wheel_yaw_check import WYC_EVERY, WheelYawCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
@@ -84,6 +87,12 @@ ACCEL_AGE_COMPENSATION = True
 
 MIN_SPEED_SIDESLIP = 3.0  # m/s: below this sideslip is not meaningful (flagged invalid)
 SIDESLIP_STD_VALID = math.radians(2.0) / 3.0  # 3 sigma inside the 2 deg a valid sideslip promises
+# m/s: the largest vx std the CAN frame carries (EST_VELOCITY.VX_STD, 0-1.275 m/s in the output DBC;
+# tests/test_wheel_yaw_check.py holds them equal). A velocity is promised only with a std the bus
+# can say: beyond it the encoder would clear VELOCITY_VALID (and log a saturation), and the
+# estimate, its recording and the frame must agree on what was promised (unchecked wheels at
+# speed, WSC_UNCHECKED_REL, are the usual case; a long slip hold the rare one).
+VX_STD_VALID = 1.275
 HEADING_STD_VALID = math.radians(1.5)  # 3 sigma inside the 5 deg a valid heading promises
 BIAS_STD_VALID = math.radians(0.2)  # yaw-rate bias std below which the biases are published valid
 GNSS_FRESH_S = 1.0
@@ -227,6 +236,18 @@ def _learned_key(key: str, receiver: int) -> str:
     """Learned-state key of a receiver's value: the primary keeps the single-receiver name."""
     return key if receiver == 0 else f"{key}_{receiver}"
 
+
+
+def _wheel_mapping_fingerprint(cfg: Config) -> float:
+    """The four wheel-speed mappings (message, signals, scale, offset, sign) as a CRC-32: what a
+    restored "wheels checked" must match (another mapping, another check). A float: the learned
+    state's values are."""
+    parts = []
+    for n in ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr"):
+        m = cfg.inputs.get(n)
+        parts.append("-" if m is None else repr((m.message, m.signal_names(), float(m.scale), float(m.offset),
+                                                 m.sign_signal)))
+    return float(zlib.crc32("|".join(parts).encode()))
 
 
 def hold_heading_step(since_gyro: float, timeout: float, r_last: float, vx: float, dt: float) -> float:
@@ -399,6 +420,21 @@ class Estimator:
             # witness; the unchecked std would withhold velocity for good (the CAN VX_STD range):
             # as before the check, the wheels are taken as mapped
             self.wheel_scale_check.confirmed = True
+            self._wheels_assumed = True  # taken, not checked: not recorded as checked (learned_state)
+        else:
+            self._wheels_assumed = False
+        # the wheels' scale also against the gyro, on the rear axle's speed difference in turns
+        # (wheel_yaw_check.py): a right mapping is confirmed within the first turn, GNSS or not
+        self.wheel_yaw = WheelYawCheck(veh.track_m)
+        # ... and against the integrated ax on a launch from rest (wheel_launch_check.py), on the
+        # wheels that do not drive (a driven axle spins): a drive from rest is confirmed at 4 m/s
+        self.wheel_launch = WheelLaunchCheck()
+        self._launch_axle = veh.driven_axle
+        # ... and once checked, by whichever witness, a restart with the same wheel mapping need not
+        # check again: the learned state keeps that mapping's fingerprint (learned_state)
+        self._wheel_mapping = _wheel_mapping_fingerprint(cfg)
+        if learned.get("wheel_mapping_checked") == self._wheel_mapping:
+            self.wheel_scale_check.confirm()
         self._reset_flag = False
         self._lp_r = dt / (0.03 + dt)
         self.bank_walk = BankWalk(dt)
@@ -496,9 +532,17 @@ class Estimator:
             "steering_offset_rad": float(self.steer_offset),
             **self.road.learned(),
             **self._yaw_scale_learned(),
+            **self._wheels_checked_learned(),
             **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
                for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
         }
+
+    def _wheels_checked_learned(self) -> dict:
+        """The wheel mapping's fingerprint once a witness (GNSS, the gyro, a restored state) has
+        confirmed its scale; nothing when it was only taken as mapped (GNSS off)."""
+        if self.wheel_scale_check.confirmed and not self._wheels_assumed:
+            return {"wheel_mapping_checked": self._wheel_mapping}
+        return {}
 
     def _yaw_scale_learned(self) -> dict:
         """The gyro's scale error and its std, once a fit has seen a fix or was restored (the bare
@@ -541,7 +585,8 @@ class Estimator:
                   "accel_x_offset_mps2": 2.0, "accel_y_offset_mps2": 2.0,
                   "accel_x_offset_std_mps2": (0.0, 10.0), "accel_y_offset_std_mps2": (0.0, 10.0),
                   "roll_rate_bias_radps": 0.1, "roll_rate_bias_std_radps": (0.0, 1.0),
-                  "yaw_rate_scale": 0.1, "yaw_rate_scale_std": (0.0, 0.1)}
+                  "yaw_rate_scale": 0.1, "yaw_rate_scale_std": (0.0, 0.1),
+                  "wheel_mapping_checked": (0.0, float(0xFFFFFFFF))}
         for i in range(1, MAX_RECEIVERS):
             limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
             limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]
@@ -562,6 +607,31 @@ class Estimator:
             self._on_gnss(s, k)
         elif type(s) is GnssHeadingSample:
             self._on_heading(s, k)
+
+    def _check_wheels_without_gnss(self, k: int, fl: float, fr: float, rl: float, rr: float, ok: bool,
+                                   r: float, ax: float, bax_var: float) -> None:
+        """Until a witness has confirmed the wheels' scale: the rear axle's speed difference against
+        the gyro (wheel_yaw_check.py, every WYC_EVERY steps) and a launch's wheel speed change
+        against the integrated ax (wheel_launch_check.py), each only on raw inputs that are not a
+        known fault (``ok``); either confirms (WheelScaleCheck.confirm)."""
+        wsc = self.wheel_scale_check
+        nan = math.nan
+        axle = self._launch_axle
+        v = (0.5 * (rl + rr) if axle == "front" else 0.5 * (fl + fr) if axle == "rear"
+             else min(fl, fr, rl, rr)) if ok else nan
+        if self.wheel_launch.step(v, ax if ok else nan, math.sqrt(max(bax_var, 0.0)), self.dt):
+            wsc.confirm()
+            if wsc.confirmed:
+                log.info("wheel speeds' scale confirmed by the accelerometer on a launch: the wheels "
+                         "changed %.3fx what ax integrates to", self.wheel_launch.scale)
+                return
+        if k % WYC_EVERY == 0 and self.wheel_yaw.step(rl if ok else nan, rr, r, ax, WYC_EVERY * self.dt):
+            wsc.confirm()
+            if wsc.confirmed:
+                wy = self.wheel_yaw
+                log.info("wheel speeds' scale confirmed by the gyro: the rear axle's speed difference "
+                         "is %.3f +- %.3f x yaw rate x track over %.0f deg of turns", wy.scale,
+                         wy.scale_std, math.degrees(wy.turn))
 
     def _skip_gap(self, k: int, t_next: float, to_sample: bool) -> int:
         """Nothing arrives from step k until ``t_next``, longer than every input timeout (a logging
@@ -700,6 +770,10 @@ class Estimator:
                                 ax_m - xpl[BAX] if imu_ok else math.nan,
                                 self.gnss_agrees and t - self.gnss_checked_t <= GNSS_CHECK_FRESH_S
                                 and t - self.last_gnss_fused_t <= GNSS_FRESH_S)
+        if not self.wheel_scale_check.confirmed:
+            self._check_wheels_without_gnss(k, fl, fr, rl, rr, wheels_ok and imu_published
+                                            and not iso_fdi & (WHEELS | YAW_RATE | ACCEL_X),
+                                            r_m - xpl[BR], ax_m - xpl[BAX], float(Pp[BAX, BAX]))
         # ay against r vx at any speed; nothing to judge while the gyro's or ay's substitute is fused
         self.lat_scale.step(k, ay_m - xpl[BAY] - xpl[GAY] * ay_m
                             if imu_ok and not iso & (YAW_RATE | ACCEL_Y) else math.nan,
@@ -1153,7 +1227,7 @@ class Estimator:
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
-            vel_valid,
+            vel_valid and vx_std <= VX_STD_VALID,  # promised only what the frame can carry
             imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
             status, *self.gnss_counts(), *self._road(imu_ok, iso)))
 
