@@ -1,7 +1,8 @@
-"""Accelerometer x and y mapped to each other's signal (issue 7, wrong configurations; wrongcfg26's
-probe ranked it the most harmful of 28 single config mistakes): estimator/axis_swap_check.py
-holds each axis against its own witness (the wheels' dv/dt, the gyro's r vx) and, once they say
-swapped, names both keys and withholds sideslip, heading and velocity.
+"""Accelerometer x and y mapped to each other's signal (issue 7, wrong configurations; of 27
+single config mistakes in tools/probe_wrong_config.py the most harmful to sideslip and heading, and
+unlogged): estimator/axis_swap_check.py holds each axis against its own witness (the wheels' dv/dt,
+the gyro's r vx) and, once they say swapped, names both keys and withholds sideslip, heading and
+velocity.
 
 Before the check (integ26, 861cfa8), with ``accel_x`` and ``accel_y`` exchanged and nothing
 logged: on the 15 m circle (lowspeed_r15) the heading was promised up to 9.6 deg off (2334 valid
