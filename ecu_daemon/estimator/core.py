@@ -37,6 +37,7 @@ from ..imu_mounting import ImuMount
 from ..samples import INPUT_INDEX, GnssHeadingSample, GnssSample, InputSample
 from ..step_grid import last_step_at, step_of
 from . import backend, kalman
+from .axis_swap_check import AxisSwapCheck
 from .estimate import (STATUS_GNSS_FRESH, STATUS_GNSS_HEADING, STATUS_GNSS_REJECTED, STATUS_HEADING_ALIGNED,
                        STATUS_INPUT_STALE, STATUS_KINEMATIC_OBSERVABLE, STATUS_MAGNETOMETER, STATUS_MODEL_FALLBACK,
                        STATUS_RESET, STATUS_STANDSTILL, Estimate)
@@ -413,6 +414,7 @@ class Estimator:
         self.gnss_conflict_last_t = -math.inf
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
+        self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
         self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
         if not any(rx.port for rx in gn.receivers() if rx.role == "velocity"):
@@ -778,6 +780,15 @@ class Estimator:
         self.lat_scale.step(k, ay_m - xpl[BAY] - xpl[GAY] * ay_m
                             if imu_ok and not iso & (YAW_RATE | ACCEL_Y) else math.nan,
                             r_m - xpl[BR], xpl[VX], self.rdot)
+        # ax and ay as mapped (not bias-corrected: a swap's error is what the biases absorb) against
+        # the wheels' dv/dt and r vx, r the gyro's or, while the gyro is isolated (a swap makes the
+        # fault detector blame it: ay does not turn with it), the rear wheels'; no witness while
+        # the wheels are isolated. An isolated ax or ay is still judged: no single-sensor fault
+        # makes ax read r vx and ay dv/dt.
+        if self.axis_swap.step(k, wheel_z * xpl[KW] if wheels_ok and not iso & WHEELS else math.nan,
+                               ax_m if imu_published else math.nan, ay_m,
+                               fdi.r_wheels if iso & YAW_RATE else r_m - xpl[BR], xpl[VX]):
+            log.warning("%s", self.axis_swap.message())
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None
@@ -1200,7 +1211,8 @@ class Estimator:
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
-                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong)
+                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
+                     and not self.axis_swap.swapped)
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
@@ -1225,6 +1237,7 @@ class Estimator:
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
             and not self.lat_scale.failing and wsc.confirmed,
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
+            and not self.axis_swap.swapped
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
             vel_valid and vx_std <= VX_STD_VALID,  # promised only what the frame can carry
