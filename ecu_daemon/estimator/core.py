@@ -1124,15 +1124,15 @@ class Estimator:
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
+        # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
+        # speed that vx follows: nonzero while the state cannot (yet) learn it
+        vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])
         if self.lever_flagged:  # a wrong antenna lever arm y moves the GNSS speed by |dy| r
             for chy in self.lever_y_checks:
                 vx_std = math.hypot(vx_std, chy.vx_std(t))
         wsc = self.wheel_scale_check
         if not wsc.confirmed:  # no fix has checked the wheels' scale yet (WheelScaleCheck)
             vx_std = math.hypot(vx_std, WSC_UNCHECKED_REL * vx)
-        # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
-        # speed that vx follows: nonzero while the state cannot (yet) learn it
-        vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
