@@ -281,10 +281,15 @@ KWS_MAX_AX = 1.0  # m/s^2: drive / brake slip (wheel_speed.SLIP_PER_MPS2: 0.7 %)
 #                   of 0.05 s (0.05 m/s) stay small against the speed
 KWS_MAX_LATERAL = 0.15  # |vy + r lever_x| / speed: the antenna's lateral speed taken out of |v| moves
 #                         the ratio by at most ~1 %, so a vy error of 0.2 m/s moves it by < 0.5 %
-KWS_FIXES = 10  # steady fixes in the window before a verdict (2 s at 5 Hz) ...
-KWS_SPAN_S = 3.0  # ... spanning this long: GNSS speed errors are correlated over ~1 s
-KWS_WINDOW = 25  # the window: the latest steady fixes (5 s at 5 Hz)
+KWS_FIXES = 10  # steady fixes in the window before a verdict, at least a third of them in each half ...
+# ... spanning this long: a scale is constant, a GNSS glitch is not, and lasts seconds (5 s in the
+# suite; core.GNSS_CONFLICT_S, twice that, is how long a conflict must last to be no glitch): a
+# glitch that scales the speed by a tyre's 10 % for 5 s fills at most one half of the window, and
+# the halves' means then disagree (KWS_HALVES_REL). With 3 s it re-seeded dlc_dry's right wheels 11 % off.
+KWS_SPAN_S = 8.0
+KWS_WINDOW_S = 12.0  # the window: the steady fixes of the last 12 s (fix times)
 KWS_MAX_SPREAD = 0.02  # std of the window's ratios: above it they are not one scale (slip, a glitch)
+KWS_HALVES_REL = 0.01  # the means of the window's older and newer half: one scale agrees with itself
 KWS_STD_FLOOR = 0.003  # what no averaging removes: lever arm, sideslip, slip left within the limits
 KWS_FAR = 0.03  # within its bounds the filter learns the scale itself; beyond this it did not
 KWS_HALF_WIDTH = 0.05  # re-centred bounds: what tyre wear, pressure and load move a radius by
@@ -309,7 +314,8 @@ class WheelScaleSeed:
     fixes at a steady speed, straight or in a steady corner, that all give one ratio are the wheels'
     scale. Each steady fix (``KWS_MIN_SPEED``, ``KWS_MAX_AX``, ``KWS_MAX_LATERAL``) gives the ratio
     of the antenna's longitudinal speed over ground to the raw wheel speed; when the last
-    ``KWS_WINDOW`` (at least ``KWS_FIXES`` over ``KWS_SPAN_S``) agree within ``KWS_MAX_SPREAD``
+    ``KWS_WINDOW_S`` (at least ``KWS_FIXES`` over ``KWS_SPAN_S``) agree within ``KWS_MAX_SPREAD``,
+    and the means of their older and newer half within ``KWS_HALVES_REL`` (a glitch is not steady),
     and their mean lies outside the current bounds, or ``KWS_FAR`` from the state,
     :meth:`observe` returns True once: the caller re-seeds the state to :attr:`scale` with
     :attr:`std` and re-centres the bounds (:func:`recentred_bounds`). The gate and the slow walk
@@ -357,7 +363,7 @@ class WheelScaleSeed:
             return False
         self.q.append(q)
         self.t.append(t)
-        if len(self.q) > KWS_WINDOW:
+        while t - self.t[0] > KWS_WINDOW_S:
             del self.q[0]
             del self.t[0]
         n = len(self.q)
@@ -366,10 +372,15 @@ class WheelScaleSeed:
         m = sum(self.q) / n
         sd = math.sqrt(sum((v - m) ** 2 for v in self.q) / (n - 1))
         self.scale, self.spread = m, sd
+        t_mid = 0.5 * (self.t[0] + self.t[-1])
+        old = [v for v, tv in zip(self.q, self.t) if tv < t_mid]
+        new = [v for v, tv in zip(self.q, self.t) if tv >= t_mid]
+        steady = (3 * len(old) >= KWS_FIXES and 3 * len(new) >= KWS_FIXES
+                  and abs(sum(old) / len(old) - sum(new) / len(new)) <= KWS_HALVES_REL * m)
         # fixes ~1 s apart are independent; fewer fixes than seconds: each its own
         n_ind = max(1.0, min(n, self.t[-1] - self.t[0]))
         self.std = math.hypot(sd / math.sqrt(n_ind), KWS_STD_FLOOR)
-        if self.seeded or sd > KWS_MAX_SPREAD:
+        if self.seeded or sd > KWS_MAX_SPREAD or not steady:
             return False
         outside = not bounds[0] <= m <= bounds[1]
         far = abs(m - kw) > max(KWS_FAR, 4.0 * math.sqrt(max(kw_var, 0.0) + self.std ** 2))
