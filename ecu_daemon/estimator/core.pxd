@@ -12,6 +12,7 @@ cimport cython
 
 cdef class Estimator:
     cdef dict __dict__
+    cdef public object learned_bounds, wheel_scale_seed  # the wheel-scale seed (input_consistency.WheelScaleSeed)
     cdef public object _learned0, _lp_r, _lp_rdot, _lp_turn, _reset_flag, _slip_decay
     cdef public object _velocity_latencies, _vy_density, align_lat_var, align_psi_var, aligned
     cdef public object augmented, cfg, considers, course_heading, delay_compensation, dt, fdi
@@ -27,7 +28,6 @@ cdef class Estimator:
     cdef public object uses_velocity, wheel_new, wheel_reject_t, wheels, yaw_integral
     cdef public object yaw_scale_checks, yaw_scale_std, yaw_scale_applied, yaw_scale_ring, yaw_scale_changes
     cdef public object yaw_scale_heading, yaw_scale_realigned, scale_sens, wheel_scale_check
-    cdef public object learned_bounds, wheel_scale_seed
 
     # The published fields of every step: floating-point locals as C doubles (the same IEEE
     # operations as Python floats, -ffp-contract=off; an expression with an object operand is still
