@@ -12,6 +12,7 @@ cimport cython
 
 cdef class Estimator:
     cdef dict __dict__
+    cdef public object learned_bounds, wheel_scale_seed  # the wheel-scale seed (input_consistency.WheelScaleSeed)
     cdef public object _learned0, _lp_r, _lp_rdot, _lp_turn, _reset_flag, _slip_decay
     cdef public object _velocity_latencies, _vy_density, align_lat_var, align_psi_var, aligned
     cdef public object augmented, cfg, considers, course_heading, delay_compensation, dt, fdi

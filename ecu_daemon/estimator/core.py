@@ -51,7 +51,8 @@ from .fusion.standstill import StandstillFusion
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_age import InputAge
-from .input_consistency import WSC_UNCHECKED_REL, LateralScaleCheck, LongitudinalScaleCheck, WheelScaleCheck
+from .input_consistency import (KWS_TOTAL, WSC_UNCHECKED_REL, LateralScaleCheck, LongitudinalScaleCheck,
+                                WheelScaleCheck, WheelScaleSeed, recentred_bounds)
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
 from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
@@ -372,6 +373,13 @@ class Estimator:
                                             learned.get("steering_offset_rad"))
         self.steer_offset = self.steer_learner.offset
         self._learned0 = learned
+        # the learned states' bounds (fault_detection.LEARNED_BOUNDS); the wheel scale's re-centred
+        # around a scale learned beyond them (WheelScaleSeed: a wrong tyre size in the config), here
+        # when the learned state brings one, so that a restart keeps it
+        self.learned_bounds = LEARNED_BOUNDS_LIST
+        kw = learned.get("wheel_scale")
+        if kw is not None and not LEARNED_BOUNDS[KW][0] <= kw <= LEARNED_BOUNDS[KW][1]:
+            self._set_wheel_scale_bounds(recentred_bounds(kw))
         # input timeouts (s): configured, else generous defaults for 50-100 Hz CAN signals
         self.timeouts = [0.25] * len(INPUT_INDEX)
         for name, m in cfg.inputs.items():
@@ -417,6 +425,7 @@ class Estimator:
         self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
         self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
+        self.wheel_scale_seed = WheelScaleSeed()  # ... averaged over steady fixes (a wrong tyre size)
         if not any(rx.port for rx in gn.receivers() if rx.role == "velocity"):
             # GNSS off: nothing will ever check the wheels, and the user chose to run without a
             # witness; the unchecked std would withhold velocity for good (the CAN VX_STD range):
@@ -578,7 +587,7 @@ class Estimator:
         if not learned or learned.get("version") != LEARNED_VERSION:
             return {}
         limits = {"yaw_rate_bias_radps": 0.1, "accel_x_bias_mps2": 2.0, "accel_y_bias_mps2": 2.0,
-                  "wheel_scale": (0.8, 1.2), "accel_y_gain": 0.2, "kappa_r": (1e-4, 1.0), "kappa_f": (1e-4, 1.0),
+                  "wheel_scale": KWS_TOTAL, "accel_y_gain": 0.2, "kappa_r": (1e-4, 1.0), "kappa_f": (1e-4, 1.0),
                   "kappa_r3": (-1.0, 1.0), "kappa_f3": (-1.0, 1.0),
                   **{key: (-1.0, 1.0) if key.endswith("_corr") else (0.0, 1.0)
                      for axle in ("kappa_r", "kappa_f") for key in stiffness_std_keys(axle)},
@@ -920,7 +929,7 @@ class Estimator:
             x[BAY] = xpl[BAY]
             x[GAY] = xpl[GAY]
         xl = x.tolist()
-        for j, lo, hi in LEARNED_BOUNDS_LIST:  # clamp_learned, on the list and the row together
+        for j, lo, hi in self.learned_bounds:  # clamp_learned, on the list and the row together
             v = xl[j]
             if v < lo:
                 x[j] = xl[j] = lo
@@ -1200,6 +1209,9 @@ class Estimator:
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
+        # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
+        # speed that vx follows: nonzero while the state cannot (yet) learn it
+        vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])
         if self.lever_flagged:  # a wrong antenna lever arm y moves the GNSS speed by |dy| r
             for chy in self.lever_y_checks:
                 vx_std = math.hypot(vx_std, chy.vx_std(t))
@@ -1344,6 +1356,7 @@ class Estimator:
             wsc = self.wheel_scale_check
             if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed):
                 log.warning("%s", wsc.message())
+            self._observe_wheel_scale(s, js, speed, fus)
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
         verdict = self.fdi.check_gnss(
             s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,
@@ -1426,6 +1439,42 @@ class Estimator:
                 self.road.fuse_vertical(g.vel_d_mps, speed, fus.sigma(g))
                 # an altitude (NMEA GGA): grade from the climb over the distance travelled
                 self.road.fuse_altitude(g, speed, h.X[h.slot(h.last), VX] > 0)
+
+    def _observe_wheel_scale(self, s: int, js: int, speed: float, fus: GnssVelocityFusion) -> None:
+        """Feed the fix to the wheel-scale average (input_consistency.WheelScaleSeed); when it finds
+        the scale beyond where the state may learn, re-seed the state once at the fix's step and
+        carry it to the present: x[KW] to the average, vx with it (vx follows the raw wheel speed
+        times the scale), the variance along that direction the average's, the bounds re-centred."""
+        h = self.hist
+        a = h.aux[js]
+        x = h.X[js]
+        b = self.learned_bounds
+        bounds = next((lo, hi) for j, lo, hi in b if j == KW)
+        # the stored step's scale as the present holds it: a late fix's update may leave a stored
+        # step beyond the bounds that every new step clamps to
+        kw = min(max(float(x[KW]), bounds[0]), bounds[1])
+        seed = self.wheel_scale_seed
+        raw = float(a[AUX_WHEEL])
+        if not seed.observe(s * self.dt, raw, speed, float(x[VY]), float(a[AUX_R]), float(a[AUX_AX]),
+                            fus.lever_x, fus.lever_y, kw, float(h.P[js][KW, KW]), bounds):
+            return
+        m = seed.scale
+        dx = np.zeros(NX)
+        dx[KW] = m - kw
+        dx[VX] = raw * (m - kw)
+        u = np.zeros(NX)
+        u[KW] = seed.std
+        u[VX] = raw * seed.std
+        self._set_wheel_scale_bounds(recentred_bounds(m))
+        if h.correct(s, dx, -np.outer(u, u)):
+            seed.gap = 0.0
+            log.warning("%s", seed.message())
+        else:  # not positive definite: leave the state, keep the published gap
+            self._set_wheel_scale_bounds(bounds)
+            seed.seeded = False
+
+    def _set_wheel_scale_bounds(self, bounds: tuple[float, float]) -> None:
+        self.learned_bounds = tuple((j, *(bounds if j == KW else (lo, hi))) for j, lo, hi in self.learned_bounds)
 
     def _yaw_sum_since(self, k_last: int, s: int, ring=None):
         """The sum of the stored bias-corrected yaw rates of steps k_last+1 .. s (each divided by its

@@ -280,3 +280,131 @@ class WheelScaleCheck:
                 f"over ground ({self._lo:.2f}-{self._hi:.2f} over {self._disagree} fixes, GNSS "
                 f"{self._speed:.1f} m/s): no tyre does that, the mapping's scale is wrong ({guess}); "
                 f"velocity and sideslip are not promised until the wheels agree with GNSS")
+
+
+# --- the wheels' scale from many agreeing fixes: a wrong tyre size in the config is learned once
+KWS_MIN_SPEED = 5.0  # m/s: GNSS speed noise (~0.1 m/s) stays within 2 % of a fix's ratio
+KWS_MAX_AX = 1.0  # m/s^2: drive / brake slip (wheel_speed.SLIP_PER_MPS2: 0.7 %) and a latency error
+#                   of 0.05 s (0.05 m/s) stay small against the speed
+KWS_MAX_LATERAL = 0.15  # |vy + r lever_x| / speed: the antenna's lateral speed taken out of |v| moves
+#                         the ratio by at most ~1 %, so a vy error of 0.2 m/s moves it by < 0.5 %
+KWS_FIXES = 10  # steady fixes in the window before a verdict, at least a third of them in each half ...
+# ... spanning this long: a scale is constant, a GNSS glitch is not, and lasts seconds (5 s in the
+# suite; core.GNSS_CONFLICT_S, twice that, is how long a conflict must last to be no glitch): a
+# glitch that scales the speed by a tyre's 10 % for 5 s fills at most one half of the window, and
+# the halves' means then disagree (KWS_HALVES_REL). With 3 s it re-seeded dlc_dry's right wheels 11 % off.
+KWS_SPAN_S = 8.0
+KWS_WINDOW_S = 12.0  # the window: the steady fixes of the last 12 s (fix times)
+KWS_MAX_SPREAD = 0.02  # std of the window's ratios: above it they are not one scale (slip, a glitch)
+KWS_HALVES_REL = 0.01  # the means of the window's older and newer half: one scale agrees with itself
+KWS_STD_FLOOR = 0.003  # what no averaging removes: lever arm, sideslip, slip left within the limits
+KWS_FAR = 0.03  # within its bounds the filter learns the scale itself; beyond this it did not
+KWS_HALF_WIDTH = 0.05  # re-centred bounds: what tyre wear, pressure and load move a radius by
+# the widest scale a re-seed may take: where WheelScaleCheck stops calling a ratio a tyre
+# (WSC_WRONG_REL), so a seed never explains away a unit error
+KWS_TOTAL = (1.0 - WSC_WRONG_REL, 1.0 / (1.0 - WSC_WRONG_REL))
+KWS_GAP_GAIN = 0.3  # low-pass of each fix's ratio for the published gap (~3 fixes)
+KWS_GAP_MIN_SPEED = WSC_MIN_SPEED  # m/s, the larger speed: the published gap from the fix that confirms the wheels
+
+
+class WheelScaleSeed:
+    """The wheels' scale GNSS speed / raw wheel speed averaged over steady fixes: re-seeds the
+    filter's wheel-scale state once when it lies beyond where that state may learn.
+
+    Why: a wrong tyre size or rolling radius in ``[inputs.wheel_speed_*] scale`` (5-20 %, the
+    commonest wheel error) is a tyre to :class:`WheelScaleCheck` (within ``WSC_AGREE_REL``: it
+    confirms the wheels), but the filter's wheel scale is clamped to +-5 %
+    (fault_detection.LEARNED_BOUNDS, so that a fault slipping through cannot drive it somewhere
+    unphysical) and GNSS beyond the narrow GNSS/wheel gate is rejected as a glitch: vx followed
+    four agreeing wheels 10 % off while published valid with a std of 0.1-0.3 m/s (dlc_dry with
+    1.12x wheels: 5843 rows valid beyond 3 sigma). A glitch lasts seconds and is not steady; many
+    fixes at a steady speed, straight or in a steady corner, that all give one ratio are the wheels'
+    scale. Each steady fix (``KWS_MIN_SPEED``, ``KWS_MAX_AX``, ``KWS_MAX_LATERAL``) gives the ratio
+    of the antenna's longitudinal speed over ground to the raw wheel speed; when the last
+    ``KWS_WINDOW_S`` (at least ``KWS_FIXES`` over ``KWS_SPAN_S``) agree within ``KWS_MAX_SPREAD``,
+    and the means of their older and newer half within ``KWS_HALVES_REL`` (a glitch is not steady),
+    and their mean lies outside the current bounds, or ``KWS_FAR`` from the state,
+    :meth:`observe` returns True once: the caller re-seeds the state to :attr:`scale` with
+    :attr:`std` and re-centres the bounds (:func:`recentred_bounds`). The gate and the slow walk
+    stay as they are for the glitches they protect against.
+
+    Until then :attr:`gap` is the scale error the fixes show against the state (any fix above
+    ``KWS_GAP_MIN_SPEED``, the one that confirms the wheels on, whose ratio a tyre can have,
+    low-passed): the published vx std carries
+    it, so wheels off by more than the bounds allow are not promised tighter than GNSS shows them.
+    """
+
+    def __init__(self) -> None:
+        self.q: list[float] = []  # the window's ratios
+        self.t: list[float] = []  # and their times
+        self.scale = math.nan  # the mean of the last full window
+        self.std = math.nan  # its uncertainty
+        self.spread = math.nan  # its ratios' std
+        self.seeded = False
+        self.gap = 0.0  # |low-passed ratio - state|, relative (published vx std: gap x raw wheel speed)
+        self._q_lp = math.nan
+
+    def observe(self, t: float, raw: float, gnss: float, vy: float, r: float, ax: float, lever_x: float,
+                lever_y: float, kw: float, kw_var: float, bounds: tuple[float, float]) -> bool:
+        """One GNSS fix at its time of validity ``t``: ``raw`` the fused wheel speed before the
+        learned scale, ``gnss`` its speed over ground, ``vy``, ``r``, ``ax`` the filter's lateral
+        speed, yaw rate and longitudinal acceleration then, the receiver's lever arm, the state's
+        wheel scale ``kw``, its variance and its current ``bounds``. True once: re-seed."""
+        w = abs(raw)
+        if not (w == w and gnss == gnss and w > 0.0):
+            return False
+        lat = vy + r * lever_x  # the antenna's lateral speed (ISO 8855: +y left, lever x ahead)
+        g2 = gnss * gnss - lat * lat
+        if g2 <= 0.0:
+            return False
+        g_x = math.sqrt(g2) + r * lever_y  # its longitudinal speed, taken back to the axis
+        q = g_x / w
+        lo, hi = KWS_TOTAL
+        if not lo <= q <= hi:  # no tyre: a unit error (WheelScaleCheck) or a GNSS glitch
+            return False
+        if max(gnss, w * kw) >= KWS_GAP_MIN_SPEED:  # as WheelScaleCheck: the fix that confirms sets it
+            ql = self._q_lp
+            self._q_lp = q if ql != ql else ql + KWS_GAP_GAIN * (q - ql)
+            self.gap = abs(self._q_lp - kw)
+        if gnss < KWS_MIN_SPEED or abs(ax) > KWS_MAX_AX or abs(lat) > KWS_MAX_LATERAL * gnss:
+            return False
+        self.q.append(q)
+        self.t.append(t)
+        while t - self.t[0] > KWS_WINDOW_S:
+            del self.q[0]
+            del self.t[0]
+        n = len(self.q)
+        if n < KWS_FIXES or self.t[-1] - self.t[0] < KWS_SPAN_S:
+            return False
+        m = sum(self.q) / n
+        sd = math.sqrt(sum((v - m) ** 2 for v in self.q) / (n - 1))
+        self.scale, self.spread = m, sd
+        t_mid = 0.5 * (self.t[0] + self.t[-1])
+        old = [v for v, tv in zip(self.q, self.t) if tv < t_mid]
+        new = [v for v, tv in zip(self.q, self.t) if tv >= t_mid]
+        steady = (3 * len(old) >= KWS_FIXES and 3 * len(new) >= KWS_FIXES
+                  and abs(sum(old) / len(old) - sum(new) / len(new)) <= KWS_HALVES_REL * m)
+        # fixes ~1 s apart are independent; fewer fixes than seconds: each its own
+        n_ind = max(1.0, min(n, self.t[-1] - self.t[0]))
+        self.std = math.hypot(sd / math.sqrt(n_ind), KWS_STD_FLOOR)
+        if self.seeded or sd > KWS_MAX_SPREAD or not steady:
+            return False
+        outside = not bounds[0] <= m <= bounds[1]
+        far = abs(m - kw) > max(KWS_FAR, 4.0 * math.sqrt(max(kw_var, 0.0) + self.std ** 2))
+        if outside or far:
+            self.seeded = True
+            return True
+        return False
+
+    def message(self) -> str:
+        """The one log line of a re-seed: which mapping, the ratio, what was learned."""
+        return (f"[inputs.wheel_speed_fl/fr/rl/rr]: the wheel speeds read {1.0 / self.scale:.3f}x the GNSS "
+                f"speed over ground ({len(self.q)} steady fixes, spread {100.0 * self.spread:.1f} %): the "
+                f"wheel radius / scale in the config is off by {100.0 * abs(1.0 / self.scale - 1.0):.0f} %, "
+                f"learned (wheel scale {self.scale:.3f} +- {self.std:.3f}); correct the scale in the config")
+
+
+def recentred_bounds(scale: float) -> tuple[float, float]:
+    """The wheel-scale state's bounds around a learned ``scale``: +-``KWS_HALF_WIDTH``, within
+    ``KWS_TOTAL``."""
+    return (max(KWS_TOTAL[0], scale - KWS_HALF_WIDTH), min(KWS_TOTAL[1], scale + KWS_HALF_WIDTH))
