@@ -78,10 +78,15 @@ def test_a_wrong_wheel_radius_is_learned_and_never_valid_while_wrong(dlc, flying
     e, t, lines = _replay(drive, factor)
     bad_v, bad_b, share = _wrong_valid(e, t)
     assert (bad_v, bad_b) == (0, 0)
-    # velocity stays promised (with the std the scale error calls for until learned), but for ~2 s
-    # before the re-seed where the wheels, 12 % off and clamped, are rejected against GNSS
-    assert share > 0.85
     truth = SIM_SCALE / factor
+    # before the re-seed the std carries the scale error GNSS shows (0.12 x 20 m/s is more than
+    # EST_VELOCITY.VX_STD's 1.275 m/s: withheld there); once the scale is learned, promised again
+    learned = np.abs(e["wheel_scale"] / truth - 1.0) < 0.01
+    assert learned.any()
+    settled = e["t"] >= e["t"][int(np.argmax(learned))] + 3.0  # the seed's variance fused down
+    assert settled.any() and e["velocity_valid"][settled].mean() > 0.99
+    # (the 20 s flying start at 30 m/s: ~11 s withheld, the seed's 8 s of steady fixes and its settling)
+    assert share > 0.4
     assert abs(e["wheel_scale"][-1] / truth - 1.0) < 0.01, (e["wheel_scale"][-1], truth)
     said = [ln for ln in lines if LEARNED in ln]
     assert len(said) == 1, lines
@@ -97,7 +102,9 @@ def test_the_right_wheel_radius_is_unchanged(dlc, flying, which):
     drive = dlc if which == "dlc" else flying
     e, t, lines = _replay(drive, 1.0)
     bad_v, bad_b, share = _wrong_valid(e, t)
-    assert (bad_v, bad_b) == (0, 0) and share > 0.99
+    # the flying start (20 s at 30 m/s, straight) has no witness of its wheels' scale before its
+    # first fix (0.6 s): velocity is not promised until then (test_wrong_wheel_scale)
+    assert (bad_v, bad_b) == (0, 0) and share > (0.99 if which == "dlc" else 0.96)
     assert not [ln for ln in lines if LEARNED in ln]
     assert abs(e["wheel_scale"][-1] / SIM_SCALE - 1.0) < 0.005
     # the published std carries no scale error it has not seen: vx within 0.5 m/s is promised as such
@@ -225,3 +232,21 @@ def test_a_state_file_beyond_the_default_bounds_is_restored_with_them_recentred(
     assert [(lo, hi) for j, lo, hi in e.learned_bounds if j == KW] == [pytest.approx((1.19, 1.29))]
     e = Estimator(Config(), Estimator._check_learned({"version": LEARNED_VERSION, "wheel_scale": 1.02}))
     assert [(lo, hi) for j, lo, hi in e.learned_bounds if j == KW] == [(0.95, 1.05)]
+
+
+def test_a_witness_without_gnss_leaves_its_scale_error_in_the_check():
+    """A launch or the gyro confirms a tyre, not which one: the scale error it saw (and its
+    precision) stays with the confirmation for the published vx std until a fix measures it
+    (with 0.88x wheels a launch-confirmed vx was valid 120 rows beyond 3 sigma before the first fix);
+    a GNSS verdict of a wrong unit is not overturned."""
+    c = WheelScaleCheck()
+    c.confirm(0.12)
+    assert c.confirmed and c.witness_rel == 0.12
+    c = WheelScaleCheck()
+    assert not c.observe(3.6 * 10.0, 10.0) and c.observe(3.6 * 11.0, 11.0) and c.wrong
+    c.confirm(0.02)
+    assert not c.confirmed and c.witness_rel == 0.0
+    s = WheelScaleSeed()
+    assert not s.measured
+    s.observe(0.0, 10.0, 10.5, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1e-4, (0.95, 1.05))
+    assert s.measured

@@ -62,7 +62,7 @@ from .scale_sensitivity import ScaleSensitivity
 from .lateral_noise import LateralNoise
 from . import lever_arm_check
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
-from .wheel_launch_check import WheelLaunchCheck
+from .wheel_launch_check import WLC_PRECISION, WheelLaunchCheck
 from .wheel_yaw_check import WYC_EVERY, WheelYawCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
@@ -631,13 +631,16 @@ class Estimator:
         v = (0.5 * (rl + rr) if axle == "front" else 0.5 * (fl + fr) if axle == "rear"
              else min(fl, fr, rl, rr)) if ok else nan
         if self.wheel_launch.step(v, ax if ok else nan, math.sqrt(max(bax_var, 0.0)), self.dt):
-            wsc.confirm()
+            # the launch's measured scale error, and its precision as 3 sigma
+            wsc.confirm(math.hypot(self.wheel_launch.scale - 1.0, WLC_PRECISION / 3.0))
             if wsc.confirmed:
                 log.info("wheel speeds' scale confirmed by the accelerometer on a launch: the wheels "
                          "changed %.3fx what ax integrates to", self.wheel_launch.scale)
                 return
         if k % WYC_EVERY == 0 and self.wheel_yaw.step(rl if ok else nan, rr, r, ax, WYC_EVERY * self.dt):
-            wsc.confirm()
+            wy = self.wheel_yaw
+            # its measured scale error (the configured track's error in it too) and the fit's std
+            wsc.confirm(math.hypot(wy.scale - 1.0, wy.scale_std))
             if wsc.confirmed:
                 wy = self.wheel_yaw
                 log.info("wheel speeds' scale confirmed by the gyro: the rear axle's speed difference "
@@ -1218,6 +1221,10 @@ class Estimator:
         wsc = self.wheel_scale_check
         if not wsc.confirmed:  # no fix has checked the wheels' scale yet (WheelScaleCheck)
             vx_std = math.hypot(vx_std, WSC_UNCHECKED_REL * vx)
+        elif wsc.witness_rel > 0.0 and not self.wheel_scale_seed.measured:
+            # confirmed without GNSS (a launch, the gyro): a tyre-size error is still possible, by
+            # as much as that witness saw and its precision; the first fix above 2 m/s measures it
+            vx_std = math.hypot(vx_std, wsc.witness_rel * vx)
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf

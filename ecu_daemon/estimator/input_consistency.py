@@ -226,6 +226,10 @@ class WheelScaleCheck:
     def __init__(self) -> None:
         self.confirmed = False
         self.wrong = False
+        # A witness without GNSS (a launch, the gyro) tells a unit error from a tyre, not a tyre 5 %
+        # from one 15 % off: the relative scale error it leaves (1 sigma), carried in the published
+        # vx std until a fix measures the scale (then WheelScaleSeed.gap does; 0 when a fix confirmed)
+        self.witness_rel = 0.0
         self.ratio = math.nan  # wheels / GNSS of the last fix judged
         self._disagree = 0
         self._lo = math.inf  # the ratios of the current disagreeing run
@@ -261,12 +265,15 @@ class WheelScaleCheck:
             return True
         return False
 
-    def confirm(self) -> None:
+    def confirm(self, scale_rel: float = 0.0) -> None:
         """Another witness found the wheels' scale right (the gyro against the rear axle's speed
         difference, wheel_yaw_check.py; a restart's learned state): as an agreeing fix would. Not
-        after GNSS has found it wrong (two fixes beyond any tyre outweigh an indirect witness)."""
+        after GNSS has found it wrong (two fixes beyond any tyre outweigh an indirect witness).
+        ``scale_rel``: the relative scale error that witness leaves possible (1 sigma), which the
+        published vx std carries until a GNSS fix measures the scale (:attr:`witness_rel`)."""
         if not self.wrong:
             self.confirmed = True
+            self.witness_rel = scale_rel
 
     def message(self) -> str:
         """The log line: which inputs, the ratio, the likely unit error."""
@@ -395,6 +402,11 @@ class WheelScaleSeed:
             self.seeded = True
             return True
         return False
+
+    @property
+    def measured(self) -> bool:
+        """A fix has measured the wheels' scale against GNSS (:attr:`gap` says by how much)."""
+        return self._q_lp == self._q_lp
 
     def message(self) -> str:
         """The one log line of a re-seed: which mapping, the ratio, what was learned."""
