@@ -46,3 +46,15 @@ def replay_edited(drive: Path, edit: Callable[[dict], None], name: str, **kw) ->
     cfg = drive / f"{name}.toml"
     cfg.write_text(tomli_w.dumps(data))
     return replay_with(drive, cfg, **kw)
+
+
+def wrong_valid_rows(e: np.ndarray, t: np.ndarray) -> tuple[int, int, float]:
+    """(vx rows valid beyond 3 std, sideslip rows valid beyond 3 std, vx valid share) of an
+    estimate against its truth: the wrong-configuration tests' verdict on a promise."""
+    vx = np.interp(e["t"], t["t"], t["vx_mps"])
+    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
+    v = e["velocity_valid"].astype(bool)
+    b = e["sideslip_valid"].astype(bool)
+    bad_v = v & (np.abs(e["vx_mps"] - vx) > 3.0 * e["vx_std_mps"])
+    bad_b = b & (np.abs(e["sideslip_rad"] - beta) > 3.0 * e["sideslip_std_rad"])
+    return int(bad_v.sum()), int(bad_b.sum()), float(v.mean())

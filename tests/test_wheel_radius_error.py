@@ -23,7 +23,7 @@ from ecu_daemon.estimator.input_consistency import (KWS_FIXES, KWS_SPAN_S, KWS_T
                                                     recentred_bounds)
 from ecu_daemon.sim.scenario import SCENARIOS, Scenario
 
-from config_replay import simulated_drive
+from config_replay import simulated_drive, wrong_valid_rows
 
 WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
 SIM_SCALE = 1.015  # the simulator's own wheel scale (sim/sensors.py SensorParams.wheel_scale)
@@ -60,23 +60,12 @@ def _replay(drive, factor, state=None):
             r.stderr.splitlines())
 
 
-def _wrong_valid(e, t):
-    """(vx rows valid beyond 3 std, sideslip rows valid beyond 3 std, vx valid share)."""
-    vx = np.interp(e["t"], t["t"], t["vx_mps"])
-    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
-    v = e["velocity_valid"].astype(bool)
-    b = e["sideslip_valid"].astype(bool)
-    bad_v = v & (np.abs(e["vx_mps"] - vx) > 3.0 * e["vx_std_mps"])
-    bad_b = b & (np.abs(e["sideslip_rad"] - beta) > 3.0 * e["sideslip_std_rad"])
-    return int(bad_v.sum()), int(bad_b.sum()), float(v.mean())
-
-
 @pytest.mark.parametrize("factor", [0.88, 0.94, 1.12, 1.18])
 @pytest.mark.parametrize("which", ["dlc", "flying"])
 def test_a_wrong_wheel_radius_is_learned_and_never_valid_while_wrong(dlc, flying, which, factor):
     drive = dlc if which == "dlc" else flying
     e, t, lines = _replay(drive, factor)
-    bad_v, bad_b, share = _wrong_valid(e, t)
+    bad_v, bad_b, share = wrong_valid_rows(e, t)
     assert (bad_v, bad_b) == (0, 0)
     truth = SIM_SCALE / factor
     # before the re-seed the std carries the scale error GNSS shows (0.12 x 20 m/s is more than
@@ -101,7 +90,7 @@ def test_a_wrong_wheel_radius_is_learned_and_never_valid_while_wrong(dlc, flying
 def test_the_right_wheel_radius_is_unchanged(dlc, flying, which):
     drive = dlc if which == "dlc" else flying
     e, t, lines = _replay(drive, 1.0)
-    bad_v, bad_b, share = _wrong_valid(e, t)
+    bad_v, bad_b, share = wrong_valid_rows(e, t)
     # the flying start (20 s at 30 m/s, straight) has no witness of its wheels' scale before its
     # first fix (0.6 s): velocity is not promised until then (test_wrong_wheel_scale)
     assert (bad_v, bad_b) == (0, 0) and share > (0.99 if which == "dlc" else 0.96)
@@ -123,7 +112,7 @@ def test_a_restart_keeps_the_learned_radius(flying, tmp_path):
     truth = SIM_SCALE / 1.12
     kw = e["wheel_scale"][np.isfinite(e["wheel_scale"])]
     assert np.all(np.abs(kw / truth - 1.0) < 0.01), (kw.min(), kw.max())
-    assert _wrong_valid(e, t)[:2] == (0, 0)
+    assert wrong_valid_rows(e, t)[:2] == (0, 0)
 
 
 # --------------------------------------------------------------------------------- unit tests

@@ -18,7 +18,7 @@ import pytest
 from ecu_daemon.estimator.input_consistency import WheelScaleCheck
 from ecu_daemon.sim.scenario import Scenario
 
-from config_replay import replay_edited, simulated_drive
+from config_replay import replay_edited, simulated_drive, wrong_valid_rows
 
 WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
 FLYING = Scenario("flying_10_r14l", "flying", params=(("v", 10.0), ("radius_m", 14.3), ("left", True)),
@@ -40,13 +40,7 @@ def _scaled(factor):
 def _wrong_valid_rows(drive, factor, name, lines=None):
     """(velocity rows valid beyond 3 std, sideslip rows valid beyond 3 std, velocity valid share)."""
     e, t = replay_edited(drive, _scaled(factor), name, log_level="warning", stderr=lines)
-    vx = np.interp(e["t"], t["t"], t["vx_mps"])
-    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
-    v = e["velocity_valid"].astype(bool)
-    b = e["sideslip_valid"].astype(bool)
-    bad_v = v & (np.abs(e["vx_mps"] - vx) > 3.0 * e["vx_std_mps"])
-    bad_b = b & (np.abs(e["sideslip_rad"] - beta) > 3.0 * e["sideslip_std_rad"])
-    return int(bad_v.sum()), int(bad_b.sum()), float(v.mean())
+    return wrong_valid_rows(e, t)
 
 
 @pytest.mark.parametrize("factor, unit", [(0.45, "mph scale"), (2.2, "mph read as m/s")],
