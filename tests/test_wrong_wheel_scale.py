@@ -186,3 +186,19 @@ def test_the_validity_bound_is_the_frames_vx_std_range():
     from ecu_daemon.outputs import _limits
     db = cantools.database.load_file(Path(ecu_daemon.__file__).parent / "dbc" / "ecu_daemon_outputs.dbc")
     assert VX_STD_VALID == _limits(db.get_message_by_name("EST_VELOCITY").get_signal_by_name("VX_STD"))[1]
+
+
+def test_a_latency_error_during_a_launch_is_not_a_unit_error():
+    """A 0.1 s latency prior for a 0.8 s receiver dates each fix of a 2.5 m/s^2 launch where the
+    car was 1.75 m/s slower: the wheels read 2.9x GNSS at 1-3 m/s (dlc_dry: named a unit error,
+    velocity and sideslip withdrawn). The acceleration's share widens only the "wrong" verdict:
+    the same fixes at a steady speed are a unit error, and an agreeing fix is as strict as before."""
+    c = WheelScaleCheck()
+    assert not c.observe(3.1, 1.1, 2.5) and not c.observe(4.3, 2.3, 2.5) and not c.wrong
+    c = WheelScaleCheck()
+    assert not c.observe(3.1, 1.1) and c.observe(4.3, 2.3) and c.wrong
+    c = WheelScaleCheck()  # 3.6x wheels during the same launch: wrong all the same once faster
+    assert not c.observe(3.6 * 5.0, 5.0, 2.5) and c.observe(3.6 * 6.0, 6.0, 2.5) and c.wrong
+    c = WheelScaleCheck()  # 0.45x wheels: no acceleration makes them agree
+    c.observe(0.45 * 8.0, 8.0, 3.0)
+    assert not c.confirmed

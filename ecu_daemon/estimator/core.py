@@ -1361,7 +1361,7 @@ class Estimator:
         agree = self._gnss_agrees_with_wheels(s, speed)
         if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
             wsc = self.wheel_scale_check
-            if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed):
+            if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed, h.aux[js, AUX_AX]):
                 log.warning("%s", wsc.message())
             self._observe_wheel_scale(s, js, speed, fus)
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed

@@ -185,6 +185,11 @@ WSC_SLACK_MPS = 0.4  # GNSS speed noise, the antenna's lever arm x yaw rate, a l
 WSC_AGREE_REL = 0.15  # |wheels - GNSS| within this share of the larger: ratio 0.85-1.18, what tyre
 #                       wear, pressure, load and slip explain (the filter's wheel scale learns the rest)
 WSC_WRONG_REL = 0.25  # ... beyond this share: ratio outside 0.75-1.33, no tyre does that
+# s: a latency prior this far off (a 0.1 s prior for a 0.8 s receiver, the default ring horizon)
+# dates each fix where the speed was |ax| x this different: during a launch the wheels read 2.9x a
+# GNSS speed 0.7 s old (dlc_dry, 2.5 m/s^2 at 1-3 m/s) and were called a unit error. Widens only
+# the "wrong" verdict: an agreeing fix stays as strict (a unit error must not agree by timing)
+WSC_TIMING_S = 0.8
 WSC_FIXES = 2  # consecutive wrong fixes before the verdict (one fix may be a glitch); one agreeing
 #               fix confirms (a glitch that happens to match a unit error's ratio is not a risk)
 # Before the first fix a velocity from the wheels rests on a mapping nobody checked: its std says
@@ -236,10 +241,11 @@ class WheelScaleCheck:
         self._hi = -math.inf
         self._speed = math.nan  # the larger speed of the current disagreeing run's last fix
 
-    def observe(self, wheels: float, gnss: float) -> bool:
+    def observe(self, wheels: float, gnss: float, accel: float = 0.0) -> bool:
         """One GNSS fix: ``wheels`` the fused, scaled wheel speed at its time of validity,
-        ``gnss`` its speed over ground (both m/s; NaN wheels: nothing to judge). True when this
-        fix makes :attr:`wrong` (the caller logs :meth:`message`)."""
+        ``gnss`` its speed over ground (both m/s; NaN wheels: nothing to judge), ``accel`` the
+        longitudinal acceleration then (m/s^2: a latency error's share, ``WSC_TIMING_S``). True
+        when this fix makes :attr:`wrong` (the caller logs :meth:`message`)."""
         if self.confirmed or not (wheels == wheels and gnss == gnss):
             return False
         w, g = abs(wheels), abs(gnss)
@@ -254,8 +260,8 @@ class WheelScaleCheck:
             self.confirmed = True
             self.wrong = False
             return False
-        if d <= WSC_SLACK_MPS + WSC_WRONG_REL * top:
-            return False  # neither a tyre nor clearly a unit: wait for the next fix
+        if d <= WSC_SLACK_MPS + WSC_WRONG_REL * top + WSC_TIMING_S * abs(accel):
+            return False  # neither a tyre nor clearly a unit (or a latency error): wait for the next fix
         self._disagree += 1
         self._lo = min(self._lo, self.ratio)
         self._hi = max(self._hi, self.ratio)
