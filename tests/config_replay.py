@@ -24,13 +24,15 @@ def simulated_drive(tmp_path_factory, name: str, scenario: Scenario) -> Path:
 
 
 def replay_with(drive: Path, config: Path, log_level: str = "error",
-                stderr: list[str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+                stderr: list[str] | None = None, state: Path | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(estimate rows, truth rows) as named arrays; the estimate CSV is written beside ``config``.
-    ``stderr``: a list the replay's log lines (at ``log_level``) are appended to."""
+    ``stderr``: a list the replay's log lines (at ``log_level``) are appended to; ``state``: the
+    learned-state file (``replay --state``)."""
     out = config.with_suffix(".csv")
     r = subprocess.run([sys.executable, "-m", "ecu_daemon", "replay", "--config", str(config),
                         "--can", str(drive / "drive.log"), "--gnss", str(drive / "drive_gnss.log"),
-                        "--out-csv", str(out), "--no-progress", "--log-level", log_level],
+                        "--out-csv", str(out), "--no-progress", "--log-level", log_level]
+                       + (["--state", str(state)] if state is not None else []),
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     if stderr is not None:

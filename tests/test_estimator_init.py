@@ -161,9 +161,11 @@ def _cfg():
     return config_mod.Config()
 
 
-def _feed(est: Estimator, t: float, speed: float, yaw_rate: float = 0.0) -> list:
-    for name in ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr"):
-        est.push_input(InputSample(t, INPUT_INDEX[name], speed))
+def _feed(est: Estimator, t: float, speed: float, yaw_rate: float = 0.0, half: float = 0.0) -> list:
+    """One sample of every input at ``t``; the left wheels ``half`` slower, the right ones faster."""
+    for name, v in (("wheel_speed_fl", speed - half), ("wheel_speed_fr", speed + half),
+                    ("wheel_speed_rl", speed - half), ("wheel_speed_rr", speed + half)):
+        est.push_input(InputSample(t, INPUT_INDEX[name], v))
     est.push_input(InputSample(t, INPUT_INDEX["steering_wheel_angle"], 0.0))
     est.push_input(InputSample(t, INPUT_INDEX["yaw_rate"], yaw_rate))
     est.push_input(InputSample(t, INPUT_INDEX["accel_x"], 0.0))
@@ -174,15 +176,7 @@ def _feed(est: Estimator, t: float, speed: float, yaw_rate: float = 0.0) -> list
 def _feed_turning(est: Estimator, t: float, speed: float, yaw_rate: float) -> list:
     """As :func:`_feed`, each wheel at its own speed in the turn: ``speed -/+ yaw_rate x track / 2``
     (ISO 8855: the left wheels inside a left turn), what the gyro's check of the wheels' scale reads."""
-    half = 0.5 * est.cfg.vehicle.track_m * yaw_rate
-    for name, v in (("wheel_speed_fl", speed - half), ("wheel_speed_fr", speed + half),
-                    ("wheel_speed_rl", speed - half), ("wheel_speed_rr", speed + half)):
-        est.push_input(InputSample(t, INPUT_INDEX[name], v))
-    est.push_input(InputSample(t, INPUT_INDEX["steering_wheel_angle"], 0.0))
-    est.push_input(InputSample(t, INPUT_INDEX["yaw_rate"], yaw_rate))
-    est.push_input(InputSample(t, INPUT_INDEX["accel_x"], 0.0))
-    est.push_input(InputSample(t, INPUT_INDEX["accel_y"], yaw_rate * speed))
-    return est.advance_to(t)
+    return _feed(est, t, speed, yaw_rate, 0.5 * est.cfg.vehicle.track_m * yaw_rate)
 
 
 def _lane_change(est: Estimator, t: float, speed: float, seconds: float = 3.0) -> tuple[float, list]:

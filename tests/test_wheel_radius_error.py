@@ -11,19 +11,15 @@ wheels 5843 rows valid beyond 3 sigma (1.1 m/s off), a flying start at 30 m/s wi
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
-import tomllib
 
 import numpy as np
 import pytest
-import tomli_w
 
 from ecu_daemon.estimator.input_consistency import (KWS_FIXES, KWS_SPAN_S, KWS_TOTAL, WheelScaleCheck, WheelScaleSeed,
                                                     recentred_bounds)
 from ecu_daemon.sim.scenario import SCENARIOS, Scenario
 
-from config_replay import simulated_drive, wrong_valid_rows
+from config_replay import replay_edited, simulated_drive, wrong_valid_rows
 
 WHEELS = ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr")
 SIM_SCALE = 1.015  # the simulator's own wheel scale (sim/sensors.py SensorParams.wheel_scale)
@@ -44,20 +40,13 @@ def flying(tmp_path_factory):
 
 def _replay(drive, factor, state=None):
     """(estimate rows, truth rows, warning lines) of the drive with every wheel's scale x factor."""
-    data = tomllib.loads((drive / "config.toml").read_text())
-    for n in WHEELS:
-        data["inputs"][n].update(scale=data["inputs"][n]["scale"] * factor)
-    cfg = drive / f"x{factor:g}{'_state' if state else ''}.toml"
-    cfg.write_text(tomli_w.dumps(data))
-    out = cfg.with_suffix(".csv")
-    cmd = [sys.executable, "-m", "ecu_daemon", "replay", "--config", str(cfg), "--can", str(drive / "drive.log"),
-           "--gnss", str(drive / "drive_gnss.log"), "--out-csv", str(out), "--no-progress", "--log-level", "warning"]
-    if state is not None:
-        cmd += ["--state", str(state)]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    return (np.genfromtxt(out, delimiter=",", names=True), np.genfromtxt(drive / "truth.csv", delimiter=",", names=True),
-            r.stderr.splitlines())
+    def scaled(data):
+        for n in WHEELS:
+            data["inputs"][n].update(scale=data["inputs"][n]["scale"] * factor)
+    lines: list[str] = []
+    e, t = replay_edited(drive, scaled, f"x{factor:g}{'_state' if state else ''}", log_level="warning",
+                         stderr=lines, state=state)
+    return e, t, lines
 
 
 @pytest.mark.parametrize("factor", [0.88, 0.94, 1.12, 1.18])
