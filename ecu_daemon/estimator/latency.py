@@ -23,7 +23,11 @@ that wheels whose best delay the accelerometer rejects are left out (``attach``)
 the wheels' fixes whose window does not brake judge them the same way (:meth:`observe`). The
 accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
 mid-corner (and after a GNSS outage, until vy is known again), and it carries less information
-than the wheels (on Revs the latency std would stay wide and the heading invalid).
+than the wheels (on Revs the latency std would stay wide and the heading invalid). A break-off
+loses the integral's constant, not the timing its run showed: the runs' cost profiles add
+(:meth:`LatencyEstimator.forget`), so the accelerometer goes on judging the wheels through a
+corner (circle_dry: the corner-biased wheels timed the GNSS alone as the circle ended, +0.036 s),
+except a run that ended no longer clean (the grade changed along it: its fit was bent).
 
 The residual sum of squares of each candidate is its cost; the minimum, refined by a parabola, is
 the delay. It moves only when the data reject the current delay (a likelihood-ratio test on the
@@ -34,7 +38,9 @@ biased clocks (flying_50_straight, dual_circle, bank_circle were 0.024-0.036 s o
 Rejected by wheels and accelerometer that agree, the delay moves on into the data's 1-sigma set
 rather than stopping at the edge of what they reject (4 sigma: two_rx_slalom stopped 0.027 s
 short); when they disagree (on Revs the accelerometer reads the car's pitch under hard braking),
-only to that edge.
+only to that edge. Agreeing is mutual: neither rejects the other's best. Wheel signals through a
+first-order lag are a clock late by its time constant, sharp enough to reject the accelerometer's
+best while inside its 4-sigma set (wheel_lag_0.06_grade: -0.046 s when that counted as agreeing).
 
 Course changes against the integrated yaw rate would add lateral information, but they carry the
 sideslip's own errors into the timing, which on real data biased it; measured on Revs and the
@@ -121,6 +127,12 @@ class LatencyEstimator:
         self.syy = 0.0
         self.updates = 0
         self.cost = np.zeros(n)
+        # the cost profiles of the reference's earlier runs (forget()), forgotten as the statistics
+        # are: their residual sums per candidate, fixes (weighted) and parameters spent
+        self.past_cost: np.ndarray | None = None
+        self.past_n = 0.0
+        self.past_p = 0
+        self.past_updates = 0
         self.references = [self]  # the timing references whose statistics decide (attach())
         self.owner: LatencyEstimator | None = None  # the estimator this one's statistics feed
         self.slip_free: LatencyEstimator | None = None  # the wheels' fixes without braking (observe)
@@ -207,6 +219,19 @@ class LatencyEstimator:
         accumulate(self.zz, self.zy, x, extra, y, lam)
         self.syy = lam * self.syy + y * y
         self.updates += 1
+        if self.past_cost is not None:
+            # the earlier runs' evidence fades at the same rate as this run's oldest fixes; once
+            # it weighs less than the parameters it spent it tells nothing and goes
+            self.past_cost = lam * self.past_cost
+            self.past_n *= lam
+            if self.past_n <= self.past_p:
+                self._drop_past()
+
+    def _drop_past(self) -> None:
+        self.past_cost = None
+        self.past_n = 0.0
+        self.past_p = 0
+        self.past_updates = 0
 
     def shift(self, offsets: tuple[float, ...]) -> None:
         """Re-anchor the regressors: x and the extras from now on are read less ``offsets`` (an
@@ -217,8 +242,25 @@ class LatencyEstimator:
         self.zz = np.ascontiguousarray(np.einsum("ij,kjl,ml->kim", m, self.zz, m))
         self.zy = np.ascontiguousarray(np.einsum("ij,kj->ki", m, self.zy))
 
-    def forget(self) -> None:
-        """Drop the statistics (the reference broke off); the delay and its std stand."""
+    def forget(self, keep: bool = True) -> None:
+        """Drop the statistics (the reference broke off); the delay and its std stand.
+
+        ``keep``: the run's cost profile is kept (:attr:`past_cost`) and adds to the next runs'
+        ones. What breaks off when the sideslip is unknown mid-corner is the accelerometer
+        integral's constant, not the timing its fixes showed, which was fitted with that run's own
+        offset, scale and ramp. Without it, every corner left the accelerometer without a profile
+        for 30 fixes and the wheels timed the GNSS alone with their corner bias (circle_dry:
+        +0.036 s as the circle ended). Not kept (:class:`SpeedIntegral`) when the run ended because
+        it was no longer a clean reference (the grade changed along it: its fit was bent before it
+        broke off; road_country: +0.144 s with those runs kept)."""
+        if keep and self.updates > self.p + 1:
+            c = np.empty(len(self.zz))
+            if latency_costs(np.ascontiguousarray(self.zz), np.ascontiguousarray(self.zy), self.syy,
+                             self.min_spread ** 2 * self.zz[0, -1, -1] * 0.1, c):
+                self.past_cost = c if self.past_cost is None else self.past_cost + c
+                self.past_n += float(self.zz[0, -1, -1])
+                self.past_p += self.p
+                self.past_updates += self.updates
         self.zz[:] = 0.0
         self.zy[:] = 0.0
         self.syy = 0.0
@@ -241,7 +283,7 @@ class LatencyEstimator:
         profiles (167 stacked solves each, most of a GNSS step) were of statistics that had not
         changed. The key is the statistics themselves, so whatever changes them, the profile is
         computed again; a kept one is the same bits."""
-        key = (self.updates, self.syy, self.zz.tobytes(), self.zy.tobytes())
+        key = (self.updates, self.syy, self.zz.tobytes(), self.zy.tobytes(), self.past_n, self.past_updates)
         memo = self._profile_memo
         if memo is not None and memo[0] == key:
             self.cost = memo[2]
@@ -253,18 +295,27 @@ class LatencyEstimator:
     def _profile_of_statistics(self) -> tuple[np.ndarray, bool] | None:
         """The likelihood-ratio statistic of every candidate against the best, and whether the
         minimum is very clear; None while the statistics carry no timing information."""
-        if self.updates < MIN_UPDATES:
+        past = self.past_cost
+        if self.updates + self.past_updates < MIN_UPDATES:
             return None
         zz = self.zz
         n = zz[0, -1, -1]
         c = np.empty(len(zz))
-        if not latency_costs(np.ascontiguousarray(zz), np.ascontiguousarray(self.zy), self.syy,
-                             self.min_spread ** 2 * n * 0.1, c):
-            return None  # the regressor has hardly varied: no timing information
+        p = self.p
+        if not (self.updates > p + 1 and latency_costs(np.ascontiguousarray(zz), np.ascontiguousarray(self.zy),
+                                                       self.syy, self.min_spread ** 2 * n * 0.1, c)):
+            if past is None:
+                return None  # the regressor has hardly varied: no timing information
+            c[:] = 0.0  # this run has none (yet): the earlier runs' alone
+            n, p = 0.0, 0
+        if past is not None:
+            # independent runs, each fitted with its own constants: their costs add
+            c = c + past
+            n, p = n + self.past_n, p + self.past_p
         self.cost = c
         i = int(np.argmin(c))
         # RSS excess over the residual variance per fix
-        s2 = max(c[i], 1e-12) / max(n - self.p, 1.0)
+        s2 = max(c[i], 1e-12) / max(n - p, 1.0)
         return (c - c[i]) / s2, bool(c[i] < 0.2 * median(c))
 
     def _refine(self) -> None:
@@ -287,8 +338,14 @@ class LatencyEstimator:
             profiles = [p for p in wheels if judge[0][int(np.argmin(p[0]))] <= LR_REJECT] + [judge]
             # two clocks that agree: the data's best is where the delay goes, not only the edge of
             # what they reject; that disagree (on Revs the accelerometer reads the car's pitch under
-            # hard braking: 0.37 s for 0.40), only as far as the data reject the delay
-            agree = bool(wheels) and len(profiles) == len(wheels) + 1
+            # hard braking: 0.37 s for 0.40), only as far as the data reject the delay. Agreeing is
+            # mutual: the wheels must not reject the accelerometer's best either. A first-order lag
+            # of the wheel signals is a delay of its time constant in their clock; sharp wheels a
+            # lag away from a broad accelerometer passed its 4-sigma test and pulled the delay to
+            # theirs (wheel_lag_0.06_grade: -0.046 s)
+            ja = int(np.argmin(judge[0]))
+            agree = (bool(wheels) and len(profiles) == len(wheels) + 1
+                     and all(p[0][ja] <= LR_REJECT for p in wheels))
         else:
             agree = False
         profiles = [p for p in profiles if p is not None]
@@ -467,6 +524,7 @@ class SpeedIntegral:
         self.last = -1
         self.first = 0
         self.anchor: dict[int, tuple[int, float]] = {}  # receiver -> (step, integral) its regressors are read from
+        self.bent: set[int] = set()  # receivers whose last run ended unusable (step): its timing is not kept
 
     def step(self, k: int, vx: float, vy: float, r: float, ax: float, ay: float, vy_std: float = 0.0,
              usable: bool = True) -> None:
@@ -478,6 +536,11 @@ class SpeedIntegral:
         exceeds ``MAX_RATE_ERROR`` (sideslip not yet known mid-corner) the integral breaks off
         and starts again afterwards with a new constant, instead of bending the fit."""
         if k != self.last + 1 or not usable or abs(r) * vy_std > MAX_RATE_ERROR:
+            if not usable:
+                # a run that ends unusable (the grade changed along it, the IMU, reversing) was
+                # bent before it broke off: its receivers' timing is not kept (forget); one that
+                # ends on the sideslip's test or a gap was within its error budget
+                self.bent.update(self.anchor)
             self.first = k + 1
             self.anchor.clear()
         # the speed's rate d|v|/dt = (vx ax + vy ay) / |v| (turning does not change |v|)
@@ -506,7 +569,9 @@ class SpeedIntegral:
             return
         prev = self.anchor.get(receiver)
         if prev is None:
-            lat.forget()  # a new run of the integral: its constant is unknown
+            # a new run of the integral: its constant is unknown; the last run's timing stands unless it was bent
+            lat.forget(keep=receiver not in self.bent)
+            self.bent.discard(receiver)
         else:
             lat.shift((self.total - prev[1], (self.last - prev[0]) * self.dt))
         self.anchor[receiver] = (self.last, self.total)
