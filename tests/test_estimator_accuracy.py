@@ -89,8 +89,10 @@ def test_delay_compensation_matters(root):
     # (course = heading - sideslip; both ~0.06 deg RMS), so sideslip is where it must show.
     assert off["sideslip"]["rms"] > 5.0 * on["sideslip"]["rms"]
     # GNSS speed is also compared with the wheels 0.4 s too late and drags the wheel scale off
-    # (held by its +-5 % bound, fault_detection.LEARNED_BOUNDS)
-    assert off["wheel_scale"]["rms"] > 5 * on["wheel_scale"]["rms"]
+    # (held by its +-5 % bound, fault_detection.LEARNED_BOUNDS). Since the fixes of an acceleration
+    # weigh little along the track until the latency is identified (timing_trust.py), both drag
+    # and learning are slower: rms 0.0173 / 0.0028 (6.1x) on integ27, 0.0128 / 0.0037 (3.5x) since
+    assert off["wheel_scale"]["rms"] > 3 * on["wheel_scale"]["rms"]
 
 
 def test_wrong_vehicle_parameters_and_delay_prior(root):

@@ -59,6 +59,7 @@ from .latency_consider import LatencyConsider, antenna_acceleration_ned
 from . import latency_sensitivity
 from .latency_sensitivity import LatencySensitivity, timing_secant
 from .scale_sensitivity import ScaleSensitivity
+from .timing_trust import along_track_std, timing_std
 from .lateral_noise import LateralNoise
 from . import lever_arm_check
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
@@ -1302,14 +1303,15 @@ class Estimator:
 
     def _latency_std(self) -> float:
         """The largest latency uncertainty of the velocity receivers (the heading error it causes
-        while turning is a bias, whichever receiver it comes from)."""
+        while turning is a bias, whichever receiver it comes from); a fixed delay its monitor named
+        wrong counts with the receiver's range (``timing_trust.timing_std``)."""
         vel = self._velocity_latencies
         if len(vel) == 1:
-            return vel[0].std_s
-        m = vel[0].std_s  # max() as a loop (cpdef in core.pxd: no generator); max keeps the first of equals
+            return timing_std(vel[0])
+        m = timing_std(vel[0])  # max() as a loop (cpdef in core.pxd: no generator); max keeps the first of equals
         for lat in vel[1:]:
-            if lat.std_s > m:
-                m = lat.std_s
+            if timing_std(lat) > m:
+                m = timing_std(lat)
         return m
 
     def _vy_seen_by_data(self, k: int, vx: float, ay: float, rdot: float) -> bool:
@@ -1400,7 +1402,8 @@ class Estimator:
             self._check_lever_arm(g, s, fus, lat)
         self._check_lever_arm_y(g, s, fus, lat)
         if not self.aligned or not g.course_known:  # heading unknown, or no course: |v| only
-            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=lat.std_s)
+            D, a_t = self._along_timing(s, g, lat)
+            ok = agree and fus.fuse_speed(h, s, g, delay_std_s=timing_std(lat), along_std_s=D, along_accel=a_t)
             if not agree:
                 fus.rejected += 1
                 fus.last_reason = "speed disagrees with the wheels"
@@ -1410,7 +1413,10 @@ class Estimator:
             cons = self._consider(g.source, lat)
             sens = self.lat_sens
             P_pre = h.P[js].copy()
-            ok = fus.fuse(h, s, g, delay_std_s=lat.std_s, consider=cons)
+            # along the track, a latency the data have not identified is off by as much as a
+            # receiver's can be, not by the prior's claim (timing_trust.py: the wheel scale)
+            D, a_t = self._along_timing(s, g, lat)
+            ok = fus.fuse(h, s, g, delay_std_s=timing_std(lat), consider=cons, along_std_s=D, along_accel=a_t)
             if ok:
                 self.scale_sens.fused(h, s, P_pre, fus._H2, fus._R2)
             if ok and sens is not None:
@@ -1733,6 +1739,25 @@ class Estimator:
         if lat.enabled and not lat.fixed and lat.std_s >= PRIOR_STD_S:
             lo, hi = min(lo, k_rx - lat.max_steps), k_rx
         return max(lo, h.oldest()), max(min(hi, h.last), s), span
+
+    def _along_timing(self, s: int, g: GnssSample, lat: LatencyEstimator) -> tuple[float, float | None]:
+        """(std, acceleration) of a speed fix's along-track timing term (``timing_trust.py``):
+        latency.py's std and the stored ax once the latency is identified (None: as before);
+        before, the wider std and the secant of the speed (integrated stored ax) over every
+        instant the fix may be from, max_delay_s before its reception to the reception. The
+        tangent at the fused step is not enough: at the end of an acceleration a fix read 0.7 s
+        late still carries the acceleration's speed change where the stored ax is already 0, and
+        those fixes took the wheel scale 2 % off in one second (dlc_lat08)."""
+        D = along_track_std(lat)
+        if D == lat.std_s:
+            return D, None
+        h = self.hist
+        k_rx = step_of(g.t, self.dt)
+        lo = min(max(k_rx - lat.max_steps, h.oldest()), s)
+        hi = max(min(k_rx, h.last), s)
+        rows = np.arange(lo, hi + 1) % h.n
+        v = np.cumsum(h.aux[rows, AUX_AX]) * self.dt
+        return D, timing_secant(v, s - lo, self.dt, (hi - lo + 1) * self.dt, float(h.aux[h.slot(s), AUX_AX]))
 
     def _course_timing_slope(self, s: int, g: GnssSample, lat: LatencyEstimator, r: float) -> float:
         """d psi / d d of a heading aligned from the course fused at stored step s: the heading's

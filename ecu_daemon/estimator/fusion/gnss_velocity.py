@@ -96,10 +96,13 @@ class GnssVelocityFusion:
             return False
         return True
 
-    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample, delay_std_s: float = 0.0) -> bool:
+    def fuse_speed(self, hist: StepHistory, s: int, g: GnssSample, delay_std_s: float = 0.0,
+                   along_std_s: float | None = None, along_accel: float | None = None) -> bool:
         """Speed-only update (heading unknown, or the sample's course unknown): fuses |v| only;
-        ``delay_std_s`` as in :meth:`fuse` (a start-up acceleration with the latency still
-        unknown must not be read as a wheel-scale error)."""
+        ``delay_std_s``, ``along_std_s`` and ``along_accel`` as in :meth:`fuse` (a start-up
+        acceleration with the latency still unknown must not be read as a wheel-scale error)."""
+        if along_std_s is None:
+            along_std_s = delay_std_s
         i = hist.slot(s)
         x = hist.X[i]
         a = hist.aux[i]
@@ -112,7 +115,8 @@ class GnssVelocityFusion:
             sp = x[VX]
         else:
             H.put(SPEED_H_FLAT, gen.gnss_speed_H(*args))
-        self._R1[0, 0] = self.sigma(g) ** 2 + TIMING_FIXES * a[AUX_AX] ** 2 * delay_std_s * delay_std_s
+        ax = a[AUX_AX] if along_accel is None else along_accel
+        self._R1[0, 0] = self.sigma(g) ** 2 + TIMING_FIXES * ax ** 2 * along_std_s * along_std_s
         self._y1[0] = g.speed_mps - sp
         nis = kalman.late_update(hist.P[i], H, self._R1, self._y1, self._dx, self._M)
         if not nis <= 25.0:  # 5 sigma (NaN: no usable innovation covariance)
@@ -128,7 +132,8 @@ class GnssVelocityFusion:
         return True
 
     def fuse(self, hist: StepHistory, s: int, g: GnssSample, gate: bool = True,
-             delay_std_s: float = 0.0, consider: LatencyConsider | None = None) -> bool:
+             delay_std_s: float = 0.0, consider: LatencyConsider | None = None,
+             along_std_s: float | None = None, along_accel: float | None = None) -> bool:
         """Full 2-D velocity update at stored step s. Returns False if gated out.
 
         ``delay_std_s``: uncertainty of the time of validity. A timing error dt looks like a
@@ -140,22 +145,33 @@ class GnssVelocityFusion:
         error across the track is not noise but the shared latency error, an augmented state
         (``latency_consider.py``); along the track (the speed, which ``latency.py`` identifies
         the latency from) it stays the bias-weighted noise above, so no information counts twice.
+
+        ``along_std_s`` (default ``delay_std_s``): the timing std of the along-track term alone,
+        wider than the latency's std while the data have not identified the latency, and
+        ``along_accel`` (default: the stored ax) the along-track acceleration it multiplies, the
+        secant over the instants the fix may be from (``timing_trust.py``: a configured prior far
+        off must not teach the wheel scale).
         """
+        if along_std_s is None:
+            along_std_s = delay_std_s
         i = hist.slot(s)
         a = hist.aux[i]
+        ax = a[AUX_AX] if along_accel is None else along_accel
         args = (*hist.X[i].tolist(), a[AUX_R], self.lever_x, self.lever_y)
         vn, ve = gen.gnss_velocity(*args)
         H = self._H2
         H.put(VELOCITY_H_FLAT, gen.gnss_velocity_H(*args))
         d2 = delay_std_s * delay_std_s
+        # what the along-track term adds beyond the latency's own std: 0 once it is identified
+        wide = TIMING_FIXES * (ax * ax * (along_std_s * along_std_s) - a[AUX_AX] ** 2 * d2)
         sp = math.hypot(vn, ve)
         u0, u1 = (vn / sp, ve / sp) if sp > 0.5 else (1.0, 0.0)  # along-track unit vector
         if consider is None:
             iso = self.sigma(g) ** 2 + (a[AUX_AX] ** 2 + a[AUX_AY] ** 2) * d2
-            along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2  # the along-track part as a bias
+            along = (TIMING_FIXES - 1.0) * a[AUX_AX] ** 2 * d2 + wide  # the along-track part as a bias
         else:  # across the track the latency error is the augmented state; along it, as before
             iso = self.sigma(g) ** 2
-            along = TIMING_FIXES * a[AUX_AX] ** 2 * d2
+            along = TIMING_FIXES * a[AUX_AX] ** 2 * d2 + wide
         R = self._R2
         R.flat = (iso + along * u0 * u0, along * u0 * u1, along * u0 * u1, iso + along * u1 * u1)
         self._y2.flat = (g.vel_n_mps - vn, g.vel_e_mps - ve)
