@@ -1266,7 +1266,8 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
-            and not self.lat_scale.failing and wsc.confirmed and self.gyro_gate.sideslip_ok(),
+            and not self.lat_scale.failing and wsc.confirmed
+            and (iso & YAW_RATE or self.gyro_gate.sideslip_ok()),
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and not self.axis_swap.swapped and self.gyro_gate.motion_ok()
             and rx_ok and self.heading.consecutive_rejects < 2

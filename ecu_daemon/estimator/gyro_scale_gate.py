@@ -32,10 +32,13 @@ unit error, -1 for a flipped sign. The gyro's scale is
   swapped left/right: -0.70 and +0.32; a gyro in deg/s read as rad/s: 65 and 51).
 
 Sideslip integrates ``ay - r vx``: a scale error of any size is harmless while the gyro reads
-(almost) nothing, and ruinous the moment it reads a turn. So sideslip is promised while the gyro's
-scale is confirmed, or while it has never been exercised: every sample since the start had the
-gyro within ``GSC_QUIET`` (a straight; a 57x gyro's bias alone is not quiet; a gyro read 57x too
-small is quiet in a turn, and its witnesses contradict it). The first sample beyond it, before confirmation, withholds the promise until a witness
+what the car does, and ruinous the moment it reads a turn wrong. So sideslip is promised while
+the gyro's scale is confirmed, or while it has never been exercised: every sample since the start
+had the gyro within ``GSC_QUIET`` + ``GSC_AGREE`` of the witness closest to it (at speed; below
+it, the gyro within ``GSC_QUIET`` of 0). A straight's lane keeping (0.045 rad/s on the suite's
+flying straights, with an unlearned 0.5 deg/s bias) is not exercise; a 57x gyro's bias, or its
+reading of the first steering correction, is; so is a gyro read 57x too small in a turn. While the
+gyro is isolated the sideslip rests on the wheels' yaw rate (fault_detection.py), not on it. The first sample beyond it, before confirmation, withholds the promise until a witness
 confirms (a right gyro: within the first lane change); a contradicted scale withholds it for good
 (and the heading, which integrates the same gyro). Velocity and heading are also not promised on
 a sample whose gyro reads a yaw rate no car makes at its speed (``GSC_R_MIN``'s circle below
@@ -148,14 +151,22 @@ class GyroScaleGate:
         self.implausible = abs(g) > r_max
         ww = (rr - rl) / self.track
         v = 0.5 * (rl + rr)
-        # the gyro's own reading only: the wheels' difference carries the tyres' radius difference
-        # (1 % is 0.19 rad/s at 30 m/s on a straight); a gyro read 57x too small, quiet in a turn,
-        # is left to the witnesses' contradiction
-        if abs(g) > GSC_QUIET:
+        # what a scale error can have done at this sample: the gyro against the witness closest to
+        # it (either may be off by its own mapping or offset), beyond GSC_AGREE of the witness;
+        # below the witnesses' speed, the gyro's own reading (a car that barely moves barely turns)
+        witnesses = []
+        if ww == ww and v >= GSC_MIN_SPEED:
+            witnesses.append(ww)
+        if ay == ay and s >= GSC_MIN_SPEED:
+            witnesses.append(ay / vx)
+        dev = math.inf if witnesses else abs(g)
+        for w in witnesses:
+            dev = min(dev, abs(g - w) - GSC_AGREE * abs(w))
+        if dev > GSC_QUIET:
             self.exercised = True
-        if vx < GSC_MIN_SPEED:
+        if s < GSC_MIN_SPEED:
             return False
-        if ww == ww and v >= GSC_MIN_SPEED and abs(ax) <= GSC_MAX_AX:
+        if ww == ww and v >= GSC_MIN_SPEED and vx > 0.0 and abs(ax) <= GSC_MAX_AX:  # forward: wheel speeds may be unsigned
             self.wheels.add(g_raw * self.track, v, rr - rl)
         if ay == ay:
             self.lateral.add(g_raw * vx, 1.0, ay)
