@@ -34,8 +34,8 @@ unit error, -1 for a flipped sign. The gyro's scale is
 Sideslip integrates ``ay - r vx``: a scale error of any size is harmless while the gyro reads
 what the car does, and ruinous the moment it reads a turn wrong. So sideslip is promised while
 the gyro's scale is confirmed, or while it has never been exercised: every sample since the start
-had the gyro within ``GSC_QUIET`` + ``GSC_AGREE`` of the witness closest to it (at speed; below
-it, the gyro within ``GSC_QUIET`` of 0). A straight's lane keeping (0.045 rad/s on the suite's
+had the gyro within ``GSC_QUIET`` of 0, or of the witness closest to it (+ ``GSC_AGREE`` of the
+witness). A straight's lane keeping (0.045 rad/s on the suite's
 flying straights, with an unlearned 0.5 deg/s bias) is not exercise; a 57x gyro's bias, or its
 reading of the first steering correction, is; so is a gyro read 57x too small in a turn. While the
 gyro is isolated the sideslip rests on the wheels' yaw rate (fault_detection.py), not on it. The first sample beyond it, before confirmation, withholds the promise until a witness
@@ -151,15 +151,16 @@ class GyroScaleGate:
         self.implausible = abs(g) > r_max
         ww = (rr - rl) / self.track
         v = 0.5 * (rl + rr)
-        # what a scale error can have done at this sample: the gyro against the witness closest to
-        # it (either may be off by its own mapping or offset), beyond GSC_AGREE of the witness;
-        # below the witnesses' speed, the gyro's own reading (a car that barely moves barely turns)
+        # what a scale error can have done at this sample: the gyro's reading, or its distance to the
+        # witness closest to it beyond GSC_AGREE of the witness, whichever is less (either witness
+        # may be off by its own mapping or offset: a 6 % bank is 0.18 rad/s of ay / vx at 4.5 m/s,
+        # one wheel-speed quantum 0.04 rad/s over the track)
         witnesses = []
         if ww == ww and v >= GSC_MIN_SPEED:
             witnesses.append(ww)
         if ay == ay and s >= GSC_MIN_SPEED:
             witnesses.append(ay / vx)
-        dev = math.inf if witnesses else abs(g)
+        dev = abs(g)  # near 0 is quiet whatever the witnesses say (a bank's ay / vx, wheel quanta)
         for w in witnesses:
             dev = min(dev, abs(g - w) - GSC_AGREE * abs(w))
         if dev > GSC_QUIET:
