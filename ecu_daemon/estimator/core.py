@@ -1267,7 +1267,7 @@ class Estimator:
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
             and not self.lat_scale.failing and wsc.confirmed
-            and (iso & YAW_RATE or self.gyro_gate.sideslip_ok()),
+            and (iso & YAW_RATE != 0 or self.gyro_gate.sideslip_ok()),
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and not self.axis_swap.swapped and self.gyro_gate.motion_ok()
             and rx_ok and self.heading.consecutive_rejects < 2
