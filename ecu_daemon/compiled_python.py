@@ -38,6 +38,7 @@ MODULES = (
     "ecu_daemon/estimator/scale_sensitivity.py",  # ScaleSensitivity.step: every step; .fused: every 2-D fix
     "ecu_daemon/estimator/bank_walk.py",  # BankWalk.step: every step
     "ecu_daemon/estimator/axis_swap_check.py",  # AxisSwapCheck.step: every step
+    "ecu_daemon/estimator/gyro_scale_gate.py",  # GyroScaleGate.step: every GSC_EVERY steps until confirmed
     "ecu_daemon/estimator/wheel_yaw_check.py",  # WheelYawCheck: every step until the wheels are confirmed
     "ecu_daemon/estimator/wheel_launch_check.py",  # WheelLaunchCheck: likewise
     "ecu_daemon/estimator/fusion/wheel_speed.py",

@@ -38,6 +38,7 @@ from ..samples import INPUT_INDEX, GnssHeadingSample, GnssSample, InputSample
 from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from .axis_swap_check import AxisSwapCheck
+from .gyro_scale_gate import GSC_EVERY, GyroScaleGate
 from .estimate import (STATUS_GNSS_FRESH, STATUS_GNSS_HEADING, STATUS_GNSS_REJECTED, STATUS_HEADING_ALIGNED,
                        STATUS_INPUT_STALE, STATUS_KINEMATIC_OBSERVABLE, STATUS_MAGNETOMETER, STATUS_MODEL_FALLBACK,
                        STATUS_RESET, STATUS_STANDSTILL, Estimate)
@@ -424,6 +425,7 @@ class Estimator:
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
+        self.gyro_gate = GyroScaleGate(veh.track_m)  # the gyro's scale against wheels and ay (a unit error)
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
         self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
         self.wheel_scale_seed = WheelScaleSeed()  # ... averaged over steady fixes (a wrong tyre size)
@@ -802,6 +804,16 @@ class Estimator:
                                ax_m if imu_published else math.nan, ay_m,
                                fdi.r_wheels if iso & YAW_RATE else r_m - xpl[BR], xpl[VX]):
             log.warning("%s", self.axis_swap.message())
+        # the gyro's scale against the rear wheels' and ay's yaw rates (gyro_scale_gate.py): inputs
+        # as mapped (a unit error is what is judged; the bias states absorb a wrong mapping), each
+        # witness only while not a known fault (a stale or isolated gyro: nothing judged, and the
+        # filter does not integrate it)
+        if k % GSC_EVERY == 0 and not self.gyro_gate.confirmed:
+            wok = wheels_ok and not iso_fdi & WHEELS
+            if self.gyro_gate.step(rl if wok else math.nan, rr if wok else math.nan,
+                                   r_m - xpl[BR] if imu_published and not iso_fdi & YAW_RATE else math.nan,
+                                   ay_m if not iso_fdi & ACCEL_Y else math.nan, xpl[VX], ax_m, r_m):
+                log.warning("%s", self.gyro_gate.message())
         if fdi.heading_repair is not None:
             self._repair_heading(*fdi.heading_repair)
             fdi.heading_repair = None
@@ -1232,7 +1244,7 @@ class Estimator:
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
                      and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
-                     and not self.axis_swap.swapped)
+                     and not self.axis_swap.swapped and self.gyro_gate.motion_ok())
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
@@ -1255,9 +1267,10 @@ class Estimator:
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
-            and not self.lat_scale.failing and wsc.confirmed,
+            and not self.lat_scale.failing and wsc.confirmed
+            and (iso & YAW_RATE != 0 or self.gyro_gate.sideslip_ok()),
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and not self.axis_swap.swapped
+            and not self.axis_swap.swapped and self.gyro_gate.motion_ok()
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
             vel_valid and vx_std <= VX_STD_VALID,  # promised only what the frame can carry

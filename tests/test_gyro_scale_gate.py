@@ -1,0 +1,117 @@
+"""A gyro in deg/s mapped as rad/s (issue 7, wrong configurations): estimator/gyro_scale_gate.py
+holds the gyro's scale against the rear wheels' (v_rr - v_rl) / track and ay / vx, promises no
+sideslip on a gyro that has read a turn before a witness confirmed it, no velocity or heading on a
+reading no car makes at its speed, and names ``[inputs.yaw_rate]`` once both witnesses contradict it.
+
+Before the gate (integ27, 1a549c8), ``[inputs.yaw_rate] scale = 57.3`` on dlc_dry (the signal is
+in rad/s): 126 of 129 valid sideslip rows beyond 3 sigma, up to 11.3 deg off, at the launch
+(6.2-7.5 s), where the gyro's bias alone read 0.5 rad/s (tools/probe_wrong_config.py)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GyroScaleGate
+from ecu_daemon.sim.scenario import SCENARIOS
+
+from config_replay import replay_edited, simulated_drive
+
+TRACK = 1.6
+SAID = "[inputs.yaw_rate] scale"
+
+
+@pytest.fixture(scope="module")
+def dlc_drive(tmp_path_factory):
+    return simulated_drive(tmp_path_factory, "gyro_dlc", SCENARIOS["dlc_dry"])
+
+
+def _deg_as_rad(c):
+    c["inputs"]["yaw_rate"].update(scale=180.0 / math.pi, min=-200.0, max=200.0)
+
+
+def _bad_sideslip(e, t):
+    beta = np.interp(e["t"], t["t"], t["sideslip_rad"])
+    v = e["sideslip_valid"].astype(bool)
+    return v & (np.abs(e["sideslip_rad"] - beta) > 3.0 * e["sideslip_std_rad"])
+
+
+def test_a_gyro_read_57x_too_large_promises_no_sideslip(dlc_drive):
+    e, t = replay_edited(dlc_drive, _deg_as_rad, "gyro_deg_as_rad")
+    assert _bad_sideslip(e, t).sum() == 0
+    vx = np.interp(e["t"], t["t"], t["vx_mps"])
+    v = e["velocity_valid"].astype(bool)
+    assert not (v & (np.abs(e["vx_mps"] - vx) > 3.0 * e["vx_std_mps"])).any()
+
+
+def test_the_right_gyro_is_confirmed_in_the_lane_change_and_says_nothing(dlc_drive):
+    lines: list[str] = []
+    e, t = replay_edited(dlc_drive, lambda c: None, "right", log_level="warning", stderr=lines)
+    assert not any(SAID in line for line in lines)
+    assert _bad_sideslip(e, t).sum() == 0
+    v = e["sideslip_valid"].astype(bool)
+    # promised on the straight before the lane change and after it (the gate only withholds
+    # between the turn-in and the witnesses' confirmation)
+    assert v[(e["t"] - e["t"][0] > 8.0) & (e["t"] - e["t"][0] < 19.0)].mean() > 0.9
+    assert v[e["t"] - e["t"][0] > 30.0].mean() > 0.9
+
+
+# ---- synthetic series: the rear wheels and ay for a yaw rate r at speed vx, the gyro reading s r
+
+def _feed(gate, s, r_of, vx=20.0, n=400, wheels_sign=1.0, bias=0.0, bank_ay=0.0):
+    said = False
+    for i in range(n):
+        r = r_of(i * 0.06)
+        rl = vx - 0.5 * r * TRACK * wheels_sign
+        rr = vx + 0.5 * r * TRACK * wheels_sign
+        g = s * r + bias
+        said |= gate.step(rl, rr, g, r * vx + bank_ay, vx, 0.0, g)
+    return said
+
+
+def lane_change(t):
+    return 0.15 * math.sin(2.0 * math.pi * t / 4.0)
+
+
+def test_a_right_gyro_in_a_lane_change_is_confirmed():
+    gate = GyroScaleGate(TRACK)
+    assert not _feed(gate, 1.0, lane_change, bank_ay=0.5)
+    assert gate.confirmed and gate.sideslip_ok() and gate.motion_ok()
+
+
+@pytest.mark.parametrize("s", [180.0 / math.pi, math.pi / 180.0, -1.0])
+def test_a_unit_error_or_a_flipped_sign_is_contradicted_and_named(s):
+    gate = GyroScaleGate(TRACK)
+    assert _feed(gate, s, lane_change)
+    assert gate.contradicted and not gate.confirmed
+    assert not gate.sideslip_ok() and not gate.motion_ok()
+    assert SAID in gate.message()
+
+
+def test_wheels_swapped_left_right_do_not_blame_a_right_gyro():
+    """The wheels read -1x; ay confirms (either witness confirms, both must contradict)."""
+    gate = GyroScaleGate(TRACK)
+    assert not _feed(gate, 1.0, lane_change, wheels_sign=-1.0)
+    assert gate.confirmed and not gate.contradicted
+
+
+def test_a_straight_keeps_the_promise_and_a_turn_before_confirmation_withholds_it():
+    gate = GyroScaleGate(TRACK)
+    _feed(gate, 1.0, lambda t: 0.3 * GSC_QUIET, n=100)
+    assert gate.sideslip_ok() and not gate.confirmed and not gate.exercised
+    gate.step(20.0, 20.0, 2.0 * GSC_QUIET, 0.0, 20.0, 0.0, 2.0 * GSC_QUIET)  # a turn-in, unconfirmed
+    assert gate.exercised and not gate.sideslip_ok()
+
+
+def test_a_yaw_rate_no_car_makes_is_not_promised_on():
+    """A 57x gyro's 0.009 rad/s bias at a launch (0.3 m/s): 0.5 rad/s is a 0.6 m circle."""
+    gate = GyroScaleGate(TRACK)
+    gate.step(0.3, 0.3, 0.5, 0.0, 0.3, 1.0, 0.5)
+    assert gate.implausible and not gate.motion_ok()
+    gate.step(0.3, 0.3, 0.05, 0.0, 0.3, 1.0, 0.05)  # 0.05 rad/s at 0.3 m/s: a 6 m circle
+    assert not gate.implausible and gate.motion_ok()
+    gate.step(30.0, 30.0, 0.3, 9.0, 30.0, 0.0, 0.3)  # 9 m/s^2 at 30 m/s
+    assert not gate.implausible
+    gate.step(30.0, 30.0, 11.0, 6.0, 30.0, 0.0, 11.0)  # a 57x gyro in a 150 m corner
+    assert gate.implausible
