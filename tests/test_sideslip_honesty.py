@@ -70,9 +70,12 @@ def test_steady_low_speed_circle_is_valid_where_the_model_vouches(out):
     model's own error, and the sideslip valid on 33 % of the rows above 5 m/s (main efdbdc9) while
     0.1 deg right. Bounded by the model's error (core.MODEL_BOUND), more of it is valid, and every
     valid row keeps the promise. The bound counts the tyre law's error once with the configuration's
-    stiffness prior (single_track.AxleRls.predict): 56 % valid with both stacked (main 9ba8e61), 62 %."""
+    stiffness prior (single_track.AxleRls.predict): 56 % valid with both stacked (main 9ba8e61), 62 %.
+    58 %, not 59: since a latency not yet identified weighs an accelerating fix by the receiver's range
+    (timing_trust.py, integ27) the std sits 0.001 deg higher at the 0.667 deg edge of validity in two
+    flickering spells (34-35 s, 64-66 s): 60.5 -> 59.0 %."""
     row, est = _run("lowspeed_r15", out)
-    assert row["sideslip_valid_above_5mps"] >= 0.59, row["sideslip_valid_above_5mps"]
+    assert row["sideslip_valid_above_5mps"] >= 0.58, row["sideslip_valid_above_5mps"]
     assert row["sideslip_coverage_3sigma"] >= 0.99
     assert row["sideslip_worst_valid_deg"] <= 2.0
     valid = est["sideslip_valid"] == 1
