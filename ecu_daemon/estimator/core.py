@@ -1228,6 +1228,9 @@ class Estimator:
         # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
         # speed that vx follows: nonzero while the state cannot (yet) learn it
         vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])
+        # a re-seeded scale not yet checked across speeds: what an offset seen as that scale would
+        # make vx wrong by here (WheelScaleSeed.offset_bound: a missing DBC offset looks like a tyre)
+        vx_std = math.hypot(vx_std, self.wheel_scale_seed.offset_bound(vx))
         if self.lever_flagged:  # a wrong antenna lever arm y moves the GNSS speed by |dy| r
             for chy in self.lever_y_checks:
                 vx_std = math.hypot(vx_std, chy.vx_std(t))
@@ -1244,6 +1247,7 @@ class Estimator:
         vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
                      and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
+                     and not self.wheel_scale_seed.offset_found
                      and not self.axis_swap.swapped and self.gyro_gate.motion_ok())
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
@@ -1481,8 +1485,12 @@ class Estimator:
         kw = min(max(float(x[KW]), bounds[0]), bounds[1])
         seed = self.wheel_scale_seed
         raw = float(a[AUX_WHEEL])
-        if not seed.observe(s * self.dt, raw, speed, float(x[VY]), float(a[AUX_R]), float(a[AUX_AX]),
-                            fus.lever_x, fus.lever_y, kw, float(h.P[js][KW, KW]), bounds):
+        refuted = seed.offset_found
+        seeded = seed.observe(s * self.dt, raw, speed, float(x[VY]), float(a[AUX_R]), float(a[AUX_AX]),
+                              fus.lever_x, fus.lever_y, kw, float(h.P[js][KW, KW]), bounds)
+        if seed.offset_found and not refuted:  # the fixes across speeds show an offset, not a scale
+            log.warning("%s", seed.offset_message())
+        if not seeded:
             return
         m = seed.scale
         dx = np.zeros(NX)
@@ -1498,6 +1506,7 @@ class Estimator:
         else:  # not positive definite: leave the state, keep the published gap
             self._set_wheel_scale_bounds(bounds)
             seed.seeded = False
+            seed.v_seed = math.nan
 
     def _set_wheel_scale_bounds(self, bounds: tuple[float, float]) -> None:
         self.learned_bounds = tuple((j, *(bounds if j == KW else (lo, hi))) for j, lo, hi in self.learned_bounds)

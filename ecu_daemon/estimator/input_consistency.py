@@ -318,6 +318,14 @@ KWS_HALF_WIDTH = 0.05  # re-centred bounds: what tyre wear, pressure and load mo
 KWS_TOTAL = (1.0 - WSC_WRONG_REL, 1.0 / (1.0 - WSC_WRONG_REL))
 KWS_GAP_GAIN = 0.3  # low-pass of each fix's ratio for the published gap (~3 fixes)
 KWS_GAP_MIN_SPEED = WSC_MIN_SPEED  # m/s, the larger speed: the published gap from the fix that confirms the wheels
+# --- a re-seeded scale is a hypothesis: at one speed a scale and an offset are the same thing
+KWS_FIT_WINDOW_S = 120.0  # the steady fixes the wheels = s v + o fit uses (a config does not change)
+KWS_FIT_SPAN_REL = 0.15  # the fit's speeds must span this share of their mean: apart enough for an
+#                         offset of 0.5 m/s to move the ratio by more than the window's spread
+KWS_FIT_MIN_SIDE = 5  # steady fixes at least at each end of that span (below / above the mean speed)
+KWS_OFFSET_MPS = 0.5  # |o| beyond this (and beyond KWS_OFFSET_SIGMAS of its std) refutes the scale:
+#                       a tyre's scale leaves no offset, GNSS speed noise (~0.1 m/s) averages well below it
+KWS_OFFSET_SIGMAS = 4.0
 
 
 class WheelScaleSeed:
@@ -341,6 +349,17 @@ class WheelScaleSeed:
     :attr:`std` and re-centres the bounds (:func:`recentred_bounds`). The gate and the slow walk
     stay as they are for the glitches they protect against.
 
+    A re-seeded scale is a hypothesis: at one speed a scale and an offset are the same thing (a
+    wheel-speed signal whose DBC offset the mapping forgot reads v + o, which at a steady 30 m/s
+    looks like a tyre 25 % off). A scale is one ratio at every speed, an offset is not: if the
+    wheels read v + o and the seed learned m = v_s / (v_s + o) at the seed's speed v_s, vx at
+    speed v is m (v + o) = v + (v_s - v)(1 - m). So until steady fixes at speeds
+    ``KWS_FIT_SPAN_REL`` apart confirm the ratio, :meth:`offset_bound` (``|v - v_s| |1 - m|``)
+    is published in the vx std; every steady fix (at any ratio) feeds a fit raw = s g + o over
+    ``KWS_FIT_WINDOW_S``, and an offset beyond ``KWS_OFFSET_MPS`` and ``KWS_OFFSET_SIGMAS`` of its
+    std refutes the scale (:attr:`offset_found`; :meth:`observe_offset` returns True once, for the
+    log line :meth:`offset_message`): velocity and sideslip are not promised after that.
+
     Until then :attr:`gap` is the scale error the fixes show against the state (any fix above
     ``KWS_GAP_MIN_SPEED``, the one that confirms the wheels on, whose ratio a tyre can have,
     low-passed): the published vx std carries
@@ -356,6 +375,66 @@ class WheelScaleSeed:
         self.seeded = False
         self.gap = 0.0  # |low-passed ratio - state|, relative (published vx std: gap x raw wheel speed)
         self._q_lp = math.nan
+        self.fit: list[tuple[float, float, float]] = []  # steady fixes (t, GNSS speed, raw wheel speed)
+        self.v_seed = math.nan  # the mean GNSS speed of the window that seeded the scale
+        self.ratio_checked = False  # steady fixes across speeds found the seeded ratio a scale
+        self.offset_found = False  # ... or found an offset: the scale is refuted
+        self.offset = math.nan  # the fit's offset o (m/s, in the raw wheel speed) and its std
+        self.offset_std = math.nan
+        self.offset_slope = math.nan
+
+    def offset_bound(self, v: float) -> float:
+        """What an offset of the size the seed absorbed would make vx wrong by at speed ``v``
+        (m/s; 0 unless a re-seed's ratio is still unchecked across speeds): the seed's
+        ``|1 - m|`` times how far ``v`` is from the speed it was seen at (class docstring)."""
+        if self.ratio_checked or self.offset_found or self.v_seed != self.v_seed:
+            return 0.0
+        return abs(abs(v) - self.v_seed) * abs(1.0 - self.scale)
+
+    def _fit_offset(self) -> None:
+        """Least squares raw = s g + o over the fit window; judge o once the speeds span enough."""
+        n = len(self.fit)
+        if n < 2 * KWS_FIT_MIN_SIDE:
+            return
+        gm = sum(f[1] for f in self.fit) / n
+        if gm <= 0.0 or max(f[1] for f in self.fit) - min(f[1] for f in self.fit) < KWS_FIT_SPAN_REL * gm:
+            return
+        below = sum(1 for f in self.fit if f[1] < gm)
+        if below < KWS_FIT_MIN_SIDE or n - below < KWS_FIT_MIN_SIDE:
+            return
+        wm = sum(f[2] for f in self.fit) / n
+        sxx = sum((f[1] - gm) ** 2 for f in self.fit)
+        sxy = sum((f[1] - gm) * (f[2] - wm) for f in self.fit)
+        slope = sxy / sxx
+        o = wm - slope * gm
+        res = math.sqrt(sum((f[2] - o - slope * f[1]) ** 2 for f in self.fit) / max(n - 2, 1))
+        # fixes ~1 s apart are independent (as the seed's window): the std from that many
+        n_ind = max(2.0, min(n, self.fit[-1][0] - self.fit[0][0]))
+        # ... and what no averaging removes (KWS_STD_FLOOR of the ratio, at the mean speed)
+        o_std = math.hypot(res * math.sqrt(n / n_ind) * math.sqrt(1.0 / n + gm * gm / sxx), KWS_STD_FLOOR * gm)
+        self.offset, self.offset_std, self.offset_slope = o, o_std, slope
+        if abs(o) > max(KWS_OFFSET_MPS, KWS_OFFSET_SIGMAS * o_std):
+            self.offset_found = True
+        elif abs(o) + 2.0 * o_std <= KWS_OFFSET_MPS:
+            self.ratio_checked = True
+
+    def observe_offset(self, t: float, g_x: float, w: float) -> bool:
+        """One steady fix (``g_x`` the antenna's longitudinal speed over ground, ``w`` the raw
+        wheel speed) into the offset fit; True once, when a re-seeded scale is refuted."""
+        self.fit.append((t, g_x, w))
+        while t - self.fit[0][0] > KWS_FIT_WINDOW_S:
+            del self.fit[0]
+        if not self.seeded or self.offset_found or self.ratio_checked:
+            return False
+        self._fit_offset()
+        return self.offset_found
+
+    def offset_message(self) -> str:
+        """The one log line of a refuted scale: which key, the offset seen."""
+        return (f"[inputs.wheel_speed_fl/fr/rl/rr] offset: the wheel speeds read {self.offset_slope:.3f} x the "
+                f"GNSS speed {self.offset:+.2f} m/s (+- {self.offset_std:.2f}, {len(self.fit)} steady fixes "
+                f"across speeds): an offset of {self.offset:+.2f} m/s, not a wheel radius (a DBC offset missing "
+                f"from the mapping?); velocity and sideslip are not promised; correct the offset in the config")
 
     def observe(self, t: float, raw: float, gnss: float, vy: float, r: float, ax: float, lever_x: float,
                 lever_y: float, kw: float, kw_var: float, bounds: tuple[float, float]) -> bool:
@@ -372,6 +451,8 @@ class WheelScaleSeed:
             return False
         g_x = math.sqrt(g2) + r * lever_y  # its longitudinal speed, taken back to the axis
         q = g_x / w
+        if gnss >= KWS_MIN_SPEED and abs(ax) <= KWS_MAX_AX and abs(lat) <= KWS_MAX_LATERAL * gnss:
+            self.observe_offset(t, g_x, w)  # at any ratio: an offset's ratio leaves KWS_TOTAL as speed falls
         lo, hi = KWS_TOTAL
         if not lo <= q <= hi:  # no tyre: a unit error (WheelScaleCheck) or a GNSS glitch
             return False
@@ -406,6 +487,8 @@ class WheelScaleSeed:
         far = abs(m - kw) > max(KWS_FAR, 4.0 * math.sqrt(max(kw_var, 0.0) + self.std ** 2))
         if outside or far:
             self.seeded = True
+            self.v_seed = sum(f[1] for f in self.fit if f[0] >= self.t[0]) / max(
+                1, sum(1 for f in self.fit if f[0] >= self.t[0]))
             return True
         return False
 
