@@ -1327,8 +1327,9 @@ class Estimator:
             return timing_std(vel[0])
         m = timing_std(vel[0])  # max() as a loop (cpdef in core.pxd: no generator); max keeps the first of equals
         for lat in vel[1:]:
-            if timing_std(lat) > m:
-                m = timing_std(lat)
+            v = timing_std(lat)
+            if v > m:
+                m = v
         return m
 
     def _vy_seen_by_data(self, k: int, vx: float, ay: float, rdot: float) -> bool:
