@@ -55,12 +55,13 @@ from .input_age import InputAge
 from .input_consistency import (KWS_TOTAL, WSC_UNCHECKED_REL, LateralScaleCheck, LongitudinalScaleCheck,
                                 WheelScaleCheck, WheelScaleSeed, recentred_bounds)
 from .kinematic import BAX, BAY, BR, GAY, KW, NX, PSI, VX, VY, KinematicModel, wrap_pi
-from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, PRIOR_STD_S, LatencyEstimator, SpeedIntegral, YawIntegral
+from .latency import HEADING_SPREAD_RAD, MIN_SPEED_SPREAD, LatencyEstimator, SpeedIntegral, YawIntegral
 from .latency_consider import LatencyConsider, antenna_acceleration_ned
 from . import latency_sensitivity
-from .latency_sensitivity import LatencySensitivity, timing_secant
+from .latency_sensitivity import LatencySensitivity
 from .scale_sensitivity import ScaleSensitivity
-from .timing_trust import along_track_std, timing_std
+from . import timing_window
+from .timing_trust import along_track_std, at_prior, timing_std
 from .lateral_noise import LateralNoise
 from . import lever_arm_check
 from .lever_arm_check import LeverArmCheck, LeverArmYCheck
@@ -1711,7 +1712,7 @@ class Estimator:
         # (the velocity change integrated from the stored accelerations: the stored velocities
         # step where earlier fixes corrected them, which is no motion)
         lo, hi, span = self._timing_window(s, g, self.latencies[g.source])
-        rows = np.arange(lo, hi + 1) % h.n
+        rows = timing_window.rows(h.n, lo, hi)
         c, sn = np.cos(h.X[rows, PSI]), np.sin(h.X[rows, PSI])
         across = latency_sensitivity.across_secant(h.aux[rows], c, sn, u0, u1, fus.lever_x, fus.lever_y,
                                                    self.dt, s - lo, span, across)
@@ -1751,17 +1752,16 @@ class Estimator:
 
     def _timing_window(self, s: int, g: GnssSample, lat: LatencyEstimator) -> tuple[int, int, float]:
         """The stored steps lo..hi a fix fused at step s may truly be from, and the span of 3
-        latency sigmas (``timing_secant``): s +- that span, and while the latency is not identified
-        (its std still the prior's: a configured delay is the user's guess) anywhere from
-        max_delay_s before the fix's reception to the reception (never after it)."""
+        latency sigmas (``timing_secant``): s +- that span, and while an estimated latency is still
+        at its prior (``timing_trust.at_prior``: a configured delay is the user's guess) anywhere
+        from max_delay_s before the fix's reception to the reception (never after it;
+        ``timing_window.steps``)."""
         h = self.hist
         k_rx = step_of(g.t, self.dt)
         span = 3.0 * lat.std_s
         n = int(math.ceil(span / self.dt))
-        lo, hi = s - n, min(s + n, k_rx)
-        if lat.enabled and not lat.fixed and lat.std_s >= PRIOR_STD_S:
-            lo, hi = min(lo, k_rx - lat.max_steps), k_rx
-        return max(lo, h.oldest()), max(min(hi, h.last), s), span
+        lo, hi = timing_window.steps(h.oldest(), h.last, s, k_rx, n, lat.max_steps if at_prior(lat) else None)
+        return lo, hi, span
 
     def _along_timing(self, s: int, g: GnssSample, lat: LatencyEstimator) -> tuple[float, float | None]:
         """(std, acceleration) of a speed fix's along-track timing term (``timing_trust.py``):
@@ -1775,20 +1775,16 @@ class Estimator:
         if D == lat.std_s:
             return D, None
         h = self.hist
-        k_rx = step_of(g.t, self.dt)
-        lo = min(max(k_rx - lat.max_steps, h.oldest()), s)
-        hi = max(min(k_rx, h.last), s)
-        rows = np.arange(lo, hi + 1) % h.n
-        v = np.cumsum(h.aux[rows, AUX_AX]) * self.dt
-        return D, timing_secant(v, s - lo, self.dt, (hi - lo + 1) * self.dt, float(h.aux[h.slot(s), AUX_AX]))
+        # the receiver's whole range (n = 0: nothing about s beyond it), every lag counted in full
+        lo, hi = timing_window.steps(h.oldest(), h.last, s, step_of(g.t, self.dt), 0, lat.max_steps)
+        return D, timing_window.secant(h.aux, h.n, AUX_AX, lo, hi, s, self.dt, (hi - lo + 1) * self.dt,
+                                       float(h.aux[h.slot(s), AUX_AX]))
 
     def _course_timing_slope(self, s: int, g: GnssSample, lat: LatencyEstimator, r: float) -> float:
         """d psi / d d of a heading aligned from the course fused at stored step s: the heading's
         turn (the gyro's) between s and the course's possible true instants, as a secant."""
         lo, hi, span = self._timing_window(s, g, lat)
-        h = self.hist
-        turned = np.cumsum(h.aux[np.arange(lo, hi + 1) % h.n, AUX_R]) * self.dt
-        return timing_secant(turned, s - lo, self.dt, span, r)
+        return timing_window.secant(self.hist.aux, self.hist.n, AUX_R, lo, hi, s, self.dt, span, r)
 
     def _gnss_agrees_with_wheels(self, s: int, speed: float) -> bool:
         """GNSS speed against the wheel speed at its time of validity (scaled by the learned

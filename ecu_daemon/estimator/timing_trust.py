@@ -48,14 +48,37 @@ from .latency import PRIOR_STD_S, LatencyEstimator
 #: an estimated latency counts as identified once its std is below this (half the default prior)
 IDENTIFIED_STD_S = 0.5 * PRIOR_STD_S
 
+# Two predicates on one latency, on purpose: they answer different questions for different terms.
+# ``identified`` is the along-track timing term's: may a speed fix be weighted with latency.py's
+# std, i.e. do the data vouch for the delay (std at most half the prior; a fixed delay never: its
+# monitor only refutes). Until then the std is the receiver's range (module docstring), because a
+# fix's along-track error is what teaches the wheel scale. ``at_prior`` is the timing window's
+# (core.Estimator._timing_window: a course's heading slope, the across-track sensitivity): is an
+# estimated latency's std still exactly the prior's (nothing learned yet), so that the fix's true
+# instant may be anywhere in the receiver's range rather than within 3 of latency.py's sigmas.
+# Between the two (an estimated latency whose std has fallen below the prior, not yet to half of
+# it) the along-track term keeps the wide std while the window is already +- 3 sigma; a fixed
+# delay's window is +- 3 sigma of its std (widened by its monitor when refuted, and timing_std).
+# Merging them would move both terms for those latencies: a behaviour change to measure on the
+# suite, not a clean-up.
+
 
 def identified(lat: LatencyEstimator) -> bool:
-    """Whether the data (not only the configuration) vouch for ``lat``'s delay."""
+    """Whether the data (not only the configuration) vouch for ``lat``'s delay (the along-track
+    timing term's question, above)."""
     if not lat.enabled:  # neither estimated nor monitored: there will never be evidence
         return True
     if lat.fixed:
         return False
     return lat.std_s <= IDENTIFIED_STD_S
+
+
+def at_prior(lat: LatencyEstimator) -> bool:
+    """Whether ``lat`` is estimated and its std is still the prior's, ``PRIOR_STD_S`` (latency.py
+    never lets it exceed that): the data have not narrowed the delay at all yet, and a fix may be
+    from anywhere in the receiver's range (the timing window's question, above). A configured
+    prior below ``PRIOR_STD_S`` is never "at the prior" here: the user vouched for a tighter one."""
+    return lat.enabled and not lat.fixed and lat.std_s >= PRIOR_STD_S
 
 
 def unconfirmed_std(delay_s: float, max_delay_s: float) -> float:
