@@ -41,6 +41,7 @@ MODULES = (
     "ecu_daemon/estimator/gyro_scale_gate.py",  # GyroScaleGate.step: every GSC_EVERY steps until confirmed
     "ecu_daemon/estimator/wheel_yaw_check.py",  # WheelYawCheck: every step until the wheels are confirmed
     "ecu_daemon/estimator/wheel_launch_check.py",  # WheelLaunchCheck: likewise
+    "ecu_daemon/estimator/line_fit.py",  # LineFit: the gyro-scale gate's and the wheel-yaw check's fits
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",

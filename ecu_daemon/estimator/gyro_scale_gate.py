@@ -51,6 +51,8 @@ from __future__ import annotations
 
 import math
 
+from .line_fit import LineFit
+
 GSC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds and IMU at 50-100 Hz, noise correlated
 GSC_MIN_SPEED = 3.0  # m/s: below, the wheels' quantisation and ay / vx's division by a small speed
 GSC_QUIET = 0.03  # rad/s (1.7 deg/s): a straight's gyro noise and residual bias; a 57x bias is 0.5
@@ -66,40 +68,22 @@ GSC_A_MAX = 12.0  # m/s^2: no tyre holds more (1.2 g), so |r| <= this / vx at sp
 GSC_MAX_AX = 3.0  # m/s^2: beyond, wheel spin or ABS braking moves the two rear wheels apart
 
 
-class _Fit:
-    """Least squares ``d = k a + c b``: ``a`` what the witness reads for the gyro's rate, ``b`` the
-    offset's regressor, ``c`` held by a prior (``c_sd``): a steady circle (``a`` and ``b`` in
-    proportion) then bounds ``k`` by the offset the prior allows (c_sd b / a), instead of nothing."""
+class _Fit(LineFit):
+    """Least squares ``d = k a + c b`` (``line_fit.LineFit``): ``a`` what the witness reads for the
+    gyro's rate, ``b`` the offset's regressor, ``c`` held by a prior (``c_sd``): a steady circle
+    (``a`` and ``b`` in proportion) then bounds ``k`` by the offset the prior allows (c_sd b / a),
+    instead of nothing. ``k`` and its std are updated from the fifth sample on."""
 
     def __init__(self, c_sd: float, floor: float):
-        self.lam = (floor / c_sd) ** 2  # the prior's weight in the normal equations, noise at the floor
-        self.floor2 = floor * floor
-        self.saa = self.sab = self.sbb = self.sad = self.sbd = self.sdd = 0.0
-        self.n = 0
-        self.k = math.nan
+        LineFit.__init__(self, (floor / c_sd) ** 2)  # the prior's weight, noise at the floor
+        self.floor = floor
         self.k_std = math.inf
 
-    def add(self, a: float, b: float, d: float) -> None:
-        self.saa += a * a
-        self.sab += a * b
-        self.sbb += b * b
-        self.sad += a * d
-        self.sbd += b * d
-        self.sdd += d * d
-        self.n += 1
-        if self.n < 5:
+    def observe(self, a: float, b: float, d: float) -> None:
+        self.add(a, b, d)
+        if self.n < 5 or not self.solve():
             return
-        sbb = self.sbb + self.lam
-        det = self.saa * sbb - self.sab * self.sab
-        if not det > 0.0:
-            return
-        k = (self.sad * sbb - self.sbd * self.sab) / det
-        c = (self.sbd * self.saa - self.sad * self.sab) / det
-        rss = max(self.sdd - 2.0 * (k * self.sad + c * self.sbd)
-                  + k * k * self.saa + 2.0 * k * c * self.sab + c * c * self.sbb, 0.0)
-        var = max(rss / (self.n - 1), self.floor2)
-        self.k = k
-        self.k_std = math.sqrt(var * sbb / det)
+        self.k_std = math.sqrt(self.k_var(self.residual_var(self.floor)))
 
     def agrees(self) -> bool:
         return abs(self.k - 1.0) <= GSC_AGREE and self.k_std <= GSC_MAX_STD
@@ -168,9 +152,9 @@ class GyroScaleGate:
         if s < GSC_MIN_SPEED:
             return False
         if ww == ww and v >= GSC_MIN_SPEED and vx > 0.0 and abs(ax) <= GSC_MAX_AX:  # forward: wheel speeds may be unsigned
-            self.wheels.add(g_raw * self.track, v, rr - rl)
+            self.wheels.observe(g_raw * self.track, v, rr - rl)
         if ay == ay:
-            self.lateral.add(g_raw * vx, 1.0, ay)
+            self.lateral.observe(g_raw * vx, 1.0, ay)
         fits = [f for f in (self.wheels, self.lateral) if f.k_std < math.inf]
         if any(f.agrees() for f in fits):
             self.confirmed = True

@@ -34,6 +34,8 @@ from __future__ import annotations
 
 import math
 
+from .line_fit import LineFit
+
 LON2_WINDOW_S = 2.0  # long enough for a gentle acceleration to show a 3.6x scale (1 m/s^2: 7 m/s vs 2)
 LON2_EVERY = 10  # steps between samples of the window's ring (60 ms): the check is slow by design
 LON2_TOL_MPS = 1.0  # accelerometer bias error (0.2 m/s^2) and grade change over the window
@@ -403,15 +405,22 @@ class WheelScaleSeed:
         if below < KWS_FIT_MIN_SIDE or n - below < KWS_FIT_MIN_SIDE:
             return
         wm = sum(f[2] for f in self.fit) / n
-        sxx = sum((f[1] - gm) ** 2 for f in self.fit)
-        sxy = sum((f[1] - gm) * (f[2] - wm) for f in self.fit)
-        slope = sxy / sxx
-        o = wm - slope * gm
-        res = math.sqrt(sum((f[2] - o - slope * f[1]) ** 2 for f in self.fit) / max(n - 2, 1))
+        # raw - wm = slope (g - gm) + c, centred as the fit was before line_fit.py (speeds near
+        # 30 m/s a few m/s apart: uncentred sums lose digits to cancellation); rebuilt from the
+        # window each time (it forgets the fixes that leave it)
+        fit = LineFit()
+        for f in self.fit:
+            fit.add(f[1] - gm, 1.0, f[2] - wm)
+        if not fit.solve():
+            return
+        slope = fit.k
+        o = wm + fit.c - slope * gm  # the offset at g = 0
+        var = fit.residual_var()
+        o_var = fit.c_var(var) + gm * gm * fit.k_var(var) - 2.0 * gm * fit.kc_cov(var)
         # fixes ~1 s apart are independent (as the seed's window): the std from that many
         n_ind = max(2.0, min(n, self.fit[-1][0] - self.fit[0][0]))
         # ... and what no averaging removes (KWS_STD_FLOOR of the ratio, at the mean speed)
-        o_std = math.hypot(res * math.sqrt(n / n_ind) * math.sqrt(1.0 / n + gm * gm / sxx), KWS_STD_FLOOR * gm)
+        o_std = math.hypot(math.sqrt(max(o_var, 0.0) * n / n_ind), KWS_STD_FLOOR * gm)
         self.offset, self.offset_std, self.offset_slope = o, o_std, slope
         if abs(o) > max(KWS_OFFSET_MPS, KWS_OFFSET_SIGMAS * o_std):
             self.offset_found = True

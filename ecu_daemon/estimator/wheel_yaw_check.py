@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import math
 
+from .line_fit import LineFit
+
 WYC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds at 50-100 Hz, their noise correlated
 WYC_MIN_SPEED = 3.0  # m/s, mean rear wheel speed: below, the wheels' quantisation and the ABS's 0 rule
 WYC_MIN_R = 0.05  # rad/s (3 deg/s): a sample counts as turning from here (the gyro bias is < 0.01)
@@ -52,14 +54,18 @@ class WheelYawCheck:
 
     def __init__(self, track_m: float):
         self.track = track_m
-        # sums of the normal equations: regressors a = r T, b = v; target d = v_rr - v_rl
-        self._saa = self._sab = self._sbb = self._sad = self._sbd = self._sdd = 0.0
-        self.n = 0
+        # regressors a = r T, b = v; target d = v_rr - v_rl; no prior on c (straights measure it)
+        self.fit = LineFit()
         self.turn = 0.0  # rad of heading change over the turning samples
         self.scale = math.nan  # s, the wheels' scale as the gyro sees it
         self.scale_std = math.inf
         self.offset = math.nan  # c, the rear tyres' relative radius difference
         self.confirmed = False
+
+    @property
+    def n(self) -> int:
+        """The samples the fit has taken."""
+        return self.fit.n
 
     def step(self, rl: float, rr: float, r: float, ax: float, dt: float) -> bool:
         """One sample every ``WYC_EVERY`` steps: ``rl``, ``rr`` the rear wheel speeds as mapped
@@ -71,29 +77,17 @@ class WheelYawCheck:
         v = 0.5 * (rl + rr)
         if not (v == v and r == r and ax == ax) or abs(v) < WYC_MIN_SPEED or abs(ax) > WYC_MAX_AX:
             return False
-        a = r * self.track
-        d = rr - rl
-        self._saa += a * a
-        self._sab += a * v
-        self._sbb += v * v
-        self._sad += a * d
-        self._sbd += v * d
-        self._sdd += d * d
-        self.n += 1
+        fit = self.fit
+        fit.add(r * self.track, v, rr - rl)
         if abs(r) >= WYC_MIN_R:
             self.turn += abs(r) * dt
-        if self.turn < WYC_MIN_TURN_RAD or self.n < 3:
+        if self.turn < WYC_MIN_TURN_RAD or fit.n < 3:
             return False
-        det = self._saa * self._sbb - self._sab * self._sab
-        if not det > 1e-12 * self._saa * self._sbb:
+        if not fit.solve(1e-12):
             return False  # r T and v proportional: a steady circle tells s from c apart by nothing
-        s = (self._sad * self._sbb - self._sbd * self._sab) / det
-        c = (self._sbd * self._saa - self._sad * self._sab) / det
-        # residual sum of squares from the sums: d'd - beta' X'd
-        rss = max(self._sdd - s * self._sad - c * self._sbd, 0.0)
-        var = max(rss / (self.n - 2), WYC_NOISE_FLOOR * WYC_NOISE_FLOOR)
-        self.scale, self.offset = s, c
-        self.scale_std = math.sqrt(var * self._sbb / det)
+        s = fit.k
+        self.scale, self.offset = s, fit.c
+        self.scale_std = math.sqrt(fit.k_var(fit.residual_var(WYC_NOISE_FLOOR)))
         if abs(s - 1.0) <= WYC_AGREE and self.scale_std <= WYC_MAX_STD:
             self.confirmed = True
         return self.confirmed
