@@ -2,11 +2,14 @@
 """What sideslip, its reported std and its validity do around a GNSS outage (issue 7, avail-b).
 
 Reads a suite case's ``estimate.csv`` and ``truth.csv`` (``ecu-daemon evaluate --suite --out DIR``
-writes both under ``DIR/CASE/``) and prints, per window of ``--window`` seconds above 5 m/s: the
-share of rows flagged valid, the sideslip error's RMS and max, the reported std's median, the
-share of rows within 3 reported sigma, how many invalid rows had |error| < 3 std and std above the
-validity threshold, and the status bits that explain the rest (GNSS fresh, model fallback). The
-outage is the longest stretch without a fused GNSS fix (the cumulative count standing still).
+writes both under ``DIR/CASE/``) and prints, for the rows above 5 m/s of each phase (before, during,
+0-10 s after, later) and of each ``--window`` seconds: the share flagged valid, the sideslip
+error's RMS and max, the reported std's median and max, the share within 3 reported sigma, the 99th
+percentile of |error| / std, the share invalid with the std above the validity threshold and
+invalid for another rule (and of the invalid, how many were under 0.5 deg off), the share with
+velocity invalid; then every run of invalid rows (|ay|, worst error, median std) and the first valid
+row after the outage. The outage is the longest stretch without a fused GNSS fix (the cumulative
+count standing still).
 
     python3 tools/outage_probe.py /tmp/suite/gnss_outage_30s [--window 2]
     python3 tools/outage_probe.py /tmp/suite/gnss_outage_30s --summary   # one line per phase
@@ -23,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-SIDESLIP_STD_VALID = math.radians(2.0) / 3.0  # core.SIDESLIP_STD_VALID
+from ecu_daemon.estimator.core import SIDESLIP_STD_VALID
 DEG = 180.0 / math.pi
 
 
