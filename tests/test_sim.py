@@ -103,6 +103,33 @@ def test_low_friction_caps_lateral_acceleration_near_03_g_without_spinning():
     assert tr.spin_time is None
 
 
+def test_friction_falling_mid_drive_caps_the_lateral_force_from_then_on():
+    """Rain on a dry road (``Road.mu_change``): the same steady steer holds ~0.6 g on the dry
+    road and falls to the wet road's cap from the change on; the tyres' stiffness is the same, so
+    the first seconds are identical to the dry drive (the trap for an outage: the stiffness learned
+    on dry still looks right at small slip)."""
+    p = VehicleParams()
+    man = _constant(16.0, 120.0, duration=8.0)
+    dry = integrate(p, Road(1.0, 0.0), mn.Driver(man, p, 1.0, 0.0), 0.0, man.duration_s, v0=16.0)
+    wet = integrate(p, Road(1.0, 0.0, mu_change=(4.0, 0.4)), mn.Driver(man, p, 1.0, 0.0), 0.0,
+                    man.duration_s, v0=16.0)
+    t = wet.col("t")
+    before, after = t < 4.0, t >= 5.0
+    np.testing.assert_array_equal(wet.col("ay")[before], dry.col("ay")[before])
+    assert np.abs(dry.col("ay")[after]).min() >= 0.5 * G
+    assert np.abs(wet.col("ay")[after]).max() <= 0.4 * G * 1.01
+
+
+def test_scenario_friction_change_is_in_the_truth():
+    """``Scenario.mu_change`` (seconds from the drive's start) reaches the simulator and the truth's
+    ``mu`` column, so a scored drive says which road each row was on."""
+    sc = SCENARIOS["straight_dry"].with_(name="rain", mu_change=(5.0, 0.6), duration_s=8.0)
+    truth = simulate(sc).truth_table()
+    t = truth["t"] - truth["t"][0]
+    assert set(truth["mu"][t < 4.99]) == {1.0}
+    assert set(truth["mu"][t > 5.01]) == {0.6}
+
+
 @pytest.mark.parametrize("name", ["sine_mu03", "dlc_mu03"])
 def test_low_friction_scenarios_stay_controllable(name):
     sc = SCENARIOS[name]

@@ -91,7 +91,8 @@ class SimResult:
             "gnss_delay_s": const(gp.latency_s),
             "bank_rad": const(bank) if np.ndim(bank) == 0 else bank,
             "grade_rad": const(grade) if np.ndim(grade) == 0 else grade,
-            "mu": const(sc.mu),
+            "mu": const(sc.mu) if tr.road.mu_change is None else np.where(t >= tr.road.mu_change[0],
+                                                                          tr.road.mu_change[1], sc.mu),
             "speed_mps": np.hypot(vx, vy),
             "vel_n_mps": vx * cps + vy * sps,
             "vel_e_mps": vx * sps - vy * cps,
@@ -201,7 +202,8 @@ def simulate(scenario: Scenario, config: Config | None = None) -> SimResult:
     scenario = with_mapped_sensors(scenario, cfg)
     man = scenario.build_manoeuvre()
     duration = scenario.duration()
-    road = Road(scenario.mu, scenario.bank_rad, scenario.grade_rad, man.road)
+    mu_change = None if scenario.mu_change is None else (T0 + scenario.mu_change[0], scenario.mu_change[1])
+    road = Road(scenario.mu, scenario.bank_rad, scenario.grade_rad, man.road, mu_change)
     driver = Driver(man, scenario.vehicle, scenario.mu, T0, scenario.grade_rad)
     v0 = man.speed(0.0)[0]
     vy0 = r0 = steer0 = 0.0

@@ -28,6 +28,9 @@ class Scenario:
     name: str
     manoeuvre: str  # key of manoeuvres.BUILDERS
     mu: float = 1.0
+    #: ``(t_s, mu)``: the friction becomes ``mu`` ``t_s`` after the drive's start (rain on a dry
+    #: road); the driver keeps the plan it made for ``mu`` (None: ``mu`` throughout)
+    mu_change: tuple | None = None
     bank_rad: float = 0.0
     grade_rad: float = 0.0
     vehicle: VehicleParams = field(default_factory=VehicleParams)

@@ -109,6 +109,9 @@ class Road:
     #: a :class:`~ecu_daemon.sim.road.RoadProfile`: bank and grade follow the distance travelled
     #: (``bank_rad`` / ``grade_rad`` are then ignored)
     profile: object = None
+    #: ``(t, mu)``: from the absolute time ``t`` on the friction is ``mu`` (rain starting on a dry
+    #: road: the tyres' cornering stiffness stays, their peak force falls); None: ``mu`` throughout
+    mu_change: tuple | None = None
 
 
 class VehicleState(NamedTuple):
@@ -203,6 +206,7 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
     tf, tr = p.tyre_front, p.tyre_rear
     forces = tyre_mod.forces
     mu = road.mu
+    t_mu, mu_new = road.mu_change if road.mu_change is not None else (math.inf, mu)
     prof = road.profile
     bank, grade = (road.bank_rad, road.grade_rad) if prof is None else (float(prof.bank_at(0.0)),
                                                                        float(prof.grade_at(0.0)))
@@ -243,6 +247,8 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
     rate_limit = math.radians(1000.0) * dt  # steering-wheel rate limit per step (driver + EPS)
     for i in range(n):
         t = t0 + i * dt
+        if t >= t_mu:
+            mu = mu_new
         if prof is not None:  # the road under the car now: gravity's components and the normal load
             j = min(int(dist * 10.0), _nmax)
             bank, grade = _bank[j], _grade[j]

@@ -79,6 +79,7 @@ def scenario_summary(result: SimResult) -> dict:
         "description": sc.description,
         "manoeuvre": sc.manoeuvre,
         "mu": sc.mu,
+        "mu_change": None if sc.mu_change is None else list(sc.mu_change),
         "bank_rad": sc.bank_rad,
         "grade_rad": sc.grade_rad,
         "seed": sc.seed,
