@@ -45,7 +45,7 @@ from .estimate import (STATUS_GNSS_FRESH, STATUS_GNSS_HEADING, STATUS_GNSS_REJEC
 from .fault_detection import ACCEL_X, ACCEL_Y, LAT_WINDOW_S, LEARNED_BOUNDS, WHEELS, YAW_RATE, FaultDetector
 from .fusion.gnss_heading import REALIGN_REJECTS, STAGGER_S, GnssHeadingFusion
 from .fusion.magnetometer import STATE_LEARNING as MAG_LEARNING, MagnetometerFusion
-from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
+from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, align_speed_ok, MAX_CONSECUTIVE_REJECTS, GnssVelocityFusion
 from .fusion.single_track import LaggedModelInputs, SingleTrackFusion, std_keys as stiffness_std_keys
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
@@ -1426,7 +1426,7 @@ class Estimator:
             if not agree:
                 fus.rejected += 1
                 fus.last_reason = "speed disagrees with the wheels"
-            if ok and speed >= ALIGN_SPEED and g.course_known:
+            if ok and g.course_known and align_speed_ok(speed, h.X[h.slot(s), VX]):
                 self._align(s, g, fus, lat)
         else:
             cons = self._consider(g.source, lat)

@@ -28,7 +28,20 @@ from ..history import AUX_AX, AUX_AY, AUX_R, AUX_RDOT, StepHistory
 from ..kinematic import NX, PSI, VX
 from ..latency_consider import LatencyConsider, antenna_acceleration_ned
 
-ALIGN_SPEED = 5.0  # m/s: course is good to ~ sigma_v / v rad
+ALIGN_SPEED = 5.0  # m/s: the heading is aligned from a course at this speed or more; course is good to ~ sigma_v / v rad
+# m/s: driving forwards (the filter's vx), already from this speed (core.Estimator._align). The
+# alignment's variance carries the course's sigma_v / v, so a slow course aligns with the std it
+# deserves and later fixes tighten it. 3 m/s, the speed above which sideslip may be promised at all
+# (core.MIN_SPEED_SIDESLIP): a low-speed handling drive (launch to 5 m/s, then straight into a 10 m
+# circle) aligned only inside the circle, where one course is heading + sideslip + yaw rate x the
+# latency's error (0.5 rad/s x 0.15 s = 4.3 deg before the latency is known), and the heading stayed
+# invalid for the whole circle (lowspeed_r10: 42 s after the first fix above 5 m/s). From the
+# launch's straight (r ~ 0: no latency term, sideslip ~ 0) at 3-5 m/s it is valid before the
+# turn-in. Forwards only: reversing (a gentle curve at 4 m/s), where the single-track sideslip does
+# not hold, a re-alignment after a yaw-rate sign mistake put the heading 15-18 deg off with a 1.4 deg
+# std for 8 s (tools/probe_wrong_config.py reversing yaw_sign: 649 -> 2081 heading rows beyond 3 sigma).
+FORWARD_ALIGN_SPEED = 3.0
+
 MAX_CONSECUTIVE_REJECTS = 10
 # A latency error is the same for every fix of a manoeuvre (~5 s of acceleration at 5 Hz), so its
 # speed error ax * dd is a bias over that many fixes, not noise: weighted as one measurement per
@@ -37,6 +50,12 @@ MAX_CONSECUTIVE_REJECTS = 10
 TIMING_FIXES = 25.0
 # chi-square, 2 degrees of freedom, for a gate of n sigma: exp(-g/2) = tail(n sigma, 1-D)
 CHI2_2DOF = {3.0: 11.8, 4.0: 19.3, 5.0: 28.7, 6.0: 40.0}
+
+
+def align_speed_ok(speed: float, vx: float) -> bool:
+    """Whether a course at GNSS speed ``speed`` (m/s) may align the heading, the filter's vx being
+    ``vx``: ``ALIGN_SPEED`` either way, ``FORWARD_ALIGN_SPEED`` driving forwards."""
+    return speed >= ALIGN_SPEED or (speed >= FORWARD_ALIGN_SPEED and vx >= FORWARD_ALIGN_SPEED)
 
 
 #: a GNSS speed above this (m/s) is a receiver fault, not a car: rejected and reported to the FDI
