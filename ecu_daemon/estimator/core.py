@@ -1275,7 +1275,7 @@ class Estimator:
             and not self.lat_scale.failing and wsc.confirmed
             and (iso & YAW_RATE != 0 or self.gyro_gate.sideslip_ok()),
             imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and not self.axis_swap.swapped and self.gyro_gate.motion_ok()
+            and not self.axis_swap.swapped and self.gyro_gate.heading_ok()
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
             vel_valid and vx_std <= VX_STD_VALID,  # promised only what the frame can carry
