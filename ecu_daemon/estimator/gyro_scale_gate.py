@@ -40,7 +40,12 @@ flying straights, with an unlearned 0.5 deg/s bias) is not exercise; a 57x gyro'
 reading of the first steering correction, is; so is a gyro read 57x too small in a turn. While the
 gyro is isolated the sideslip rests on the wheels' yaw rate (fault_detection.py), not on it. The first sample beyond it, before confirmation, withholds the promise until a witness
 confirms (a right gyro: within the first lane change); a contradicted scale withholds it for good
-(and the heading, which integrates the same gyro). Velocity and heading are also not promised on
+(and the heading, which integrates the same gyro). The heading follows the same rule
+(:meth:`heading_ok`): where nothing else holds it (reversing below the course's speed) a flipped
+gyro turns it by twice the car's rotation before 3 m/s lets the witnesses speak. The rear wheels
+witness in both directions: ``(|v_rr| - |v_rl|) sign(vx)`` is ``r T`` for signed and unsigned
+wheel speeds alike (switched off at ``vx < 0`` before, the reversing drive had ay alone, which
+never contradicts). Velocity and heading are also not promised on
 a sample whose gyro reads a yaw rate no car makes at its speed (``GSC_R_MIN``'s circle below
 ``vx = sqrt(GSC_A_MAX GSC_R_MIN)``, ``GSC_A_MAX`` of friction above): a 57x gyro's bias at a
 launch (0.5 rad/s at 0.3 m/s) or its reading in a 150 m corner at 30 m/s (11 rad/s), where vx's
