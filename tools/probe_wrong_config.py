@@ -10,7 +10,10 @@ while valid``; each run's folder (``DRIVE/probe/MISTAKE``) keeps the config, the
 
     python3 tools/probe_wrong_config.py ROOT dlc_dry,lowspeed_r15 [steer_sign,ax_ay_swapped]
 
-(ROOT holds the drive folders; the mistakes default to all; two replays at a time.)
+(ROOT holds the drive folders; the mistakes default to all; two replays at a time.) The replays run
+with ``python -P`` so they use the package of the interpreter that runs this script (its venv), the
+same one this script imports, never an ``ecu_daemon`` folder that happens to be in the working
+directory (run from another checkout, ``-m`` would import that tree and measure the wrong code).
 """
 import copy, json, math, subprocess, sys, tomllib, os
 from concurrent.futures import ThreadPoolExecutor
@@ -85,7 +88,7 @@ def run(drive: Path, mistake: str):
     data = tomllib.loads((drive / "config.toml").read_text())
     MISTAKES[mistake](data)
     (out / "config.toml").write_text(tomli_w.dumps(data))
-    r = subprocess.run([PY, "-m", "ecu_daemon", "replay", "--config", str(out / "config.toml"),
+    r = subprocess.run([PY, "-P", "-m", "ecu_daemon", "replay", "--config", str(out / "config.toml"),
                         "--can", str(drive / "drive.log"), "--gnss", str(drive / "drive_gnss.log"),
                         "--out-csv", str(out / "est.csv"), "--no-progress", "--log-level", "info"],
                        capture_output=True, text=True)
