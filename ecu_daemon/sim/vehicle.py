@@ -29,6 +29,13 @@ implicitly; body states use the forces of the current step. This is unconditiona
 the wheels and needs one force evaluation per step (fast in plain Python). Deterministic: no
 randomness here at all.
 
+Tyre relaxation (``TyreParams.relaxation_length_m`` > 0 on an axle): each of its tyres
+produces its force from a lagged lateral slip (:func:`~ecu_daemon.sim.tyre.relax_step`, a
+lag of sigma / v), one more state per wheel. It starts equal to the kinematic slip (a flying start
+is in equilibrium) and is zero while latched at standstill. The truth columns ``alpha_f`` /
+``alpha_r`` stay the kinematic slip angles (the wheel's velocity direction), not the lagged
+ones. With 0 (the default) none of this runs and the model is the instant-tyre one, bit for bit.
+
 Standstill: a stopped car held by the brakes is *latched* (all speeds exactly 0) while the driver
 holds it; this avoids sub-mm/s creep of a regularised slip model on a bank.
 """
@@ -205,6 +212,10 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
     R, iw = p.wheel_radius_m, p.wheel_inertia_kgm2
     tf, tr = p.tyre_front, p.tyre_rear
     forces = tyre_mod.forces
+    relax_step = tyre_mod.relax_step
+    sig_f, sig_r = tf.relaxation_length_m, tr.relaxation_length_m
+    relax = sig_f > 0.0 or sig_r > 0.0
+    ta_lag = [None] * 4  # relaxed tan(alpha) per wheel (None: not yet started, take the kinematic)
     mu = road.mu
     t_mu, mu_new = road.mu_change if road.mu_change is not None else (math.inf, mu)
     prof = road.profile
@@ -278,6 +289,8 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
             fx_s, fy_s = -gx, -gy
             ax = ay = dvx = dvy = dr_ = 0.0
             alpha_f = alpha_r = 0.0
+            if relax:
+                ta_lag = [0.0] * 4
         else:
             latched = False
             # Ackermann: the inner wheel steers more; left is inner when delta > 0
@@ -306,12 +319,19 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
                 vd = avl if avl > v_eps else v_eps
                 kappa = (om[w] * R - vl) / vd
                 ta = -vt / vd
+                tf_ = ta  # the slip the tyre's force follows
+                if relax:
+                    sig = sig_f if w < 2 else sig_r
+                    if sig > 0.0:
+                        tl = ta_lag[w]
+                        tf_ = ta if tl is None else tl  # the force of the deflection now
+                        ta_lag[w] = relax_step(tf_, ta, vd, sig, dt)
                 if w < 2:
-                    fxw, fyw = forces(tf, fz[w], mu, kappa, ta)
+                    fxw, fyw = forces(tf, fz[w], mu, kappa, tf_)
                     alpha_f += 0.5 * math.atan(ta)
                     kx = tf.kx1 * fz[w]
                 else:
-                    fxw, fyw = forces(tr, fz[w], mu, kappa, ta)
+                    fxw, fyw = forces(tr, fz[w], mu, kappa, tf_)
                     alpha_r += 0.5 * math.atan(ta)
                     kx = tr.kx1 * fz[w]
                 kap[w] = kappa
