@@ -317,9 +317,12 @@ def straight(mu: float = 1.0) -> Manoeuvre:
     return Manoeuvre("straight", tuple(knots), (Phase(1e9, Wander()),), 70.0)
 
 
-def j_turn(mu: float = 1.0) -> Manoeuvre:
-    """Step steer left, recover, step steer right, at constant speed (ISO 7401-like), 45 s."""
-    v, amp = (14.0, math.radians(45.0)) if _low(mu) else (22.0, math.radians(75.0))
+def j_turn(mu: float = 1.0, v: float | None = None) -> Manoeuvre:
+    """Step steer left, recover, step steer right, at constant speed (ISO 7401-like), 45 s.
+
+    ``v``: another speed (m/s) with the same steering (None: 14 m/s on low friction, else 22)."""
+    v_def, amp = (14.0, math.radians(45.0)) if _low(mu) else (22.0, math.radians(75.0))
+    v = v_def if v is None else v
     jl = OpenLoop("jturn", amp, hold_s=4.0)
     jr = OpenLoop("jturn", -amp, hold_s=4.0)
     ramp = abs(amp) / jl.rate_radps
@@ -329,20 +332,26 @@ def j_turn(mu: float = 1.0) -> Manoeuvre:
     return Manoeuvre("j_turn", tuple(_start(v)), phases, 45.0)
 
 
-def double_lane_change(mu: float = 1.0) -> Manoeuvre:
-    """Two ISO 3888-1-like lane changes (left, then right) with straights between, 50 s."""
-    v = 12.5 if _low(mu) else 22.0
+def double_lane_change(mu: float = 1.0, v: float | None = None) -> Manoeuvre:
+    """Two ISO 3888-1-like lane changes (left, then right) with straights between, 50 s.
+
+    ``v``: another speed (m/s) (None: 12.5 m/s on low friction, else 22)."""
+    v = (12.5 if _low(mu) else 22.0) if v is None else v
     phases = (Phase(STANDSTILL_S + ACCEL_S + 5.0, Line()), Phase(10.0, LaneChange(3.5)),
               Phase(6.0, Line()), Phase(10.0, LaneChange(-3.5)), Phase(1e9, Line()))
     return Manoeuvre("double_lane_change", tuple(_start(v)), phases, 50.0)
 
 
-def slalom(mu: float = 1.0) -> Manoeuvre:
-    """Open-loop sinusoidal steering (8 cycles) at constant speed, 45 s."""
+def slalom(mu: float = 1.0, v: float | None = None, amp_deg: float | None = None) -> Manoeuvre:
+    """Open-loop sinusoidal steering (8 cycles) at constant speed, 45 s.
+
+    ``v`` / ``amp_deg``: another speed (m/s) / steering-wheel amplitude (deg) at the same frequency
+    (None: the surface's defaults below)."""
     if _low(mu):
-        v, sl = 13.0, OpenLoop("slalom", math.radians(55.0), freq_hz=0.4, cycles=6)
+        v_def, sl = 13.0, OpenLoop("slalom", math.radians(55.0 if amp_deg is None else amp_deg), freq_hz=0.4, cycles=6)
     else:
-        v, sl = 18.0, OpenLoop("slalom", math.radians(60.0), freq_hz=0.5, cycles=8)
+        v_def, sl = 18.0, OpenLoop("slalom", math.radians(60.0 if amp_deg is None else amp_deg), freq_hz=0.5, cycles=8)
+    v = v_def if v is None else v
     phases = (Phase(STANDSTILL_S + ACCEL_S + 5.0, Line()), Phase(sl.cycles / sl.freq_hz, sl),
               Phase(1e9, Line()))
     return Manoeuvre("slalom", tuple(_start(v)), phases, 45.0)

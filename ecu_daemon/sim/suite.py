@@ -6,15 +6,18 @@ apply. ``ecu-daemon evaluate --suite`` (:mod:`ecu_daemon.suite`) runs them. The 
 issue 7: flying starts, a restart mid-drive, reversing, GNSS outage / rate / latency / faults,
 road bank and grade, low friction, wrong vehicle parameters in the config, a sign-magnitude DBC,
 faults on every CAN input, and low-speed handling; and from issue 11, a dual-antenna receiver,
-two receivers and a magnetometer with magnetic disturbances.
+two receivers and a magnetometer with magnetic disturbances; and tyre relaxation (a car whose
+tyres build their lateral force over 0.5 m of rolling, which the estimator's single-track model
+does not know).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .scenario import GNSS_SETUPS, SCENARIOS, Scenario
 from .sensors import CAN_FAULT_KINDS, Fault, MagEvent, MagParams
+from .vehicle import VehicleParams
 
 
 @dataclass(frozen=True)
@@ -286,9 +289,40 @@ def _wheel_lag() -> list[SuiteCase]:
     return out
 
 
+#: the ``relaxation`` family's tyre relaxation length (m), both axles: mid-range of a car tyre
+RELAXATION_LENGTH_M = 0.5
+
+
+def relaxed_vehicle(sigma_m: float = RELAXATION_LENGTH_M, base: VehicleParams | None = None) -> VehicleParams:
+    """``base`` (default car) with both axles' tyres relaxing over ``sigma_m``."""
+    vp = base or VehicleParams()
+    return replace(vp, tyre_front=replace(vp.tyre_front, relaxation_length_m=sigma_m),
+                   tyre_rear=replace(vp.tyre_rear, relaxation_length_m=sigma_m))
+
+
+def _relaxation() -> list[SuiteCase]:
+    """Tyres with a relaxation length of :data:`RELAXATION_LENGTH_M` (their lateral force lags the
+    slip by sigma / v: 0.06 s at 8 m/s, 0.03 s at 18 m/s) in transient drives at low speed, where
+    the lag is largest against the manoeuvre's period, and one at speed. The estimator's
+    single-track model assumes instant tyre forces: these rows ask whether its sideslip stays
+    honest when the car it models is not the one it was scored against."""
+    vp = relaxed_vehicle()
+    out = []
+    for name, kind, params, low in (
+            ("relax_lowspeed_r10", "low_speed", (("radius_m", 10.0), ("v_max", 8.0)), True),  # circle + 90 deg slalom
+            ("relax_slalom_8", "slalom", (("v", 8.0), ("amp_deg", 120.0)), False),  # 0.5 Hz, ~3.5 m/s^2
+            ("relax_dlc_10", "double_lane_change", (("v", 10.0),), False),
+            ("relax_jturn_12", "j_turn", (("v", 12.0),), False),  # step steer 75 deg at 400 deg/s
+            ("relax_slalom_18", "slalom", (), False)):  # the dry slalom at speed
+        desc = f"{kind} {dict(params)}; tyres relax over {RELAXATION_LENGTH_M:g} m"
+        sc = Scenario(name, kind, vehicle=vp, params=params, description=desc)
+        out.append(SuiteCase(name, "relaxation", sc, low_speed=low))
+    return out
+
+
 def build_suite() -> list[SuiteCase]:
     return (_flying() + _conditions() + _sensor_faults() + _low_speed() + _road_profile() + _dual_antenna() + _two_receivers()
-            + _magnetometer() + _imu() + _gyro_scale() + _wheel_lag())
+            + _magnetometer() + _imu() + _gyro_scale() + _wheel_lag() + _relaxation())
 
 
 SUITE: list[SuiteCase] = build_suite()
