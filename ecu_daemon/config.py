@@ -148,6 +148,9 @@ class VehicleSettings:
     cornering_stiffness_front_n_per_rad: float = 100000.0
     cornering_stiffness_rear_n_per_rad: float = 120000.0
     cg_height_m: float = 0.55
+    #: the tyres' lateral relaxation length (m): their force lags the slip by this distance rolled.
+    #: 0 (default): the single-track model takes tyre forces as instant (see estimator/fusion/single_track.py)
+    tyre_relaxation_length_m: float = 0.0
     driven_axle: str = "front"  # front | rear | all (wheel slip: which wheels to trust for speed)
 
 
@@ -356,6 +359,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("vehicle", "cornering_stiffness_front_n_per_rad"): (100.0, 10_000_000.0, "N/rad"),
     ("vehicle", "cornering_stiffness_rear_n_per_rad"): (100.0, 10_000_000.0, "N/rad"),
     ("vehicle", "cg_height_m"): (0.0, 5.0, "m"),
+    ("vehicle", "tyre_relaxation_length_m"): (0.0, 5.0, "m"),
     ("estimator", "dt_s"): (0.001, 0.1, "s"),
     ("estimator", "gnss_gate_sigma"): (1.0, 1000.0, ""),
     ("estimator", "accel_noise_mps2"): (1e-6, 100.0, "m/s^2/sqrt(Hz)"),

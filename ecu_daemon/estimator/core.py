@@ -356,11 +356,11 @@ class Estimator:
         self.single_track = SingleTrackFusion(
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
-            es.adapt_cornering_stiffness, learned)
+            es.adapt_cornering_stiffness, learned, veh.tyre_relaxation_length_m)
         self.stiffness = StiffnessRegression(
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
-            es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt)
+            es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt, veh.tyre_relaxation_length_m)
         self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
                                  self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
         # the optional baseline elevations (per receiver) and roll-rate gyro of road.py

@@ -138,6 +138,8 @@ def vehicle_config(scenario: Scenario, base: Config | None = None, wrong: bool =
     v.cornering_stiffness_rear_n_per_rad = round(cr * f["cr"], 1)
     v.cg_height_m = vp.cg_height_m
     v.driven_axle = vp.driven_axle
+    if scenario.relaxation_in_config:
+        v.tyre_relaxation_length_m = vp.tyre_front.relaxation_length_m
     if scenario.sensors.magnetometer is not None and not any(n in cfg.inputs for n in MAG_INPUTS):
         cfg.inputs.update(magnetometer_inputs())  # on our chassis DBC's MAGNETOMETER message
     if scenario.sensors.roll_rate and "roll_rate" not in cfg.inputs:

@@ -49,6 +49,9 @@ class Scenario:
     #: the config states the IMU's position and mounting (``sensors.imu_*``); False: it says "at the
     #: CG, on the body axes" whatever the car has (the wrong configuration a user will produce)
     imu_in_config: bool = True
+    #: the config states the tyres' relaxation length (``[vehicle] tyre_relaxation_length_m``, the
+    #: front axle's); False (default): it says 0, instant tyres, what a user who never measured it writes
+    relaxation_in_config: bool = False
 
     def build_manoeuvre(self) -> Manoeuvre:
         return BUILDERS[self.manoeuvre](self.mu, **dict(self.params))

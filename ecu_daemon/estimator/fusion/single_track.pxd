@@ -2,7 +2,7 @@
 # plain Python ignores this file. Instance attributes as object slots: same objects, same bits.
 cdef class SingleTrackFusion:
     cdef dict __dict__
-    cdef public object L, adapt, base_sigma_beta, front, iz_m, lf, lr, mass, rear
+    cdef public object L, adapt, base_sigma_beta, front, iz_f, iz_m, iz_r, lf, lr, mass, rear
 
 # every step (core.Estimator._step)
 cdef class LaggedModelInputs:

@@ -18,6 +18,13 @@ Cornering-stiffness adaptation: kappa = m / C_r is learned by recursive least sq
 GNSS fusion, from the delayed, GNSS-corrected kinematic vy at that step (the best vy we ever have),
 only while the regressor is large (cornering) and the tyres are in their linear range. The same is
 done for the front axle (using the steering angle) to report C_f.
+
+Tyre relaxation (``[vehicle] tyre_relaxation_length_m`` = sigma): a real tyre's force lags its
+kinematic slip by sigma / vx, so the slip is the force's slip sigma / vx *ahead*:
+alpha = (F + (sigma / vx) dF/dt) / C. With dF_yr/dt ~ m lf vx r_dot / L (ay ~ vx r in the linear
+range) the lead is speed-independent, sigma m lf r_dot / L: the rear relation keeps its form with
+the yaw-inertia term Iz/m - sigma lf, the front's with Iz/m + sigma lr (the r-double-dot part,
+(sigma / vx) Iz r_ddot / L, is left out). With sigma = 0 (the default) both are Iz/m.
 """
 from __future__ import annotations
 
@@ -206,12 +213,15 @@ class LaggedModelInputs:
 
 class SingleTrackFusion:
     def __init__(self, mass: float, yaw_inertia: float, lf: float, lr: float, cf: float, cr: float,
-                 adapt: bool, learned: dict | None = None):
+                 adapt: bool, learned: dict | None = None, relaxation_length: float = 0.0):
         learned = learned or {}
         self.lf = lf
         self.lr = lr
         self.L = lf + lr
         self.iz_m = yaw_inertia / mass
+        # the axles' yaw-inertia terms with the tyres' relaxation lead (module doc)
+        self.iz_r = self.iz_m - relaxation_length * lf
+        self.iz_f = self.iz_m + relaxation_length * lr
         self.mass = mass
         self.rear = AxleRls(learned.get("kappa_r", mass / cr), learned.get("kappa_r3"),
                             _restored_std(learned, "kappa_r"))
@@ -223,10 +233,10 @@ class SingleTrackFusion:
         self.base_sigma_beta = math.radians(0.25)
 
     def regressor_rear(self, vx: float, ay: float, rdot: float) -> float:
-        return -vx * (self.lf * ay - self.iz_m * rdot) / self.L
+        return -vx * (self.lf * ay - self.iz_r * rdot) / self.L
 
     def regressor_front(self, vx: float, ay: float, rdot: float) -> float:
-        return -vx * (self.lr * ay + self.iz_m * rdot) / self.L
+        return -vx * (self.lr * ay + self.iz_f * rdot) / self.L
 
     def pseudo_measurement(self, vx: float, r: float, ay: float, rdot: float) -> tuple[float, float]:
         """(vy_model, variance per 6 ms fusion) for the rear-axle relation at this instant.

@@ -247,10 +247,12 @@ class StiffnessRegression:
     """Both axles' filters, fed from the fused GNSS samples and the ring buffer."""
 
     def __init__(self, mass: float, yaw_inertia: float, lf: float, lr: float, cf: float, cr: float,
-                 yaw_rate_noise: float, yaw_rate_bias_walk: float, dt: float):
+                 yaw_rate_noise: float, yaw_rate_bias_walk: float, dt: float, relaxation_length: float = 0.0):
         self.dt = dt
         self.lf, self.lr, self.L = lf, lr, lf + lr
         self.iz_m = yaw_inertia / mass
+        # per axle (rear, front): the yaw-inertia term with the tyres' relaxation lead (single_track.py)
+        self.iz_axle = (self.iz_m - relaxation_length * lf, self.iz_m + relaxation_length * lr)
         self.rear = AxleFilter(mass / cr, 0.0)
         self.front = AxleFilter(mass / cf, STEER_OFFSET_RAD ** 2)
         self.arw = yaw_rate_noise
@@ -292,14 +294,14 @@ class StiffnessRegression:
             return
         n2 = n * n
         delta = float(h.aux[i, AUX_DELTA]) + steer_offset
-        for ax, arm, sign in ((self.rear, self.lf, 1.0), (self.front, self.lr, -1.0)):
+        for ax, arm, sign, iz in ((self.rear, self.lf, 1.0, self.iz_axle[0]), (self.front, self.lr, -1.0, self.iz_axle[1])):
             rel = ax.psi - course
             vax = speed * math.cos(rel)
             if vax < MIN_SPEED or (ax is self.front and not math.isfinite(delta)):
                 continue
             # measured lateral velocity at the CG, as if the sample were placed by tau
             vy = speed * math.sin(rel) - r * lever_x - ay * latency
-            phi = -vx * (arm * ay - sign * self.iz_m * rdot) / self.L
+            phi = -vx * (arm * ay - sign * iz * rdot) / self.L
             z = vy - self.lr * r if ax is self.rear else vy + self.lf * r - vx * delta
             hv = np.array([phi, phi * n2, vax, 0.0, -ay, 0.0 if ax is self.rear else -vx])
             # noise: GNSS, the regressor's own (ay noise), what the two-term tyre law leaves
