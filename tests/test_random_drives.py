@@ -1,0 +1,81 @@
+"""tools/random_drives.py: random drives scored by the suite's own code.
+
+Structure and determinism only, not accuracy: a drive is named by (seed, generator version), so
+the same seed must give a byte-identical Scenario and byte-identical figures (the whole chain,
+simulate -> replay -> evaluate, is deterministic), and two seeds must give different drives.
+The drives are cut to 20 s to keep the test short; what is checked does not depend on length.
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def rd():
+    spec = importlib.util.spec_from_file_location("random_drives", REPO / "tools" / "random_drives.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_draw_is_a_function_of_the_seed_and_stays_in_its_ranges(rd):
+    assert repr(rd.draw(5)) == repr(rd.draw(5))
+    assert repr(rd.draw(5)) != repr(rd.draw(6))
+    for seed in range(200):
+        sc = rd.draw(seed)
+        assert 1.0 <= sc.gnss.rate_hz <= 10.0 and 0.05 <= sc.gnss.latency_s <= 0.8
+        assert 0.2 <= sc.mu <= 1.1
+        assert all(0.7 <= f <= 1.3 for _, f in sc.config_errors)
+        assert sc.vehicle.understeer_gradient() > 0.0  # real cars understeer by design
+        assert sc.build_manoeuvre() is not None  # every drawn parameter set is one its builder takes
+        assert sc.name == f"random_v{rd.GENERATOR_VERSION}_s{seed}"
+    starts = {(sc.manoeuvre, dict(sc.params).get("radius_m", 0.0) > 0) for sc in map(rd.draw, range(200))}
+    assert ("flying", True) in starts and ("flying", False) in starts  # mid-corner and straight flying starts
+
+
+def test_two_seeds_end_to_end_report_structure_and_same_seed_same_bytes(rd, tmp_path):
+    drives, overall = rd.run([1, 2], tmp_path / "a", jobs=1, max_duration_s=20.0)
+    assert [d["seed"] for d in drives] == [1, 2]
+    for d in drives:
+        assert d["error"] is None, d["error"]
+        assert d["scenario"] == repr(rd.replace(rd.draw(d["seed"]), duration_s=20.0))
+        for q in rd.QUANTITIES:
+            f = d["figures"][q]
+            assert set(f) == {"valid_rows", "beyond_3sigma", "beyond_3sigma_pct", "coverage_3sigma",
+                              "worst_error_valid", "valid_fraction", "valid_fraction_above_5mps"}
+            assert 0 <= f["beyond_3sigma"] <= f["valid_rows"]
+        assert d["broken"] == rd.broken(d["figures"])
+    assert overall["drives"] == 2
+    assert set(overall["breaking_seeds"]) == {d["seed"] for d in drives if d["broken"]}
+    for q in rd.QUANTITIES:
+        assert overall[q]["valid_rows"] == sum(d["figures"][q]["valid_rows"] for d in drives)
+        assert overall[q]["beyond_3sigma"] == sum(d["figures"][q]["beyond_3sigma"] for d in drives)
+    text = rd.format_report(drives, overall)
+    assert "seed     1" in text and "seed     2" in text and "overall: 2 drives" in text
+    for d in drives:
+        if d["broken"]:
+            assert d["scenario"] in text  # a failing drive can be rebuilt from the report
+
+    rd.run([2], tmp_path / "b", jobs=1, max_duration_s=20.0)
+    first = json.loads((tmp_path / "a" / "random_drives.json").read_text())
+    again = json.loads((tmp_path / "b" / "random_drives.json").read_text())
+    assert json.dumps(again["drives"][0], sort_keys=True) == json.dumps(first["drives"][1], sort_keys=True)
+    name = drives[1]["name"]
+    assert (tmp_path / "a" / name / "estimate.csv").read_bytes() == (tmp_path / "b" / name / "estimate.csv").read_bytes()
+
+
+def test_a_broken_promise_is_coverage_below_99_percent_or_a_valid_error_beyond_the_limit(rd):
+    ok = {"valid_rows": 100, "beyond_3sigma": 0, "coverage_3sigma": 1.0, "worst_error_valid": 0.0}
+    figures = {q: dict(ok) for q in rd.QUANTITIES}
+    assert rd.broken(figures) == []
+    figures["vx"]["coverage_3sigma"] = 0.98
+    figures["heading"]["worst_error_valid"] = math.radians(5.1)
+    figures["sideslip"].update(valid_rows=0, coverage_3sigma=math.nan, worst_error_valid=math.nan)
+    assert rd.broken(figures) == ["worst-heading", "cov-vx"]

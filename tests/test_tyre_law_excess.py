@@ -1,0 +1,32 @@
+"""An axle beyond its tyre law at a lateral force the law calls linear: the sideslip must not stay valid.
+
+Found by tools/random_drives.py (generator v1 seeds 8, 12, 40, 83, 131, 159): the single-track
+pseudo-measurement normalises the lateral force by g, not by the road's friction, so an axle at its
+combined-slip limit on a low-friction road (braking in a corner after rain, power on a rear-driven
+car on snow) slips degrees beyond the law while the filter, whose vy in a steady corner only the
+model holds (one antenna cannot tell vy from heading), keeps a sideslip std of ~0.5 deg.
+
+Open (strict xfail, measured on ee24b24): the drive below has the sideslip valid 3.7 deg off,
+97.4 % of its valid rows within 3 sigma. A fix tried in randdrive32 (the steering's misfit of the
+understeer relation beyond 3 sigma of both laws widening the pseudo-measurement) passed it but cost
+the suite's mu03_outage_30s its availability and moved random seed 159's lie from sideslip into
+heading (report randdrive32): whoever fixes it sees XPASS here.
+"""
+from __future__ import annotations
+
+import pytest
+
+from ecu_daemon.sim.scenario import Scenario
+from ecu_daemon.sim.suite import SuiteCase
+from ecu_daemon.suite import run_case
+
+
+@pytest.mark.xfail(strict=True, reason="open: sideslip valid 3.7 deg off at ~0.5 deg std (coverage 97.4 %)")
+def test_braking_in_a_corner_after_rain_keeps_the_sideslip_promise(tmp_path):
+    # brake_turn's plan for mu 0.78 (18 -> 8 m/s at 5 m/s^2 in a 60 m circle), the road at 0.4 from
+    # 21.2 s: the front ploughs at 25 deg of slip, the rear slides 5 deg under braking
+    sc = Scenario("brake_turn_rain", "brake_turn", mu=0.78, mu_change=(21.2, 0.4))
+    row = run_case(SuiteCase(sc.name, "random", sc), tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["sideslip_coverage_3sigma"] >= 0.99
+    assert row["sideslip_worst_valid_deg"] <= 2.0
