@@ -624,7 +624,7 @@ class Estimator:
             self._on_heading(s, k)
 
     def _check_wheels_without_gnss(self, k: int, fl: float, fr: float, rl: float, rr: float, ok: bool,
-                                   r: float, ax: float, bax_var: float) -> None:
+                                   r: float, ax: float, bax_var: float, vx: float) -> None:
         """Until a witness has confirmed the wheels' scale: the rear axle's speed difference against
         the gyro (wheel_yaw_check.py, every WYC_EVERY steps) and a launch's wheel speed change
         against the integrated ax (wheel_launch_check.py), each only on raw inputs that are not a
@@ -641,7 +641,7 @@ class Estimator:
                 log.info("wheel speeds' scale confirmed by the accelerometer on a launch: the wheels "
                          "changed %.3fx what ax integrates to", self.wheel_launch.scale)
                 return
-        if k % WYC_EVERY == 0 and self.wheel_yaw.step(rl if ok else nan, rr, r, ax, WYC_EVERY * self.dt):
+        if k % WYC_EVERY == 0 and self.wheel_yaw.step(rl if ok else nan, rr, r, ax, WYC_EVERY * self.dt, vx):
             wy = self.wheel_yaw
             # its measured scale error (the configured track's error in it too) and the fit's std
             wsc.confirm(math.hypot(wy.scale - 1.0, wy.scale_std))
@@ -791,7 +791,7 @@ class Estimator:
         if not self.wheel_scale_check.confirmed:
             self._check_wheels_without_gnss(k, fl, fr, rl, rr, wheels_ok and imu_published
                                             and not iso_fdi & (WHEELS | YAW_RATE | ACCEL_X),
-                                            r_m - xpl[BR], ax_m - xpl[BAX], float(Pp[BAX, BAX]))
+                                            r_m - xpl[BR], ax_m - xpl[BAX], float(Pp[BAX, BAX]), xpl[VX])
         # ay against r vx at any speed; nothing to judge while the gyro's or ay's substitute is fused
         self.lat_scale.step(k, ay_m - xpl[BAY] - xpl[GAY] * ay_m
                             if imu_ok and not iso & (YAW_RATE | ACCEL_Y) else math.nan,

@@ -57,6 +57,7 @@ from __future__ import annotations
 import math
 
 from .line_fit import LineFit
+from .rear_axle_yaw import rear_mean_speed, rear_speed_difference
 
 GSC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds and IMU at 50-100 Hz, noise correlated
 GSC_MIN_SPEED = 3.0  # m/s: below, the wheels' quantisation and ay / vx's division by a small speed
@@ -138,14 +139,14 @@ class GyroScaleGate:
         s = abs(vx)
         r_max = min(s / GSC_R_MIN, GSC_A_MAX / s if s > 0.0 else math.inf) + 2.0 * GSC_QUIET
         self.implausible = abs(g) > r_max
-        # the rear wheels' yaw rate in either direction: reversing, v_rr - v_rl = r T still holds for
+        # the rear wheels' yaw rate in either direction (rear_axle_yaw.py): reversing, v_rr - v_rl = r T still holds for
         # signed speeds, and unsigned ones read |v_rr| - |v_rl| = -r T, so the magnitudes' difference
         # times the direction of travel (the filter's vx) is r T both ways and for both encodings
         # (reversing with the wheels' witness off, a flipped gyro was judged by ay alone and never
         # contradicted: 649 heading rows valid beyond 3 sigma, up to 52.5 deg, on the suite's reversing)
-        fwd = 1.0 if vx >= 0.0 else -1.0
-        ww = fwd * (abs(rr) - abs(rl)) / self.track
-        v = 0.5 * (abs(rl) + abs(rr))
+        ww = rear_speed_difference(rl, rr, vx) / self.track
+        vs = rear_mean_speed(rl, rr, vx)
+        v = abs(vs)
         # what a scale error can have done at this sample: the gyro's reading, or its distance to the
         # witness closest to it beyond GSC_AGREE of the witness, whichever is less (either witness
         # may be off by its own mapping or offset: a 6 % bank is 0.18 rad/s of ay / vx at 4.5 m/s,
@@ -163,7 +164,7 @@ class GyroScaleGate:
         if s < GSC_MIN_SPEED:
             return False
         if ww == ww and v >= GSC_MIN_SPEED and abs(ax) <= GSC_MAX_AX:  # either way (ww above)
-            self.wheels.observe(g_raw * self.track, fwd * v, ww * self.track)
+            self.wheels.observe(g_raw * self.track, vs, ww * self.track)
         if ay == ay:
             self.lateral.observe(g_raw * vx, 1.0, ay)
         fits = [f for f in (self.wheels, self.lateral) if f.k_std < math.inf]
