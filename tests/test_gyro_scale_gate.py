@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GyroScaleGate
+from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GSC_UNCONFIRMED_SCALE_SD, GyroScaleGate
 from ecu_daemon.sim.scenario import SCENARIOS, Scenario
 
 from config_replay import replay_edited, simulated_drive
@@ -180,6 +180,23 @@ def test_a_flipped_gyro_on_the_reversing_drive_promises_no_heading_off(reversing
     # what remains: the rotation of the curve's first second, read below GSC_QUIET (2.4 deg
     # measured): nothing valid near the 5 deg a valid heading promises
     assert not (v & (err > math.radians(4.0))).any()
+
+
+def test_a_flipped_gyro_reversing_is_never_valid_beyond_3_sigma(reversing_drive):
+    """Before (main, ee24b24): 42 rows beyond 3 sigma, up to 1.73 deg at 0.33 deg std (30.1-30.35 s),
+    the curve's first second read below GSC_QUIET; the heading's std now carries the rotation the
+    unconfirmed gyro integrated (GyroScaleGate.heading_scale_sd)."""
+    e, t = replay_edited(reversing_drive, lambda c: c["inputs"]["yaw_rate"].update(scale=-1.0), "yaw_sign_3sigma")
+    v, err, _ = _heading(e, t)
+    assert v.sum() > 3000  # the forward part before the curve keeps its heading
+    assert not (v & (err > 3.0 * e["heading_std_rad"])).any()
+
+
+def test_an_unconfirmed_gyro_owes_the_heading_a_flips_std():
+    gate = GyroScaleGate(TRACK)
+    assert gate.heading_scale_sd() == GSC_UNCONFIRMED_SCALE_SD
+    _feed(gate, 1.0, lane_change)
+    assert gate.confirmed and gate.heading_scale_sd() == 0.0
 
 
 def test_a_gyro_in_rad_read_as_deg_reversing_is_named_and_not_promised_on(reversing_drive):

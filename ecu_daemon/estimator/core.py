@@ -1221,7 +1221,10 @@ class Estimator:
         # last constrained, on a straight falling as its courses take the heading back), times the
         # scale over both priors not yet applied to the gyro and the state (_shift_for_scale,
         # YawScaleCheck.heading_scale)
-        e = max(e, self.yaw_scale_heading * self.scale_sens.heading(self.hist.last))
+        # (while the gyro gate has not confirmed the gyro, its scale error may be a flipped sign's:
+        # GyroScaleGate.heading_scale_sd, the larger of the two)
+        e = max(e, max(self.yaw_scale_heading, self.gyro_gate.heading_scale_sd())
+                * self.scale_sens.heading(self.hist.last))
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).

@@ -72,6 +72,10 @@ GSC_AY_OFFSET = 0.6  # m/s^2, ay's offset prior: a 6 % bank's gravity, ay's bias
 GSC_R_MIN = 4.0  # m: no car turns tighter (a curb-to-curb circle of ~10 m is a 5 m radius at the CG)
 GSC_A_MAX = 12.0  # m/s^2: no tyre holds more (1.2 g), so |r| <= this / vx at speed
 GSC_MAX_AX = 3.0  # m/s^2: beyond, wheel spin or ABS braking moves the two rear wheels apart
+# the scale error an unconfirmed gyro may have while it reads quiet, as a std: a flipped sign's -2
+# (the heading turned by twice the rotation, the other way) at 2 sigma, so that the heading's own
+# error on top of it still fits in 3; 2x and 1/2x (GSC_WRONG) are within 1 sigma
+GSC_UNCONFIRMED_SCALE_SD = 1.0
 
 
 class _Fit(LineFit):
@@ -195,6 +199,18 @@ class GyroScaleGate:
         contradicted the gyro (the suite's reversing, ``yaw_sign``: 262 rows beyond 3 sigma, up to
         12.6 deg, in the 1.6 s of its reverse curve before 3 m/s let the witnesses speak)."""
         return self.motion_ok() and self.sideslip_ok()
+
+    def heading_scale_sd(self) -> float:
+        """The yaw-rate scale error the heading's std must carry for this gyro (times the rotation
+        it still owes to the gyro's scale, ``scale_sensitivity.py``): 0 once confirmed, else
+        ``GSC_UNCONFIRMED_SCALE_SD``. Why: "never exercised" only says each sample read less than
+        ``GSC_QUIET``; reversing out of a standstill a flipped gyro turned the heading by twice the
+        car's rotation inside that band before any witness had the speed to object (the suite's
+        reversing, ``yaw_sign``: 42 heading rows beyond 3 sigma, up to 1.73 deg, at 0.33 deg of
+        std). With it the heading's std carries that rotation (the same rows: 1.95 sigma at most)
+        and is withheld once a flip could be beyond ``HEADING_STD_VALID``'s 3 sigma. A gyro read
+        1/57x integrates almost nothing, so this cannot bound it (:meth:`heading_ok`)."""
+        return 0.0 if self.confirmed else GSC_UNCONFIRMED_SCALE_SD
 
     def sideslip_ok(self) -> bool:
         """A sideslip may rest on this gyro: its scale confirmed, or never exercised yet."""
