@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GSC_UNCONFIRMED_SCALE_SD, GyroScaleGate
+from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GSC_SLOW_SIGMA, GSC_UNCONFIRMED_SCALE_SD, GyroScaleGate
 from ecu_daemon.sim.scenario import SCENARIOS, Scenario
 
 from config_replay import replay_edited, simulated_drive
@@ -208,6 +208,39 @@ def test_a_gyro_in_rad_read_as_deg_reversing_is_named_and_not_promised_on(revers
     assert any(SAID in line for line in lines)
     # one second of witnesses at >= 3 m/s reversing (from 31.25 s) contradicts it
     assert not (v & (rel > 32.5) & (err > 3.0 * e["heading_std_rad"])).any()
+
+
+def test_a_gyro_in_rad_read_as_deg_is_never_valid_beyond_3_sigma_reversing_slowly(reversing_drive):
+    """Before (main, ee24b24): 212 rows beyond 3 sigma, up to 6.2 deg at 0.33 deg std (30.4-31.67 s):
+    the gyro read 1/57 of the curve, "quiet", below the fits' 3 m/s. The rear wheels count the turn
+    it missed (GyroScaleGate.heading_std)."""
+    e, t = replay_edited(reversing_drive, lambda c: c["inputs"]["yaw_rate"].update(scale=math.pi / 180.0),
+                         "gyro_rad_as_deg_3sigma")
+    v, err, _ = _heading(e, t)
+    assert v.sum() > 3000
+    assert not (v & (err > 3.0 * e["heading_std_rad"])).any()
+
+
+def _slow_reverse(gate, s, vx=-2.0, n=60, step=0.06):
+    """Reversing at ``vx`` (below the fits' speed) through a curve of 0.08 rad/s, the gyro reading
+    ``s`` r; the rear wheels as a DBC sends them (0.032 m/s quanta)."""
+    q = 0.032
+    for i in range(n):
+        r = 0.08 * math.sin(math.pi * i / n)
+        rl, rr = round((vx - 0.5 * r * TRACK) / q) * q, round((vx + 0.5 * r * TRACK) / q) * q
+        gate.step(rl, rr, s * r, r * vx, vx, 0.0, s * r)
+    return 0.08 * 2.0 / math.pi * n * step  # the curve's rotation (rad)
+
+
+@pytest.mark.parametrize("s, owed", [(1.0, False), (math.pi / 180.0, True), (-1.0, True)])
+def test_a_slow_turn_the_gyro_and_the_wheels_disagree_on_is_owed_to_the_heading(s, owed):
+    gate = GyroScaleGate(TRACK)
+    turn = _slow_reverse(gate, s)
+    assert not gate.confirmed  # below GSC_MIN_SPEED: no fit
+    if owed:  # the rotation the gyro missed (or doubled), at GSC_SLOW_SIGMA
+        assert gate.heading_std() > 0.8 * abs(1.0 - s) * turn / GSC_SLOW_SIGMA
+    else:  # the wheel quanta only
+        assert gate.heading_std() < 0.1 * turn
 
 
 def test_the_right_gyro_reversing_keeps_its_heading(reversing_drive):
