@@ -252,3 +252,12 @@ def test_the_right_gyro_reversing_keeps_its_heading(reversing_drive):
     # withheld only from the curve's first reading to the witnesses' confirmation at 3 m/s
     assert v[(rel > 32.0) & (rel < 45.0)].all()
     assert v[(rel > 29.0) & (rel < 45.0)].mean() > 0.85
+
+
+def test_a_wheel_the_abs_reports_as_0_is_no_slow_turn():
+    """Below its minimum speed an ABS reports 0: one rear wheel at 0, the other at 0.3 m/s, is not
+    a 0.19 rad/s turn the gyro missed."""
+    gate = GyroScaleGate(TRACK)
+    for _ in range(50):
+        gate.step(0.0, 0.3, 0.0, 0.0, 0.25, 0.0, 0.0)
+    assert gate.heading_std() == 0.0

@@ -45,7 +45,12 @@ confirms (a right gyro: within the first lane change); a contradicted scale with
 gyro turns it by twice the car's rotation before 3 m/s lets the witnesses speak. The rear wheels
 witness in both directions: ``(|v_rr| - |v_rl|) sign(vx)`` is ``r T`` for signed and unsigned
 wheel speeds alike (switched off at ``vx < 0`` before, the reversing drive had ay alone, which
-never contradicts). Velocity and heading are also not promised on
+never contradicts; the formula is ``rear_axle_yaw.py``'s, shared with ``wheel_yaw_check.py``).
+"Never exercised" is a rate test and cannot see what the gyro integrates inside ``GSC_QUIET``, nor a
+gyro read 1/57x, which is always quiet: until the gyro is confirmed the heading's std carries both
+(:meth:`heading_scale_sd`, the rotation the heading owes to the gyro's scale times a flip's error;
+:meth:`heading_std`, the rotation the gyro and the rear wheels disagreed on below the fits' speed,
+where the wheels still count it). Velocity and heading are also not promised on
 a sample whose gyro reads a yaw rate no car makes at its speed (``GSC_R_MIN``'s circle below
 ``vx = sqrt(GSC_A_MAX GSC_R_MIN)``, ``GSC_A_MAX`` of friction above): a 57x gyro's bias at a
 launch (0.5 rad/s at 0.3 m/s) or its reading in a 150 m corner at 30 m/s (11 rad/s), where vx's
@@ -175,8 +180,10 @@ class GyroScaleGate:
         if s < GSC_MIN_SPEED:
             # below the fits' speed the wheels still count the rotation, one quantum at a time:
             # summed, their disagreement with the gyro is what its scale did to the heading (the
-            # tyres' radius difference, where the fit has seen it, taken out)
-            if s >= GSC_STILL and ww == ww:
+            # tyres' radius difference, where the fit has seen it, taken out); both wheels moving:
+            # an ABS reports 0 below its own minimum speed, and one wheel at 0 in a turn would
+            # read the whole other wheel's speed as rotation
+            if s >= GSC_STILL and abs(rl) > 0.0 and abs(rr) > 0.0:
                 c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
                 self.slow_turn += (g - ww + c * vs / self.track) * self.sample_dt
             return False
