@@ -1693,6 +1693,7 @@ class Estimator:
             if sens is not None:
                 sens.zero_heading(h)
             self.scale_sens.zero_heading(h)
+            self.gyro_gate.heading_set()
             self.aligned = True
             for f in self.receivers:
                 f.consecutive_rejects = 0
@@ -1842,6 +1843,7 @@ class Estimator:
         if self.lat_sens is not None:
             self.lat_sens.set_heading(h, idx, J, self._course_timing_slope(s, g, lat, float(r)))
         self.scale_sens.set_heading(idx, J)
+        self.gyro_gate.heading_set()
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var

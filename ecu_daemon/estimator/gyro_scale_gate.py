@@ -241,6 +241,13 @@ class GyroScaleGate:
         beyond 3 sigma, up to 6.2 deg, until both fits contradicted it at 31.67 s)."""
         return 0.0 if self.confirmed else abs(self.slow_turn) / GSC_SLOW_SIGMA
 
+    def heading_set(self) -> None:
+        """The heading was just set from a course or a baseline, not from the gyro: the slow turns
+        before it owe it nothing (a launch's first metres, before any heading existed, had put
+        that debt on every later heading: 0.2 s later to valid on the suite's noisy-wheel launches,
+        34 valid rows on gyro_scale_-3pct)."""
+        self.slow_turn = 0.0
+
     def sideslip_ok(self) -> bool:
         """A sideslip may rest on this gyro: its scale confirmed, or never exercised yet."""
         return self.confirmed or not (self.exercised or self.contradicted)
