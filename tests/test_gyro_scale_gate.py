@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GyroScaleGate
+from ecu_daemon.estimator.gyro_scale_gate import GSC_QUIET, GSC_SLOW_SIGMA, GSC_UNCONFIRMED_SCALE_SD, GyroScaleGate
 from ecu_daemon.sim.scenario import SCENARIOS, Scenario
 
 from config_replay import replay_edited, simulated_drive
@@ -182,6 +182,23 @@ def test_a_flipped_gyro_on_the_reversing_drive_promises_no_heading_off(reversing
     assert not (v & (err > math.radians(4.0))).any()
 
 
+def test_a_flipped_gyro_reversing_is_never_valid_beyond_3_sigma(reversing_drive):
+    """Before (main, ee24b24): 42 rows beyond 3 sigma, up to 1.73 deg at 0.33 deg std (30.1-30.35 s),
+    the curve's first second read below GSC_QUIET; the heading's std now carries the rotation the
+    unconfirmed gyro integrated (GyroScaleGate.heading_scale_sd)."""
+    e, t = replay_edited(reversing_drive, lambda c: c["inputs"]["yaw_rate"].update(scale=-1.0), "yaw_sign_3sigma")
+    v, err, _ = _heading(e, t)
+    assert v.sum() > 3000  # the forward part before the curve keeps its heading
+    assert not (v & (err > 3.0 * e["heading_std_rad"])).any()
+
+
+def test_an_unconfirmed_gyro_owes_the_heading_a_flips_std():
+    gate = GyroScaleGate(TRACK)
+    assert gate.heading_scale_sd() == GSC_UNCONFIRMED_SCALE_SD
+    _feed(gate, 1.0, lane_change)
+    assert gate.confirmed and gate.heading_scale_sd() == 0.0
+
+
 def test_a_gyro_in_rad_read_as_deg_reversing_is_named_and_not_promised_on(reversing_drive):
     """Before: 934 heading rows valid beyond 3 sigma, up to 38.4 deg, through 34 s."""
     lines: list[str] = []
@@ -193,6 +210,39 @@ def test_a_gyro_in_rad_read_as_deg_reversing_is_named_and_not_promised_on(revers
     assert not (v & (rel > 32.5) & (err > 3.0 * e["heading_std_rad"])).any()
 
 
+def test_a_gyro_in_rad_read_as_deg_is_never_valid_beyond_3_sigma_reversing_slowly(reversing_drive):
+    """Before (main, ee24b24): 212 rows beyond 3 sigma, up to 6.2 deg at 0.33 deg std (30.4-31.67 s):
+    the gyro read 1/57 of the curve, "quiet", below the fits' 3 m/s. The rear wheels count the turn
+    it missed (GyroScaleGate.heading_std)."""
+    e, t = replay_edited(reversing_drive, lambda c: c["inputs"]["yaw_rate"].update(scale=math.pi / 180.0),
+                         "gyro_rad_as_deg_3sigma")
+    v, err, _ = _heading(e, t)
+    assert v.sum() > 3000
+    assert not (v & (err > 3.0 * e["heading_std_rad"])).any()
+
+
+def _slow_reverse(gate, s, vx=-2.0, n=60, step=0.06):
+    """Reversing at ``vx`` (below the fits' speed) through a curve of 0.08 rad/s, the gyro reading
+    ``s`` r; the rear wheels as a DBC sends them (0.032 m/s quanta)."""
+    q = 0.032
+    for i in range(n):
+        r = 0.08 * math.sin(math.pi * i / n)
+        rl, rr = round((vx - 0.5 * r * TRACK) / q) * q, round((vx + 0.5 * r * TRACK) / q) * q
+        gate.step(rl, rr, s * r, r * vx, vx, 0.0, s * r)
+    return 0.08 * 2.0 / math.pi * n * step  # the curve's rotation (rad)
+
+
+@pytest.mark.parametrize("s, owed", [(1.0, False), (math.pi / 180.0, True), (-1.0, True)])
+def test_a_slow_turn_the_gyro_and_the_wheels_disagree_on_is_owed_to_the_heading(s, owed):
+    gate = GyroScaleGate(TRACK)
+    turn = _slow_reverse(gate, s)
+    assert not gate.confirmed  # below GSC_MIN_SPEED: no fit
+    if owed:  # the rotation the gyro missed (or doubled), at GSC_SLOW_SIGMA
+        assert gate.heading_std() > 0.8 * abs(1.0 - s) * turn / GSC_SLOW_SIGMA
+    else:  # the wheel quanta only
+        assert gate.heading_std() < 0.1 * turn
+
+
 def test_the_right_gyro_reversing_keeps_its_heading(reversing_drive):
     lines: list[str] = []
     e, t = replay_edited(reversing_drive, lambda c: None, "right", log_level="warning", stderr=lines)
@@ -202,3 +252,24 @@ def test_the_right_gyro_reversing_keeps_its_heading(reversing_drive):
     # withheld only from the curve's first reading to the witnesses' confirmation at 3 m/s
     assert v[(rel > 32.0) & (rel < 45.0)].all()
     assert v[(rel > 29.0) & (rel < 45.0)].mean() > 0.85
+
+
+def test_a_wheel_the_abs_reports_as_0_is_no_slow_turn():
+    """Below its minimum speed an ABS reports 0: one rear wheel at 0, the other at 0.3 m/s, is not
+    a 0.19 rad/s turn the gyro missed."""
+    gate = GyroScaleGate(TRACK)
+    for _ in range(50):
+        gate.step(0.0, 0.3, 0.0, 0.0, 0.25, 0.0, 0.0)
+    assert gate.heading_std() == 0.0
+
+
+def test_a_heading_set_from_a_course_owes_nothing_to_the_slow_turns_before_it():
+    """A launch's slow metres come before any heading: a course alignment after them clears the
+    debt (before, it withheld the noisy-wheel launches' heading 0.2 s longer)."""
+    gate = GyroScaleGate(TRACK)
+    _slow_reverse(gate, math.pi / 180.0)
+    assert gate.heading_std() > 0.0
+    gate.heading_set()
+    assert gate.heading_std() == 0.0
+    _slow_reverse(gate, math.pi / 180.0)  # a slow turn after it is owed again
+    assert gate.heading_std() > 0.0

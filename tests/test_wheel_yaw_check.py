@@ -16,10 +16,11 @@ TRACK = 1.58
 
 
 def _drive(r_of_t, v_of_t, seconds, wheel_scale=1.0, gyro_scale=1.0, radius_diff=0.0, track_true=TRACK,
-           seed=1, noise=0.02, gyro_noise=0.003, ax=0.0):
-    """(rl, rr, r, ax) samples every DT: rear wheels rolling along the body x axis at
+           seed=1, noise=0.02, gyro_noise=0.003, ax=0.0, unsigned=False):
+    """(rl, rr, r, ax, vx) samples every DT: rear wheels rolling along the body x axis at
     vx -/+ r T / 2, the right tyre ``radius_diff`` larger (it reads slower), the wheel speeds as
-    mapped x ``wheel_scale``, the gyro x ``gyro_scale``."""
+    mapped x ``wheel_scale`` (their magnitudes if ``unsigned``, as most ABS DBCs send them), the
+    gyro x ``gyro_scale``; vx the true one (the filter's direction of travel)."""
     rng = np.random.default_rng(seed)
     out = []
     for j in range(int(seconds / DT)):
@@ -27,7 +28,9 @@ def _drive(r_of_t, v_of_t, seconds, wheel_scale=1.0, gyro_scale=1.0, radius_diff
         r, v = r_of_t(t), v_of_t(t)
         rl = (v - r * track_true / 2) + noise * rng.standard_normal()
         rr = (v + r * track_true / 2) / (1.0 + radius_diff) + noise * rng.standard_normal()
-        out.append((wheel_scale * rl, wheel_scale * rr, gyro_scale * r + gyro_noise * rng.standard_normal(), ax))
+        if unsigned:
+            rl, rr = abs(rl), abs(rr)
+        out.append((wheel_scale * rl, wheel_scale * rr, gyro_scale * r + gyro_noise * rng.standard_normal(), ax, v))
     return out
 
 
@@ -46,8 +49,8 @@ def _junction(t):
 def _run(samples):
     chk = WheelYawCheck(TRACK)
     first = None
-    for j, (rl, rr, r, ax) in enumerate(samples):
-        if chk.step(rl, rr, r, ax, DT) and first is None:
+    for j, (rl, rr, r, ax, vx) in enumerate(samples):
+        if chk.step(rl, rr, r, ax, DT, vx) and first is None:
             first = j * DT
     return chk, first
 
@@ -86,12 +89,12 @@ def test_a_steady_circle_or_a_straight_confirms_nothing():
 
 def test_slow_speed_hard_acceleration_and_stale_inputs_are_not_judged():
     chk = WheelYawCheck(TRACK)
-    for rl, rr, r, ax in _drive(_lane_change, lambda t: 2.0, 15.0):  # below WYC_MIN_SPEED
-        chk.step(rl, rr, r, ax, DT)
-    for rl, rr, r, ax in _drive(_lane_change, lambda t: 20.0, 15.0, ax=4.0):  # wheel spin / ABS
-        chk.step(rl, rr, r, ax, DT)
-    for rl, rr, r, ax in _drive(_lane_change, lambda t: 20.0, 15.0):
-        chk.step(math.nan, rr, r, ax, DT)  # a stale or isolated wheel
+    for rl, rr, r, ax, vx in _drive(_lane_change, lambda t: 2.0, 15.0):  # below WYC_MIN_SPEED
+        chk.step(rl, rr, r, ax, DT, vx)
+    for rl, rr, r, ax, vx in _drive(_lane_change, lambda t: 20.0, 15.0, ax=4.0):  # wheel spin / ABS
+        chk.step(rl, rr, r, ax, DT, vx)
+    for rl, rr, r, ax, vx in _drive(_lane_change, lambda t: 20.0, 15.0):
+        chk.step(math.nan, rr, r, ax, DT, vx)  # a stale or isolated wheel
     assert chk.n == 0 and not chk.confirmed
 
 
@@ -106,3 +109,34 @@ def test_the_wheel_scale_check_takes_the_gyros_confirmation_but_not_over_a_gnss_
     wsc.confirm()
     assert not wsc.confirmed and wsc.wrong
 
+
+
+def _reverse_curve(t):
+    """Reversing at 4 m/s through a gentle curve: yaw rate up to 0.3 rad/s over 6 s (~60 deg)."""
+    return 0.3 * math.sin(math.pi * (t - 2.0) / 6.0) if 2.0 <= t < 8.0 else 0.0
+
+
+@pytest.mark.parametrize("unsigned", [False, True])
+def test_a_right_mapping_is_confirmed_reversing_with_signed_or_unsigned_wheel_speeds(unsigned):
+    """Reversing, an unsigned wheel speed (the ABS's magnitude) reads ``v_rr - v_rl = -r T``:
+    fitted as it comes, a right gyro read s = -1 there and the wheels were never confirmed
+    (rear_axle_yaw.py: signed by the filter's direction of travel, s = 1 either way)."""
+    chk, first = _run(_drive(_reverse_curve, lambda t: -4.0, 12.0, radius_diff=0.01, unsigned=unsigned))
+    assert chk.confirmed and first is not None and first < 8.0
+    assert abs(chk.scale - 1.0) < 0.05
+    assert chk.offset == pytest.approx(-0.01, abs=0.005)  # the same tyre, either way
+
+
+def test_reversing_on_unsigned_wheels_does_not_spoil_the_forward_turn_after_it():
+    """The reversing samples stay in the fit: taken as -1x, a right mapping's forward lane change
+    after them fitted s between -1 and 1 and confirmed nothing."""
+    samples = (_drive(_reverse_curve, lambda t: -4.0, 10.0, unsigned=True)
+               + _drive(_lane_change, lambda t: 20.0, 15.0, seed=2, unsigned=True))
+    chk, _ = _run(samples)
+    assert chk.confirmed and abs(chk.scale - 1.0) < 0.05
+
+
+@pytest.mark.parametrize("unsigned", [False, True])
+def test_a_flipped_gyro_reversing_confirms_nothing(unsigned):
+    chk, _ = _run(_drive(_reverse_curve, lambda t: -4.0, 12.0, gyro_scale=-1.0, unsigned=unsigned))
+    assert not chk.confirmed and chk.scale == pytest.approx(-1.0, abs=0.1)

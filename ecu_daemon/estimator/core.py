@@ -426,7 +426,7 @@ class Estimator:
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
-        self.gyro_gate = GyroScaleGate(veh.track_m)  # the gyro's scale against wheels and ay (a unit error)
+        self.gyro_gate = GyroScaleGate(veh.track_m, GSC_EVERY * dt)  # the gyro's scale against wheels and ay (a unit error)
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
         self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
         self.wheel_scale_seed = WheelScaleSeed()  # ... averaged over steady fixes (a wrong tyre size)
@@ -624,7 +624,7 @@ class Estimator:
             self._on_heading(s, k)
 
     def _check_wheels_without_gnss(self, k: int, fl: float, fr: float, rl: float, rr: float, ok: bool,
-                                   r: float, ax: float, bax_var: float) -> None:
+                                   r: float, ax: float, bax_var: float, vx: float) -> None:
         """Until a witness has confirmed the wheels' scale: the rear axle's speed difference against
         the gyro (wheel_yaw_check.py, every WYC_EVERY steps) and a launch's wheel speed change
         against the integrated ax (wheel_launch_check.py), each only on raw inputs that are not a
@@ -641,7 +641,7 @@ class Estimator:
                 log.info("wheel speeds' scale confirmed by the accelerometer on a launch: the wheels "
                          "changed %.3fx what ax integrates to", self.wheel_launch.scale)
                 return
-        if k % WYC_EVERY == 0 and self.wheel_yaw.step(rl if ok else nan, rr, r, ax, WYC_EVERY * self.dt):
+        if k % WYC_EVERY == 0 and self.wheel_yaw.step(rl if ok else nan, rr, r, ax, WYC_EVERY * self.dt, vx):
             wy = self.wheel_yaw
             # its measured scale error (the configured track's error in it too) and the fit's std
             wsc.confirm(math.hypot(wy.scale - 1.0, wy.scale_std))
@@ -791,7 +791,7 @@ class Estimator:
         if not self.wheel_scale_check.confirmed:
             self._check_wheels_without_gnss(k, fl, fr, rl, rr, wheels_ok and imu_published
                                             and not iso_fdi & (WHEELS | YAW_RATE | ACCEL_X),
-                                            r_m - xpl[BR], ax_m - xpl[BAX], float(Pp[BAX, BAX]))
+                                            r_m - xpl[BR], ax_m - xpl[BAX], float(Pp[BAX, BAX]), xpl[VX])
         # ay against r vx at any speed; nothing to judge while the gyro's or ay's substitute is fused
         self.lat_scale.step(k, ay_m - xpl[BAY] - xpl[GAY] * ay_m
                             if imu_ok and not iso & (YAW_RATE | ACCEL_Y) else math.nan,
@@ -1221,7 +1221,12 @@ class Estimator:
         # last constrained, on a straight falling as its courses take the heading back), times the
         # scale over both priors not yet applied to the gyro and the state (_shift_for_scale,
         # YawScaleCheck.heading_scale)
-        e = max(e, self.yaw_scale_heading * self.scale_sens.heading(self.hist.last))
+        # (while the gyro gate has not confirmed the gyro, its scale error may be a flipped sign's:
+        # GyroScaleGate.heading_scale_sd, the larger of the two)
+        e = max(e, max(self.yaw_scale_heading, self.gyro_gate.heading_scale_sd())
+                * self.scale_sens.heading(self.hist.last))
+        # and the slow turns an unconfirmed gyro and the rear wheels disagreed on (GyroScaleGate.heading_std)
+        e = max(e, self.gyro_gate.heading_std())
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
@@ -1688,6 +1693,7 @@ class Estimator:
             if sens is not None:
                 sens.zero_heading(h)
             self.scale_sens.zero_heading(h)
+            self.gyro_gate.heading_set()
             self.aligned = True
             for f in self.receivers:
                 f.consecutive_rejects = 0
@@ -1837,6 +1843,7 @@ class Estimator:
         if self.lat_sens is not None:
             self.lat_sens.set_heading(h, idx, J, self._course_timing_slope(s, g, lat, float(r)))
         self.scale_sens.set_heading(idx, J)
+        self.gyro_gate.heading_set()
         P[:, PSI, :] = JP
         P[:, :, PSI] = JP
         P[:, PSI, PSI] = var

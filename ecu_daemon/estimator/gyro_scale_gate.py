@@ -45,7 +45,12 @@ confirms (a right gyro: within the first lane change); a contradicted scale with
 gyro turns it by twice the car's rotation before 3 m/s lets the witnesses speak. The rear wheels
 witness in both directions: ``(|v_rr| - |v_rl|) sign(vx)`` is ``r T`` for signed and unsigned
 wheel speeds alike (switched off at ``vx < 0`` before, the reversing drive had ay alone, which
-never contradicts). Velocity and heading are also not promised on
+never contradicts; the formula is ``rear_axle_yaw.py``'s, shared with ``wheel_yaw_check.py``).
+"Never exercised" is a rate test and cannot see what the gyro integrates inside ``GSC_QUIET``, nor a
+gyro read 1/57x, which is always quiet: until the gyro is confirmed the heading's std carries both
+(:meth:`heading_scale_sd`, the rotation the heading owes to the gyro's scale times a flip's error;
+:meth:`heading_std`, the rotation the gyro and the rear wheels disagreed on below the fits' speed,
+where the wheels still count it). Velocity and heading are also not promised on
 a sample whose gyro reads a yaw rate no car makes at its speed (``GSC_R_MIN``'s circle below
 ``vx = sqrt(GSC_A_MAX GSC_R_MIN)``, ``GSC_A_MAX`` of friction above): a 57x gyro's bias at a
 launch (0.5 rad/s at 0.3 m/s) or its reading in a 150 m corner at 30 m/s (11 rad/s), where vx's
@@ -57,6 +62,7 @@ from __future__ import annotations
 import math
 
 from .line_fit import LineFit
+from .rear_axle_yaw import rear_mean_speed, rear_speed_difference
 
 GSC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds and IMU at 50-100 Hz, noise correlated
 GSC_MIN_SPEED = 3.0  # m/s: below, the wheels' quantisation and ay / vx's division by a small speed
@@ -71,6 +77,12 @@ GSC_AY_OFFSET = 0.6  # m/s^2, ay's offset prior: a 6 % bank's gravity, ay's bias
 GSC_R_MIN = 4.0  # m: no car turns tighter (a curb-to-curb circle of ~10 m is a 5 m radius at the CG)
 GSC_A_MAX = 12.0  # m/s^2: no tyre holds more (1.2 g), so |r| <= this / vx at speed
 GSC_MAX_AX = 3.0  # m/s^2: beyond, wheel spin or ABS braking moves the two rear wheels apart
+GSC_STILL = 0.2  # m/s: below, the car stands (a few wheel quanta; it turns at most v / GSC_R_MIN)
+GSC_SLOW_SIGMA = 2.0  # the slow turn the gyro and the wheels disagree on, as that many heading stds
+# the scale error an unconfirmed gyro may have while it reads quiet, as a std: a flipped sign's -2
+# (the heading turned by twice the rotation, the other way) at 2 sigma, so that the heading's own
+# error on top of it still fits in 3; 2x and 1/2x (GSC_WRONG) are within 1 sigma
+GSC_UNCONFIRMED_SCALE_SD = 1.0
 
 
 class _Fit(LineFit):
@@ -107,8 +119,13 @@ class GyroScaleGate:
     """The gyro's scale against the rear wheels' and ay's yaw rates; :meth:`sideslip_ok` says
     whether a sideslip may be promised on it (module docstring)."""
 
-    def __init__(self, track_m: float):
+    def __init__(self, track_m: float, sample_dt: float = GSC_EVERY * 0.006):
         self.track = track_m
+        self.sample_dt = sample_dt  # s between two samples (GSC_EVERY steps)
+        # the rotation the gyro and the rear wheels disagree on while moving below GSC_MIN_SPEED
+        # (rad, summed until the gyro is confirmed): what an unconfirmed gyro's scale may have put
+        # into the heading where no fit can judge it (:meth:`heading_std`)
+        self.slow_turn = 0.0
         # rear wheels: v_rr - v_rl = k r T + c v, c the two tyres' radius difference (~1 %)
         self.wheels = _Fit(GSC_RADIUS_DIFF, GSC_WHEEL_FLOOR)
         # ay = k r vx + c, c the bank's gravity and ay's bias
@@ -138,14 +155,14 @@ class GyroScaleGate:
         s = abs(vx)
         r_max = min(s / GSC_R_MIN, GSC_A_MAX / s if s > 0.0 else math.inf) + 2.0 * GSC_QUIET
         self.implausible = abs(g) > r_max
-        # the rear wheels' yaw rate in either direction: reversing, v_rr - v_rl = r T still holds for
+        # the rear wheels' yaw rate in either direction (rear_axle_yaw.py): reversing, v_rr - v_rl = r T still holds for
         # signed speeds, and unsigned ones read |v_rr| - |v_rl| = -r T, so the magnitudes' difference
         # times the direction of travel (the filter's vx) is r T both ways and for both encodings
         # (reversing with the wheels' witness off, a flipped gyro was judged by ay alone and never
         # contradicted: 649 heading rows valid beyond 3 sigma, up to 52.5 deg, on the suite's reversing)
-        fwd = 1.0 if vx >= 0.0 else -1.0
-        ww = fwd * (abs(rr) - abs(rl)) / self.track
-        v = 0.5 * (abs(rl) + abs(rr))
+        ww = rear_speed_difference(rl, rr, vx) / self.track
+        vs = rear_mean_speed(rl, rr, vx)
+        v = abs(vs)
         # what a scale error can have done at this sample: the gyro's reading, or its distance to the
         # witness closest to it beyond GSC_AGREE of the witness, whichever is less (either witness
         # may be off by its own mapping or offset: a 6 % bank is 0.18 rad/s of ay / vx at 4.5 m/s,
@@ -161,9 +178,17 @@ class GyroScaleGate:
         if dev > GSC_QUIET:
             self.exercised = True
         if s < GSC_MIN_SPEED:
+            # below the fits' speed the wheels still count the rotation, one quantum at a time:
+            # summed, their disagreement with the gyro is what its scale did to the heading (the
+            # tyres' radius difference, where the fit has seen it, taken out); both wheels moving:
+            # an ABS reports 0 below its own minimum speed, and one wheel at 0 in a turn would
+            # read the whole other wheel's speed as rotation
+            if s >= GSC_STILL and abs(rl) > 0.0 and abs(rr) > 0.0:
+                c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
+                self.slow_turn += (g - ww + c * vs / self.track) * self.sample_dt
             return False
         if ww == ww and v >= GSC_MIN_SPEED and abs(ax) <= GSC_MAX_AX:  # either way (ww above)
-            self.wheels.observe(g_raw * self.track, fwd * v, ww * self.track)
+            self.wheels.observe(g_raw * self.track, vs, ww * self.track)
         if ay == ay:
             self.lateral.observe(g_raw * vx, 1.0, ay)
         fits = [f for f in (self.wheels, self.lateral) if f.k_std < math.inf]
@@ -194,6 +219,34 @@ class GyroScaleGate:
         contradicted the gyro (the suite's reversing, ``yaw_sign``: 262 rows beyond 3 sigma, up to
         12.6 deg, in the 1.6 s of its reverse curve before 3 m/s let the witnesses speak)."""
         return self.motion_ok() and self.sideslip_ok()
+
+    def heading_scale_sd(self) -> float:
+        """The yaw-rate scale error the heading's std must carry for this gyro (times the rotation
+        it still owes to the gyro's scale, ``scale_sensitivity.py``): 0 once confirmed, else
+        ``GSC_UNCONFIRMED_SCALE_SD``. Why: "never exercised" only says each sample read less than
+        ``GSC_QUIET``; reversing out of a standstill a flipped gyro turned the heading by twice the
+        car's rotation inside that band before any witness had the speed to object (the suite's
+        reversing, ``yaw_sign``: 42 heading rows beyond 3 sigma, up to 1.73 deg, at 0.33 deg of
+        std). With it the heading's std carries that rotation (the same rows: 1.95 sigma at most)
+        and is withheld once a flip could be beyond ``HEADING_STD_VALID``'s 3 sigma. A gyro read
+        1/57x integrates almost nothing, so this cannot bound it (:meth:`heading_ok`)."""
+        return 0.0 if self.confirmed else GSC_UNCONFIRMED_SCALE_SD
+
+    def heading_std(self) -> float:
+        """The heading std (rad) this gyro owes for the slow turns no fit could judge: the rotation
+        the gyro and the rear wheels disagreed on below ``GSC_MIN_SPEED`` until the gyro is
+        confirmed, as ``GSC_SLOW_SIGMA`` stds. Why: a gyro read 1/57x (rad/s mapped as deg/s) reads
+        quiet, so neither "exercised" nor :meth:`heading_scale_sd` (its own rotation) sees it; the
+        suite's reversing curve below 3 m/s turned the car 4 deg under it (212 heading rows valid
+        beyond 3 sigma, up to 6.2 deg, until both fits contradicted it at 31.67 s)."""
+        return 0.0 if self.confirmed else abs(self.slow_turn) / GSC_SLOW_SIGMA
+
+    def heading_set(self) -> None:
+        """The heading was just set from a course or a baseline, not from the gyro: the slow turns
+        before it owe it nothing (a launch's first metres, before any heading existed, had put
+        that debt on every later heading: 0.2 s later to valid on the suite's noisy-wheel launches,
+        34 valid rows on gyro_scale_-3pct)."""
+        self.slow_turn = 0.0
 
     def sideslip_ok(self) -> bool:
         """A sideslip may rest on this gyro: its scale confirmed, or never exercised yet."""

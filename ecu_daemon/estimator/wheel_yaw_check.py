@@ -10,6 +10,8 @@ body's x axis, so its ground speed is ``vx -/+ r T/2`` (ISO 8855: left wheel at 
 
     v_rr - v_rl = s r T + c v
 
+(in either direction of travel and for signed or unsigned wheel speeds as ``rear_axle_yaw.py``
+takes them: the magnitudes' difference, signed by the direction of travel)
 exactly, whatever the sideslip, where ``s`` is the scale of the wheel speeds (1 when the mapping
 is right, 3.6 for km/h read as m/s, 0.45 for an mph factor on m/s ...; the left-right
 difference carries the same factor as each wheel), ``T`` the configured track and ``c`` the
@@ -37,6 +39,7 @@ from __future__ import annotations
 import math
 
 from .line_fit import LineFit
+from .rear_axle_yaw import rear_mean_speed, rear_speed_difference
 
 WYC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds at 50-100 Hz, their noise correlated
 WYC_MIN_SPEED = 3.0  # m/s, mean rear wheel speed: below, the wheels' quantisation and the ABS's 0 rule
@@ -67,18 +70,22 @@ class WheelYawCheck:
         """The samples the fit has taken."""
         return self.fit.n
 
-    def step(self, rl: float, rr: float, r: float, ax: float, dt: float) -> bool:
+    def step(self, rl: float, rr: float, r: float, ax: float, dt: float, vx: float) -> bool:
         """One sample every ``WYC_EVERY`` steps: ``rl``, ``rr`` the rear wheel speeds as mapped
-        (m/s), ``r`` the bias-corrected yaw rate (rad/s), ``ax`` the longitudinal acceleration,
-        ``dt`` the time the sample stands for (s); any NaN: nothing to judge (a stale or isolated
-        input). Returns :attr:`confirmed`."""
+        (m/s, signed or unsigned), ``r`` the bias-corrected yaw rate (rad/s), ``ax`` the
+        longitudinal acceleration, ``dt`` the time the sample stands for (s), ``vx`` the filter's
+        (its sign, the direction of travel, is what the wheels' magnitudes lack: rear_axle_yaw.py);
+        any NaN: nothing to judge (a stale or isolated input). Returns :attr:`confirmed`."""
         if self.confirmed:
             return True
-        v = 0.5 * (rl + rr)
+        # the rear axle's difference and mean in the direction of travel: ``v_rr - v_rl`` alone
+        # reads a right gyro as s = -1 reversing on unsigned wheel speeds, and those samples stay
+        # in the fit (no confirmation after them either: tests/test_wheel_yaw_check.py)
+        v = rear_mean_speed(rl, rr, vx)
         if not (v == v and r == r and ax == ax) or abs(v) < WYC_MIN_SPEED or abs(ax) > WYC_MAX_AX:
             return False
         fit = self.fit
-        fit.add(r * self.track, v, rr - rl)
+        fit.add(r * self.track, v, rear_speed_difference(rl, rr, vx))
         if abs(r) >= WYC_MIN_R:
             self.turn += abs(r) * dt
         if self.turn < WYC_MIN_TURN_RAD or fit.n < 3:
