@@ -38,6 +38,7 @@ from ..samples import INPUT_INDEX, GnssHeadingSample, GnssSample, InputSample
 from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from .axis_swap_check import AxisSwapCheck
+from .spin_check import SpinCheck
 from .gyro_scale_gate import GSC_EVERY, GyroScaleGate
 from .estimate import (STATUS_GNSS_FRESH, STATUS_GNSS_HEADING, STATUS_GNSS_REJECTED, STATUS_HEADING_ALIGNED,
                        STATUS_INPUT_STALE, STATUS_KINEMATIC_OBSERVABLE, STATUS_MAGNETOMETER, STATUS_MODEL_FALLBACK,
@@ -361,8 +362,7 @@ class Estimator:
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
             veh.cornering_stiffness_front_n_per_rad, veh.cornering_stiffness_rear_n_per_rad,
             es.yaw_rate_noise_radps, es.yaw_rate_bias_walk, dt, veh.tyre_relaxation_length_m)
-        self.fdi = FaultDetector(dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
-                                 self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
+        self.fdi = self._new_fault_detector()
         # the optional baseline elevations (per receiver) and roll-rate gyro of road.py
         self.road = RoadAttitude(
             dt, es.accel_offset_std_mps2, learned,
@@ -425,6 +425,7 @@ class Estimator:
         self.gnss_conflict_last_t = -math.inf
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
+        self.spin = SpinCheck(dt, veh.track_m)  # a spinning car: nothing promised (spin_check.py)
         self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
         self.gyro_gate = GyroScaleGate(veh.track_m, GSC_EVERY * dt)  # the gyro's scale against wheels and ay (a unit error)
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
@@ -703,6 +704,25 @@ class Estimator:
         self.initialized = True
         self.aligned = False
 
+    def _new_fault_detector(self) -> FaultDetector:
+        veh = self.cfg.vehicle
+        return FaultDetector(self.dt, veh.track_m, veh.cg_to_front_axle_m, veh.driven_axle,
+                             self.wheels.measured_speed, self._model_vy, veh.cg_to_rear_axle_m)
+
+    def _after_spin(self, k: int) -> None:
+        """The car grips again after a spin (spin_check.py): re-initialise the filter from the
+        wheels (the divergence path) and start the fault detector afresh. Its verdicts while the
+        car slid (wheels, ax, gyro, GNSS isolated in turn: random seeds 89, 166, 205, 239) were
+        votes through a gripping car's kinematics, which the spin broke; kept, they held the good
+        wheels out for good. Its event counts (EST_DIAG) and left/right radius learning carry on."""
+        old = self.fdi
+        fdi = self.fdi = self._new_fault_detector()
+        fdi.events = old.events
+        fdi.lr = old.lr
+        log.warning("spin: the car grips again (%.1f s after the slide began): filter and fault "
+                    "detector re-initialised", (k * self.dt) - self.spin.fired_t)
+        self._reset(k)
+
     def _reset(self, k: int) -> None:
         """Re-initialise after divergence / non-finite state, keeping what was learned."""
         self.resets += 1
@@ -832,6 +852,8 @@ class Estimator:
         if ACCEL_AGE_COMPENSATION:
             ax_m = age.at_mid(I_AX - I_YAW, ax_m, t)
             ay_m = age.at_mid(I_AY - I_YAW, ay_m, t)
+        r_g = r_m  # the gyro and ay as measured, for the spin check (a spin makes the fault detector
+        ay_g = ay_m  # isolate a good gyro: its substitute, the wheels' yaw rate, is no witness then)
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]
@@ -875,7 +897,17 @@ class Estimator:
         r_lp_prev = self.r_lp
         r_lp = self.r_lp = r_lp_prev + self._lp_r * (r - r_lp_prev)
         rdot = self.rdot = self.rdot + self._lp_rdot * ((r_lp - r_lp_prev) / self.dt - self.rdot)
-        # the single-track model's inputs at rdot's lag, and vy's kinematic change over that lag
+        kw = xl[KW]
+        spin = self.spin
+        if spin.step(t, vx, r_g - xl[BR], ay_g - xl[BAY] - xl[GAY] * ay_g,
+                     wheel_z * kw if wheels_ok else math.nan, rl * kw, rr * kw, imu_published):
+            if spin.fired_t == t:
+                log.warning("spin: sideslip %+.0f deg within ~0.5 s at r vx %.1f m/s^2: the car slides beyond its "
+                            "grip; vx, sideslip and heading invalid until it grips again",
+                            math.degrees(spin.dbeta), (r_g - xl[BR]) * vx)
+        elif spin.released:
+            self._after_spin(k)
+            return self._invalid(t)
         r_c, ay_c, vy_shift = self.model_inputs.step(r_lp, r, ay, vx)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
@@ -1250,7 +1282,10 @@ class Estimator:
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
-        vel_valid = (imu_ok and (wheels_trusted or gnss_fresh)
+        # a sliding / spinning car (spin_check.py): no source measures vx, vy or the heading's
+        # kinematics then, so velocity, sideslip (through vel_valid) and heading are not promised
+        spinning = self.spin.active
+        vel_valid = (imu_ok and not spinning and (wheels_trusted or gnss_fresh)
                      and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
                      and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
                      and not self.wheel_scale_seed.offset_found
@@ -1279,7 +1314,7 @@ class Estimator:
             vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
             and not self.lat_scale.failing and wsc.confirmed
             and (iso & YAW_RATE != 0 or self.gyro_gate.sideslip_ok()),
-            imu_ok and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
+            imu_ok and not spinning and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and not self.axis_swap.swapped and self.gyro_gate.heading_ok()
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),

@@ -1,0 +1,117 @@
+"""Spin / slide check: is the car still the gripping car the estimator's promise assumes?
+
+Why (issue 7, random drives 89, 166, 205, 239): every aiding source of the filter assumes a car
+whose tyres grip. The wheels then measure vx, the single-track model holds vy to a few degrees of
+sideslip, and the fault detector's votes (wheels against ax, the gyro against the rear wheels and
+ay / vx) compare sensors through a gripping car's kinematics. A car that spins out breaks all of
+that at once: the fault detector isolated the wheels, ax, the gyro and GNSS in turn (each
+"disagreed" with the rest), and vx was then published valid 15-29 m/s off, the sideslip once
+171 deg off, while the model still said ~0 deg.
+
+The physics a spin contradicts and no gripping drive does: lateral kinematics
+``ay = dvy/dt + r vx``. A gripping car keeps its sideslip to a few degrees, so ``dvy/dt`` stays
+small and ``r vx`` follows ``ay`` (itself at most mu g). A car that slides away turns faster than
+its tyres can bend its path: ``|r vx|`` goes far beyond ``|ay|`` (205: ``r vx`` 21 m/s^2 against
+an ``ay`` of 6.5), i.e. ``|dvy/dt|`` of a large fraction of g sustained -- vy grows by metres per
+second within half a second, the sideslip by tens of degrees. Both conditions are required, the
+excess over ``ay`` and a yaw rate beyond what the road's grip could hold on that path, so that a
+transient of a hard but gripping manoeuvre (a dry lane change, a slalom on snow) does not count.
+
+Once it has fired, the car is called sliding until the kinematics measured by the wheels (not by
+the filter's vx, which the spin has spoiled) are those of a gripping car again for ``GRIP_S``:
+``|ay - r v_wheels|`` small and the yaw rate within grip. :attr:`released` is set for one call
+then: the estimator re-initialises from that consistent state (its divergence path).
+
+Inputs are SI, ISO 8855 (ay, r positive to the left); the check holds no filter state.
+"""
+from __future__ import annotations
+
+import math
+
+G = 9.80665
+#: rad: sideslip change over the last ~TAU_S, from ``(ay - r vx) / vx`` (= d beta / dt), beyond
+#: which the car is leaving its grip range. A gripping car's sideslip swings by a few degrees (a dry
+#: lane change +-3 deg, on snow +-5 deg, over a second); a car that spins out turns it by tens of
+#: degrees in half a second (205: 33 deg in 1 s). Per speed, not in m/s^2: at 50 m/s a 1.5 deg
+#: weave of a gripping car is 8 m/s^2 of |ay - r vx| for 0.15 s (flying_50_r400r_h300).
+SLIDE_RAD = 0.12
+#: m/s^2: |r vx| beyond which no tyre on any road holds the path (~1.2 g, dry asphalt and margin)
+GRIP_MPS2 = 1.2 * G
+#: s: the leaky integral's memory: long enough to see a slide build up, short enough that the
+#: bias and bank errors of ay (<= 0.5 m/s^2, a 0.025 rad drift at 10 m/s) do not add up
+TAU_S = 0.5
+#: s: low-pass of the wheels' kinematic excess while waiting for grip (a spike is not grip lost)
+RELEASE_TAU_S = 0.15
+#: m/s^2: |ay - r v_wheels| below which the car grips again (sensor errors, bank, transients)
+RELEASE_MPS2 = 1.5
+#: s: how long the wheels' kinematics must be a gripping car's before the slide is over
+GRIP_S = 1.0
+#: m/s: below this the check does not fire (r vx is small, the sideslip not meaningful)
+MIN_SPEED = 5.0
+
+
+class SpinCheck:
+    """Latched slide / spin detector (see the module docstring for why)."""
+
+    def __init__(self, dt: float, track_m: float):
+        self.dt = dt
+        self.track = track_m
+        self._decay = 1.0 - dt / TAU_S
+        self._a = dt / (RELEASE_TAU_S + dt)
+        self.excess = 0.0  # ay - r vx (m/s^2) at the last step
+        self.dbeta = 0.0  # leaky integral of (ay - r vx) / vx: the sideslip change of the last ~TAU_S (rad)
+        self.release_excess = 0.0  # low-passed ay - r v_wheels while sliding
+        self.active = False
+        self.released = False  # True for the one step at which a slide ends
+        self.events = 0  # slides seen (diagnostics)
+        self.peak = 0.0  # largest min(|dbeta| / SLIDE_RAD, |r vx| / GRIP_MPS2) so far (1: fired)
+        self.fired_t = math.nan
+        self._grip_steps = 0
+        self._grip_need = int(round(GRIP_S / dt))
+
+    def step(self, t: float, vx: float, r: float, ay: float, v_wheels: float, rl: float, rr: float,
+             usable: bool) -> bool:
+        """One estimator step; returns :attr:`active`.
+
+        ``vx``: the filter's speed; ``r``, ``ay``: the gyro and lateral accelerometer as measured,
+        less their bias states (not the fault detector's substitutes: a spin is what makes it
+        isolate a good gyro); ``v_wheels``: the wheels' speed and ``rl``, ``rr`` the rear wheels
+        (m/s, scale applied; NaN when stale); ``usable``: the IMU is fresh.
+        """
+        self.released = False
+        if not usable:
+            self.dbeta = 0.0
+            return self.active
+        a = self._a
+        e = self.excess = ay - r * vx
+        fast = abs(vx) > MIN_SPEED
+        self.dbeta = self.dbeta * self._decay + (e / abs(vx) * self.dt if fast else 0.0)
+        if fast and (rr - rl) * r > 0.0:  # how close to firing the drive came (diagnostics, tests)
+            m = min(abs(self.dbeta) / SLIDE_RAD, abs(r * vx) / GRIP_MPS2)
+            if m > self.peak:
+                self.peak = m
+        if not self.active:
+            # the rear wheels' difference confirms a yaw rate of the gyro's sign and at least half its
+            # size (rigid-body kinematics, sliding or not): a stuck or offset gyro is no spin
+            r_w = (rr - rl) / self.track
+            if (fast and abs(self.dbeta) > SLIDE_RAD and abs(r * vx) > GRIP_MPS2
+                    and r_w * r > 0.5 * r * r):
+                self.active = True
+                self.events += 1
+                self.fired_t = t
+                self._grip_steps = 0
+                self.release_excess = e
+            return self.active
+        if not math.isfinite(v_wheels):
+            self._grip_steps = 0
+            return True
+        self.release_excess += a * ((ay - r * v_wheels) - self.release_excess)
+        if abs(self.release_excess) < RELEASE_MPS2 and abs(r * v_wheels) < GRIP_MPS2:
+            self._grip_steps += 1
+            if self._grip_steps >= self._grip_need:
+                self.active = False
+                self.released = True
+                self.dbeta = 0.0
+        else:
+            self._grip_steps = 0
+        return self.active
