@@ -20,7 +20,7 @@ cdef class FaultDetector:
     cdef public object lr, lr_m, new_isolation, r_wheels, rdot_abs, stuck_wheels, track
     cdef public object wheel_latches, wheel_mask, wheel_z, wheel_z_excess_var, wheels_back
     cdef public object wheels_isolated, wheels_stuck, wheels_vouch_gyro, witnesses_agree
-    cdef public object yaw_catch_up, yaw_disagreement, yaw_suspect
+    cdef public object yaw_catch_up, yaw_disagreement, yaw_suspect, substitute_yaw_error, e_sub
     # The yaw vote (~half of the detector's per-step cost): its floating-point locals are C doubles
     # and its verdicts C flags. A Python float is an IEEE double and each of its operators is the
     # same C operation (+ - * / on two doubles, compiled with -ffp-contract=off: no fused
@@ -31,7 +31,7 @@ cdef class FaultDetector:
     @cython.locals(a_slow=double, a_yaw=double, rdot_abs=double, wide=double, vx=double, kw=double,
                    r_g=double, v_rear=double, e_w=double, e_ws=double, r_wheels=double, rw_lp=double,
                    d=double, ay=double, e_a=double, e_as=double, ref=double, tol_w=double, slow=double,
-                   catch_up=double, wheels_yaw=bint, have_w=bint, have_a=bint, w_fail=bint, a_fail=bint,
+                   catch_up=double, e_sub=double, wheels_yaw=bint, have_w=bint, have_a=bint, w_fail=bint, a_fail=bint,
                    scale_fail=bint, jump=bint, gyro_suspect=bint)
     cpdef _yaw(self, k, rl, rr, wheels_ok, r_m, ay_m, imu_ok, x, rdot, braking=*)
     # the same for the wheel vote, the longitudinal window and the lateral window

@@ -43,7 +43,11 @@ noisy, it isolated a good gyro and the repair below then put the wheels' error i
 heading, 15 deg off while valid). At the step the gyro is isolated, the
 heading it integrated since the disagreement began (the integral of gyro minus wheels) is taken
 back out of the stored steps; while it is out, yaw rate comes from the wheels, the single-track
-model (on ay) holds vy, and sideslip is promised only while ay / vx vouches for the wheels.
+model (on ay) holds vy, and sideslip is promised only while ay / vx vouches for the wheels. The
+heading integrates that substitute, so its std grows by the substitute's own error bound
+(:attr:`FaultDetector.substitute_yaw_error`, against ay / vx): the heading flag returns with the
+gyro only once GNSS has brought that std back (a std that grew as noise only let a heading 7.9 deg
+off be valid at a 1.45 deg std when a gyro isolated in a lane change returned).
 
 Bias state or FDI: the bias states (``b_r``, ``b_ax``, ``b_ay``) follow slow drift, at their
 configured random walk; a step in a sensor's offset is FDI's (the random walk would take tens of
@@ -275,6 +279,10 @@ class FaultDetector:
         #: rad, at the first step the gyro is suspect: what it integrated against the wheels over the
         #: fast test's lag before (the drift began before the test could fail), else 0
         self.yaw_catch_up = 0.0
+        #: rad/s, while the gyro is isolated: how fast its substitute may be off (the core grows the
+        #: heading's std by it, linearly: a bias, not noise); 0 otherwise
+        self.substitute_yaw_error = 0.0
+        self.e_sub = 0.0  # low-passed substitute yaw rate - ay / vx
         self._gyro_suspect = False
         self._suspect_k = -(1 << 62)  # last step the gyro was suspect
         # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a, rdot, rdot^2, r rdot, rdot e_w, e_w, r e_w
@@ -682,6 +690,21 @@ class FaultDetector:
                 self._relearn_bias()
         elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
             self._scale = [0.0] * 13
+        # while the gyro is out, the heading integrates its substitute (the wheels' yaw rate; 0
+        # without wheels): how fast that may be off, measured against its one independent witness
+        # (ay / vx, low-passed as e_a) plus that witness's transient allowance, else the wheels'
+        # own kinematic tolerance. The wheels of a driven axle slip unequally in a corner (random
+        # seed 21: rear wheels 0.14 rad/s below a right gyro): an error no random walk describes.
+        if have_a:
+            e_sub = self.e_sub = self.e_sub + a_yaw * (((r_wheels if wheels_yaw else 0.0)
+                                                        - (ay - self.lr_m * rdot) / vx) - self.e_sub)
+        else:
+            e_sub = self.e_sub = 0.0
+        if gyro.active:
+            self.substitute_yaw_error = (abs(e_sub) + wide if a_witness
+                                         else YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref + wide)
+        else:
+            self.substitute_yaw_error = 0.0
         # ay is judged against a gyro the wheels vouch for (a gyro fault leaves both residuals
         # high for as long as they decay; that is not ay's fault)
         if ay_stuck:
