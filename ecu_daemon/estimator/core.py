@@ -925,7 +925,9 @@ class Estimator:
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS:
-                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A, fdi.wheel_z_excess_var):
+                # slip seen beyond the witness's own errors is the wheels' error, not vx's: widened by it
+                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A,
+                               fdi.wheel_z_excess_var + self.slip_witness.excess ** 2):
                     self.wheel_reject_t = math.inf
                 elif self._wheels_diverged(t):
                     self._reset(k)

@@ -14,7 +14,9 @@ the wheels' noise could make of it. Once built up, a held slip is invisible to t
 wheels then decelerate with the car), so the slip *ratio* seen is kept for the rest of the
 manoeuvre: an ABS keeps it while it keeps braking. Only the direction slip takes counts (braking:
 wheels slower; traction: the driven wheels faster): a wheel-speed lag reads the other way and is
-not slip.
+not slip. The bound goes into the published vx std (core.py, beside the linear law's); the slip seen
+beyond the comparison's errors (``excess``) also widens the wheel update, so vx leans on ax and GNSS
+while it lasts.
 """
 from __future__ import annotations
 
