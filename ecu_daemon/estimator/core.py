@@ -50,6 +50,7 @@ from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, align_speed_ok, MAX_
 from .fusion.single_track import LaggedModelInputs, SingleTrackFusion, std_keys as stiffness_std_keys
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
+from .fusion.wheel_slip import SlipWitness
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_age import InputAge
@@ -353,6 +354,8 @@ class Estimator:
                                           es.mag_norm_tol, es.mag_dip_tol_deg, es.mag_gate_sigma)
         self.mag_new = False
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
+        # slip measured against the accelerometer: the linear law's bound fails at the friction limit
+        self.slip_witness = SlipWitness(dt, self.wheels.noise2, self.wheels.use_all)
         self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
         self.single_track = SingleTrackFusion(
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
@@ -937,7 +940,12 @@ class Estimator:
                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and vx > -0.1
                 and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
-        self.slip_hold = max(wheels.slip_bound(vx, ax), self.slip_hold * self._slip_decay)
+        # the slip the wheels show against the integrated ax (wheel_slip.py), beside the linear law's
+        seen = self.slip_witness.step(
+            wheels.as_vx(wheel_z, xl[KW], xl[VY], r, delta if steer_ok else 0.0)
+            if wheels_ok and imu_ok and not iso & (WHEELS | ACCEL_X) else math.nan,
+            ax_m, xl[BAX], P[BAX, BAX], r * xl[VY])
+        self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
@@ -949,7 +957,9 @@ class Estimator:
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS:
-                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A, fdi.wheel_z_excess_var):
+                # slip seen beyond the witness's own errors is the wheels' error, not vx's: widened by it
+                if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A,
+                               fdi.wheel_z_excess_var + self.slip_witness.excess ** 2):
                     self.wheel_reject_t = math.inf
                 elif self._wheels_diverged(t):
                     self._reset(k)

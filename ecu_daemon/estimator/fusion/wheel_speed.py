@@ -9,6 +9,8 @@ is a bias the filter cannot average away: ``slip_bound`` sizes it for the publis
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .. import generated as gen
@@ -41,6 +43,13 @@ class WheelSpeedFusion:
         if self.use_front:
             return 0.5 * (fl + fr)
         return 0.5 * (rl + rr)
+
+    def as_vx(self, z: float, k_w: float, vy: float, r: float, delta: float) -> float:
+        """The fused wheels' speed ``z`` as the car's vx (the inverse of the measurement model)."""
+        f = self.frac
+        if not f:
+            return z * k_w
+        return (z * k_w - f * (vy + self.lf * r) * math.sin(delta)) / (f * math.cos(delta) - f + 1.0)
 
     def slip_bound(self, vx: float, ax: float) -> float:
         """Largest speed error (m/s) longitudinal slip of the fused wheels puts into vx: braking
