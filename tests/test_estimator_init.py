@@ -379,6 +379,27 @@ def test_wheels_checked_before_a_restart_need_no_new_check():
     assert "wheel_mapping_checked" not in other.learned_state()
 
 
+def test_a_gyro_confirmed_before_a_restart_needs_no_new_confirmation():
+    """The learned state keeps the fingerprint of the yaw-rate mapping the gyro-scale gate
+    confirmed: a restart with the same mapping (mid-corner: test_cut_starts) rests its heading on
+    the gyro at once; another mapping (the sign flipped) is judged afresh, and a gate never
+    confirmed records nothing."""
+    est = Estimator(_cfg())
+    assert "gyro_mapping_checked" not in est.learned_state()
+    _lane_change(est, 100.0, 25.0)
+    assert est.gyro_gate.confirmed
+    learned = est.learned_state()
+    assert "gyro_mapping_checked" in learned
+    again = Estimator(_cfg(), learned)
+    assert again.gyro_gate.confirmed and again.gyro_gate.heading_scale_sd() == 0.0
+    assert "gyro_mapping_checked" in again.learned_state()  # kept for the next restart
+    flipped = _cfg()
+    flipped.inputs["yaw_rate"].scale *= -1.0
+    other = Estimator(flipped, learned)
+    assert not other.gyro_gate.confirmed
+    assert other.learned_state().get("gyro_mapping_checked") != other._gyro_mapping
+
+
 def test_wheels_taken_as_mapped_without_gnss_are_not_recorded_as_checked():
     """GNSS off: the wheels are taken as mapped (nothing would ever check them), not checked: the
     learned state must not tell a later run with GNSS that they were."""

@@ -245,16 +245,26 @@ def _learned_key(key: str, receiver: int) -> str:
 
 
 
-def _wheel_mapping_fingerprint(cfg: Config) -> float:
-    """The four wheel-speed mappings (message, signals, scale, offset, sign) as a CRC-32: what a
-    restored "wheels checked" must match (another mapping, another check). A float: the learned
-    state's values are."""
+def _mapping_fingerprint(cfg: Config, names: tuple[str, ...]) -> float:
+    """The named input mappings (message, signals, scale, offset, sign) as a CRC-32: what a
+    restored "checked" must match (another mapping, another check). A float: the learned state's
+    values are."""
     parts = []
-    for n in ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr"):
+    for n in names:
         m = cfg.inputs.get(n)
         parts.append("-" if m is None else repr((m.message, m.signal_names(), float(m.scale), float(m.offset),
                                                  m.sign_signal)))
     return float(zlib.crc32("|".join(parts).encode()))
+
+
+def _wheel_mapping_fingerprint(cfg: Config) -> float:
+    """The four wheel-speed mappings' fingerprint (``wheel_mapping_checked``)."""
+    return _mapping_fingerprint(cfg, ("wheel_speed_fl", "wheel_speed_fr", "wheel_speed_rl", "wheel_speed_rr"))
+
+
+def _gyro_mapping_fingerprint(cfg: Config) -> float:
+    """The yaw-rate mapping's fingerprint (``gyro_mapping_checked``)."""
+    return _mapping_fingerprint(cfg, ("yaw_rate",))
 
 
 def hold_heading_step(since_gyro: float, timeout: float, r_last: float, vx: float, dt: float) -> float:
@@ -431,6 +441,12 @@ class Estimator:
         self.spin = SpinCheck(dt, veh.track_m)  # a spinning car: nothing promised (spin_check.py)
         self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
         self.gyro_gate = GyroScaleGate(veh.track_m, GSC_EVERY * dt)  # the gyro's scale against wheels and ay (a unit error)
+        # ... a sensor's mapping, not a state: once confirmed, a restart with the same yaw-rate mapping
+        # need not confirm it again (a restart mid-corner had its heading withheld 2.5 s while the
+        # witnesses re-judged a gyro the learned state had already seen confirmed: test_cut_starts)
+        self._gyro_mapping = _gyro_mapping_fingerprint(cfg)
+        if learned.get("gyro_mapping_checked") == self._gyro_mapping:
+            self.gyro_gate.confirmed = True
         self.ay_out = self.ay_out_new = False  # ay alone stale: substituted (_step)
         self.wheel_scale_check = WheelScaleCheck()  # the wheels' scale against GNSS speed (mapping errors)
         self.wheel_scale_seed = WheelScaleSeed()  # ... averaged over steady fixes (a wrong tyre size)
@@ -552,6 +568,7 @@ class Estimator:
             **self.road.learned(),
             **self._yaw_scale_learned(),
             **self._wheels_checked_learned(),
+            **self._gyro_checked_learned(),
             **{_learned_key(k, i): float(getattr(lat, a)) for i, lat in enumerate(self.latencies)
                for k, a in (("gnss_delay_s", "delay_s"), ("gnss_delay_std_s", "std_s"))},
         }
@@ -561,6 +578,13 @@ class Estimator:
         confirmed its scale; nothing when it was only taken as mapped (GNSS off)."""
         if self.wheel_scale_check.confirmed and not self._wheels_assumed:
             return {"wheel_mapping_checked": self._wheel_mapping}
+        return {}
+
+    def _gyro_checked_learned(self) -> dict:
+        """The yaw-rate mapping's fingerprint once the gyro-scale gate (or a restored state) has
+        confirmed it (gyro_scale_gate.py); nothing before."""
+        if self.gyro_gate.confirmed:
+            return {"gyro_mapping_checked": self._gyro_mapping}
         return {}
 
     def _yaw_scale_learned(self) -> dict:
@@ -605,7 +629,8 @@ class Estimator:
                   "accel_x_offset_std_mps2": (0.0, 10.0), "accel_y_offset_std_mps2": (0.0, 10.0),
                   "roll_rate_bias_radps": 0.1, "roll_rate_bias_std_radps": (0.0, 1.0),
                   "yaw_rate_scale": 0.1, "yaw_rate_scale_std": (0.0, 0.1),
-                  "wheel_mapping_checked": (0.0, float(0xFFFFFFFF))}
+                  "wheel_mapping_checked": (0.0, float(0xFFFFFFFF)),
+                  "gyro_mapping_checked": (0.0, float(0xFFFFFFFF))}
         for i in range(1, MAX_RECEIVERS):
             limits[_learned_key("gnss_delay_s", i)] = limits["gnss_delay_s"]
             limits[_learned_key("gnss_delay_std_s", i)] = limits["gnss_delay_std_s"]
