@@ -9,27 +9,20 @@ whose noise differs; 5.2 deg at its 420 s cut). Skipped when ../shared/data is a
 """
 from __future__ import annotations
 
-import importlib.util
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+from tools_import import load_tool
+
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 if not SHARED.is_dir():  # a clone without ../shared beside it; with it, a missing data set fails
     pytest.skip(f"shared data not found at {SHARED}", allow_module_level=True)
 
 
-def _load_tool():
-    spec = importlib.util.spec_from_file_location("cut_starts", REPO / "tools" / "cut_starts.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-cs = _load_tool()
+cs = load_tool("cut_starts")
 rd = cs.real_data
 CUT_S, END_S = 20.0, 50.0
 

@@ -234,10 +234,8 @@ def test_hnr_pvt_gives_velocity_when_no_nav_pvt_comes():
 def test_share_of_gpsd_speed_epochs_matched_over_all_shared_captures():
     """tools/score_gnss_captures.py: 74.4 % before issue 9's GNSS items (1244 of 1671 with the same
     definition), 85.9 % after; the rest is gpsd's own speed (quectel, boat), HNR/NAV mixing (M8L)."""
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("score", Path(__file__).parents[1] / "tools" / "score_gnss_captures.py")
-    score = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(score)
+    from tools_import import load_tool
+    score = load_tool("score_gnss_captures")
     scores = score.score_dir(SHARED / "gpsd")
     total, hit = sum(n for n, _ in scores.values()), sum(m for _, m in scores.values())
     assert len(scores) == 72 and total == 1671

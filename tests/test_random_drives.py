@@ -7,22 +7,18 @@ The drives are cut to 20 s to keep the test short; what is checked does not depe
 """
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+from tools_import import load_tool
+
 
 
 @pytest.fixture(scope="module")
 def rd():
-    spec = importlib.util.spec_from_file_location("random_drives", REPO / "tools" / "random_drives.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool("random_drives")
 
 
 def test_the_draw_is_a_function_of_the_seed_and_stays_in_its_ranges(rd):

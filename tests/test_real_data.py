@@ -7,27 +7,20 @@ comments) so that a regression shows; skipped when ../shared/data is absent.
 """
 from __future__ import annotations
 
-import importlib.util
 import math
 from collections import Counter
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+from tools_import import load_tool
+
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 if not SHARED.is_dir():  # a clone without ../shared beside it; with it, a missing data set fails
     pytest.skip(f"shared data not found at {SHARED}", allow_module_level=True)
 
 
-def _load_tool():
-    spec = importlib.util.spec_from_file_location("real_data", REPO / "tools" / "real_data.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-rd = _load_tool()
+rd = load_tool("real_data")
 
 
 @pytest.fixture(scope="module")

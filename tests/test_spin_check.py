@@ -7,15 +7,14 @@ that drive had vx valid 15.6 m/s off (392 of 6447 valid rows beyond 3 sigma, cov
 """
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
 
+from tools_import import load_tool
+
 from ecu_daemon.estimator.spin_check import GRIP_MPS2, GRIP_S, SLIDE_RAD, TAU_S, SpinCheck
 
-REPO = Path(__file__).resolve().parents[1]
 DT = 0.006
 TRACK = 1.6
 
@@ -90,10 +89,7 @@ def test_the_check_keeps_its_verdict_while_the_imu_is_stale():
 
 @pytest.fixture(scope="module")
 def rd():
-    spec = importlib.util.spec_from_file_location("random_drives", REPO / "tools" / "random_drives.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_tool("random_drives")
 
 
 def test_a_car_that_spins_out_keeps_no_valid_vx_beyond_its_std(rd, tmp_path):
