@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import math
 
+from .rear_axle_yaw import rear_speed_difference
+
 G = 9.80665
 #: rad: sideslip change over the last ~TAU_S, from ``(ay - r vx) / vx`` (= d beta / dt), beyond
 #: which the car is leaving its grip range. A gripping car's sideslip swings by a few degrees (a dry
@@ -86,14 +88,15 @@ class SpinCheck:
         e = self.excess = ay - r * vx
         fast = abs(vx) > MIN_SPEED
         self.dbeta = self.dbeta * self._decay + (e / abs(vx) * self.dt if fast else 0.0)
-        if fast and (rr - rl) * r > 0.0:  # how close to firing the drive came (diagnostics, tests)
+        # the rear wheels' yaw rate (rear_axle_yaw.py: signed or unsigned wheel speeds, either direction)
+        r_w = rear_speed_difference(rl, rr, vx) / self.track
+        if fast and r_w * r > 0.0:  # how close to firing the drive came (diagnostics, tests)
             m = min(abs(self.dbeta) / SLIDE_RAD, abs(r * vx) / GRIP_MPS2)
             if m > self.peak:
                 self.peak = m
         if not self.active:
             # the rear wheels' difference confirms a yaw rate of the gyro's sign and at least half its
             # size (rigid-body kinematics, sliding or not): a stuck or offset gyro is no spin
-            r_w = (rr - rl) / self.track
             if (fast and abs(self.dbeta) > SLIDE_RAD and abs(r * vx) > GRIP_MPS2
                     and r_w * r > 0.5 * r * r):
                 self.active = True
