@@ -42,7 +42,10 @@ MODULES = (
     "ecu_daemon/estimator/wheel_yaw_check.py",  # WheelYawCheck: every step until the wheels are confirmed
     "ecu_daemon/estimator/wheel_launch_check.py",  # WheelLaunchCheck: likewise
     "ecu_daemon/estimator/line_fit.py",  # LineFit: the gyro-scale gate's and the wheel-yaw check's fits
+    "ecu_daemon/estimator/rear_axle_yaw.py",  # rear_speed_difference: the spin check's every step, the gates'
+    "ecu_daemon/estimator/spin_check.py",  # SpinCheck.step: every step
     "ecu_daemon/estimator/fusion/wheel_speed.py",
+    "ecu_daemon/estimator/fusion/wheel_slip.py",  # SlipWitness: every wheel-speed step
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",
     "ecu_daemon/estimator/fusion/gnss_velocity.py",
