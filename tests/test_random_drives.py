@@ -75,3 +75,16 @@ def test_a_broken_promise_is_coverage_below_99_percent_or_a_valid_error_beyond_t
     figures["heading"]["worst_error_valid"] = math.radians(5.1)
     figures["sideslip"].update(valid_rows=0, coverage_3sigma=math.nan, worst_error_valid=math.nan)
     assert rd.broken(figures) == ["worst-heading", "cov-vx"]
+
+
+def test_a_drive_the_chassis_dbc_cannot_carry_is_listed_not_scored_and_not_a_broken_promise(rd, tmp_path):
+    """Seed 165 (generator v1): a straight drive on ice spins out after the friction drop and its
+    wheels turn backwards faster than the chassis DBC's wheel-speed signals reach (-10.016 m/s).
+    No recording of that drive can exist, so it says nothing of the estimator: reported apart,
+    not counted as a broken promise nor as an error of the tool."""
+    drives, overall = rd.run([165], tmp_path, jobs=1)
+    (d,) = drives
+    assert d["unencodable"] and d["unencodable"].startswith("error: UnencodableValue"), d["error"]
+    assert d["broken"] == [] and d["figures"] == {}
+    assert overall["unencodable"] == [165] and overall["errors"] == [] and overall["breaking_seeds"] == []
+    assert "not scored: the simulated drive does not fit the chassis DBC" in rd.format_report(drives, overall)

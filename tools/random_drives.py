@@ -9,6 +9,10 @@ ranges a real car, road and receiver have -- not over what the filter is known t
 scores each one with the suite's own code (:func:`ecu_daemon.suite.run_case`: simulate, replay with
 the written ``config.toml``, :func:`ecu_daemon.evaluate._evaluate`), so there is no second scoring.
 
+A drive whose simulated signals the chassis DBC cannot carry (a spinning car's wheels turning
+backwards beyond the wheel-speed signals' range) is listed as *not encodable* and not scored: no
+recording of it could exist. Any other error breaks the promise.
+
 A drive *breaks the promise* when, for sideslip, heading or vx, fewer than 99 % of its valid rows
 are within 3 reported sigma, or the sideslip is valid more than 2 deg off, or the heading valid
 more than 5 deg off (the suite's ``cov-*`` / ``worst-*`` targets). Availability is printed but is
@@ -224,6 +228,9 @@ def run_drive(seed: int, out_dir: str, max_duration_s: float | None = None) -> d
     row = run_case(SuiteCase(sc.name, "random", sc), out_dir)
     ev_path = Path(out_dir) / sc.name / "evaluation.json"
     error = next((f for f in row["failed"] if f.startswith("error:")), None)
+    # the drive left what the chassis DBC can carry (a spinning car's wheels turning backwards
+    # faster than its wheel-speed signals' range): a limit of the recording, not of the estimator
+    unencodable = error if error is not None and error.startswith("error: UnencodableValue") else None
     figures = {}
     if error is None:
         ev = json.loads(ev_path.read_text())["evaluation"]
@@ -231,14 +238,16 @@ def run_drive(seed: int, out_dir: str, max_duration_s: float | None = None) -> d
     return {"seed": seed, "version": GENERATOR_VERSION, "name": sc.name, "scenario": repr(sc),
             "manoeuvre": sc.manoeuvre, "spun_out": bool(row.get("spun_out", False)), "error": error,
             "suite_failed": [f for f in row["failed"] if not f.startswith("error:")],
-            "figures": figures, "broken": broken(figures) if figures else ["error"],
+            "unencodable": unencodable,
+            "figures": figures, "broken": broken(figures) if figures else ([] if unencodable else ["error"]),
             "wall_s": row["wall_s"]}
 
 
 def summary(drives: list[dict]) -> dict:
     """Overall figures: valid rows beyond 3 sigma summed over the drives, worst errors, mean valid
     fractions, and the seeds that break the promise."""
-    out = {"drives": len(drives), "errors": [d["seed"] for d in drives if d["error"]],
+    out = {"drives": len(drives), "errors": [d["seed"] for d in drives if d["error"] and not d.get("unencodable")],
+           "unencodable": [d["seed"] for d in drives if d.get("unencodable")],
            "breaking_seeds": [d["seed"] for d in drives if d["broken"]]}
     scored = [d for d in drives if d["figures"]]
     for q in QUANTITIES:
@@ -265,6 +274,10 @@ def format_report(drives: list[dict], overall: dict) -> str:
     lines = [f"random drives, generator v{GENERATOR_VERSION}: per quantity beyond-3-sigma valid rows"
              " (count/valid, %), worst error while valid, valid fraction above 5 m/s"]
     for d in drives:
+        if d.get("unencodable"):
+            lines.append(f"seed {d['seed']:>5} {d['manoeuvre']:<18} not scored: the simulated drive does not fit"
+                         f" the chassis DBC ({d['error'][len('error: '):]})")
+            continue
         if d["error"]:
             lines.append(f"seed {d['seed']:>5} {d['manoeuvre']:<18} {d['error']}")
             continue
@@ -278,7 +291,8 @@ def format_report(drives: list[dict], overall: dict) -> str:
                      + ("  BREAKS " + ",".join(d["broken"]) if d["broken"] else "")
                      + ("  [spun out]" if d["spun_out"] else ""))
     lines.append(f"overall: {overall['drives']} drives, {len(overall['breaking_seeds'])} break the promise"
-                 f" (seeds {overall['breaking_seeds']}), errors {overall['errors']}")
+                 f" (seeds {overall['breaking_seeds']}), errors {overall['errors']},"
+                 f" not encodable in the chassis DBC (not scored) {overall['unencodable']}")
     for q in QUANTITIES:
         o = overall[q]
         unit, k = UNIT[q]
