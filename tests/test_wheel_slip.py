@@ -66,3 +66,46 @@ def test_lagging_wheels_and_undriven_wheels_under_traction_are_not_slip():
             bound = w.step(v + (i + 1) * DT, 3.0, 0.0, 1e-4, 0.0)
         assert (bound > expect) if expect else bound == 0.0
         assert math.isfinite(bound)
+
+
+def _corner(w: SlipWitness, v: float, fx: float, fy: float, bax: float, slip_after: float,
+            slip: float, seconds: float) -> float:
+    """Constant speed (ax - bax = 0) with the tyres carrying ``(fx, fy)`` per mass; after
+    ``slip_after`` s the wheels fall ``slip`` m/s behind over 0.3 s. Returns the last bound."""
+    w.step(v, bax, bax, 1e-4, 0.0, 0.0, 0.0)  # force-free: the anchor (a straight, no braking)
+    bound = 0.0
+    for i in range(round(seconds / DT)):
+        t = i * DT
+        lost = slip * min(max(t - slip_after, 0.0) / 0.3, 1.0)
+        bound = w.step(v - lost, bax, bax, 1e-4, 0.0, fx, fy)
+    return bound
+
+
+def test_on_a_downhill_the_tyres_brake_at_zero_ax_and_slip():
+    # 7 % downhill at constant speed: ax - b_ax = 0 (b_ax holds the grade), but the tyres brake at
+    # 0.7 m/s^2 and, near a snowy corner's limit, slip 0.35 m/s (random drive 83)
+    bax = -0.7 - 0.1  # the grade's share of b_ax and the sensor's own offset
+    bound = _corner(SlipWitness(DT, 0.08 ** 2, driven_fused=False), 10.0, -1.3, 1.2, bax, 0.5, 0.35, 1.5)
+    assert bound > 0.25
+    # without the split (fx unknown: ax - b_ax = 0 taken for the tyres' force) it re-anchors on the
+    # slipping wheels every step: abs33's blind spot
+    w = SlipWitness(DT, 0.08 ** 2, driven_fused=False)
+    w.step(10.0, bax, bax, 1e-4, 0.0)
+    assert all(w.step(10.0 - 0.35 * min(i * DT / 0.3, 1.0), bax, bax, 1e-4, 0.0) == 0.0 for i in range(250))
+
+
+def test_near_the_lateral_limit_a_small_longitudinal_force_slips_the_wheels():
+    # all-wheel drive through a snowy corner at 2.4 m/s^2 (mu g 2.4), fx ~ 0: the driven wheels run
+    # 0.5 m/s ahead (random drive 239: the slip vector points along the force at saturation)
+    w = SlipWitness(DT, 0.08 ** 2, driven_fused=True)
+    bound = _corner(w, 14.0, 0.3, 2.4, 0.0, 1.0, -0.5, 2.5)
+    assert bound > 0.35
+    # the same wheels on a straight (no lateral force): |(fx, fy)| small, the comparison restarts
+    # each step, nothing is read into them
+    assert _corner(SlipWitness(DT, 0.08 ** 2, driven_fused=True), 14.0, 0.3, 0.0, 0.0, 1.0, -0.5, 2.5) == 0.0
+
+
+def test_a_corner_without_slip_reads_none():
+    # 20 s at 6 m/s^2 lateral on a dry road, the wheels following the car: the long comparison's
+    # allowance (bias x time, noise, margin) holds
+    assert _corner(SlipWitness(DT, 0.08 ** 2, driven_fused=True), 20.0, 0.2, 6.0, 0.05, 0.0, 0.0, 20.0) == 0.0

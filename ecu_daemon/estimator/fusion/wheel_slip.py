@@ -17,13 +17,34 @@ wheels slower; traction: the driven wheels faster): a wheel-speed lag reads the 
 not slip. The bound goes into the published vx std (core.py, beside the linear law's); the slip seen
 beyond the comparison's errors (``excess``) also widens the wheel update, so vx leans on ax and GNSS
 while it lasts.
+
+"No longitudinal force" is the tyres' force, not the car's acceleration (issue 7, "mode B on
+snow"): two things made a small |ax - b_ax| a false anchor. (1) ``b_ax`` holds the grade as well as
+the sensor's offset, so ax - b_ax is the kinematic acceleration; on a 7 % downhill the tyres brake
+at 0.7 m/s^2 to hold the speed (random drive 83: ax -0.6 m/s^2 while they carried -1.3 m/s^2 on
+snow, mu 0.23). The tyres' force per mass is the specific force less the sensor's own offset
+(road.py splits ``b_ax`` into the two). (2) A tyre's grip is shared by both directions (the friction
+ellipse): near its lateral limit a small longitudinal force takes a large slip ratio (at
+saturation the slip vector points along the force, kappa / tan(alpha) = Fx / Fy), so a car sliding
+through a snowy corner slips its wheels at |ax| < 1 m/s^2 (drives 193, 239: 0.3-1 m/s at ay
+0.9-1.0 of mu g). So two comparisons run side by side, each a lower bound on the slip, and the larger counts:
+
+* one anchored where the tyres carry (almost) no force at all, |(fx, fy)| below the threshold: it
+  runs through a corner from its entry, so it sees slip that builds near the lateral limit at any
+  |fx|; but its bias x time allowance grows with the corner (3 sigma of a 0.015 m/s^2 bias is 0.5
+  m/s after 12 s), so a late, quick slip can drown in it (drive 193: 0.4 m/s lost 12 s into a
+  corner, not seen);
+* one anchored where |fx| alone is below it (the abs33 rule, with the tyres' force for the car's
+  acceleration): short, so sensitive to the slip an ABS or a brake in a corner builds within
+  0.3 s. Anchored on a slipping tyre it sees only the slip added since: less, never more.
 """
 from __future__ import annotations
 
 import math
 
-#: |ax| (m/s^2) below which the tyres carry (almost) no longitudinal force: the linear law's slip
-#: there (0.7 % at 1 m/s^2) is below what this witness can tell, so the comparison starts again.
+#: the tyres' force per mass (m/s^2, longitudinal and lateral together: they share one grip) below
+#: which they carry (almost) none: the linear law's slip there (0.7 % at 1 m/s^2) is below what this
+#: witness can tell, and no grip is near its limit, so the comparison starts again.
 #: Tested on the sample itself, not low-passed: an ABS application builds ~1 m/s of slip within
 #: 0.3 s of the brake's onset (the reduction in tests/test_abs_slip.py), and a low-pass that quiets
 #: ax's noise (0.2 s) starts the comparison after most of it; a noise dip below the threshold
@@ -34,54 +55,107 @@ ANCHOR_AX_MPS2 = 1.0
 #: sigmas of the comparison's own error (ax bias x time, wheel noise) a loss must exceed to be slip
 SLIP_SIGMAS = 3.0
 #: m/s: what neither bias nor noise explains but the comparison still carries: a grade changing
-#: under the car (the bias state holds the grade at the start), the wheel-radius scale's error x the
-#: speed change, ax's unmodelled pitch; 0.2 m/s is 2 % of the speed change of a typical stop
-SLIP_MARGIN_MPS = 0.2
+#: under the car (the bias state holds the grade at the start), ax's unmodelled pitch; with
+#: SLIP_SCALE_MARGIN, the wheel-radius scale's error x the speed change. 0.2 m/s flat (abs33) hid
+#: the 0.3-0.45 m/s a snowy corner's slip takes at a small speed change (drives 83, 193); a false
+#: reading costs the published std the loss itself (/ sqrt 3), never the flag (that takes 2.2 m/s)
+SLIP_MARGIN_MPS = 0.1
+#: the wheel-radius scale's error the margin allows for, x the speed change since the anchor
+SLIP_SCALE_MARGIN = 0.02
+#: s: the wheels are compared low-passed (noise 0.08 m/s a sample: 3 sigma of two samples is 0.34
+#: m/s, beyond a snowy corner's slip). The anchor follows them complementarily (the accelerometer
+#: carries the speed, the wheels only pull it: no lag) and the loss is smoothed over the same time:
+#: a slip shows 0.1 s later, and stays (the ratio is held)
+WHEEL_SMOOTH_S = 0.1
 #: lowest speed (m/s) a slip ratio is taken at (wheels read 0 below ~0.3 m/s)
 MIN_SPEED_MPS = 2.0
 
 
-class SlipWitness:
-    """Integrates the accelerometer from the last force-free moment against the wheel speed."""
+class _Comparison:
+    """The accelerometer integrated from one anchor against the wheels (see the module doc)."""
 
-    def __init__(self, dt: float, wheel_noise2: float, driven_fused: bool):
-        self.dt = dt
-        self.wheel_noise2 = wheel_noise2
-        self.driven_fused = driven_fused  # the fused wheels include driven ones: traction slips them
+    def __init__(self, hold: bool):
+        self.hold = hold  # keep the largest ratio seen until the next anchor (see SlipWitness)
         self.v_ref = math.nan  # the car's speed as the accelerometer carries it from the anchor
         self.bax = 0.0  # the filter's ax bias at the anchor (later it takes up the slip itself)
         self.bax_var = 0.0
         self.t = 0.0  # s since the anchor
         self.ratio = 0.0  # the largest slip ratio seen since the anchor
         self.excess = 0.0  # m/s: slip seen now beyond what the comparison's errors explain
+        self.v0 = math.nan  # the speed at the anchor
+        self.diff = 0.0  # (v_ref - wheels), low-passed
+        self.anchored = False  # the last step was an anchor: v_ref follows the wheels
 
-    def step(self, v_wheels: float, ax_m: float, bax: float, bax_var: float, r_vy: float) -> float:
+    def anchor(self, w: "SlipWitness", v_wheels: float, ax_m: float, bax: float, bax_var: float,
+               r_vy: float) -> None:
+        if self.anchored and math.isfinite(self.v_ref) and math.isfinite(v_wheels):
+            self.v_ref += (ax_m - bax + r_vy) * w.dt
+            self.v_ref += w.pull * (v_wheels - self.v_ref)
+        else:
+            self.v_ref = v_wheels
+        self.anchored = math.isfinite(v_wheels)
+        self.v0 = self.v_ref
+        self.bax = bax
+        self.bax_var = bax_var
+        self.t = 0.0
+        self.ratio = 0.0
+        self.excess = 0.0
+        self.diff = 0.0
+
+    def step(self, w: "SlipWitness", v_wheels: float, ax_m: float, r_vy: float, fx: float) -> None:
+        self.anchored = False
+        self.t += w.dt
+        self.v_ref += (ax_m - self.bax + r_vy) * w.dt
+        self.diff += w.pull * (self.v_ref - v_wheels - self.diff)
+        lost = self.diff  # > 0: the wheels are slower than the car
+        if self.v_ref < 0.0:
+            lost = -lost
+        braking = fx * self.v_ref < 0.0  # the tyres' force against the motion (downhill: at ax 0)
+        if not braking:
+            lost = -lost if w.driven_fused else 0.0  # traction speeds up driven wheels only
+        # the wheels' noise, smoothed at the anchor and now (counted as if every 2nd sample were new)
+        sigma2 = self.bax_var * self.t * self.t + 2.0 * w.wheel_noise2 * w.pull
+        margin = SLIP_MARGIN_MPS + SLIP_SCALE_MARGIN * abs(self.v_ref - self.v0)
+        self.excess = max(0.0, lost - SLIP_SIGMAS * math.sqrt(sigma2) - margin)
+        speed = abs(v_wheels)
+        if not self.hold:  # anchored slip-free: the loss is the slip now, a recovered wheel shows 0
+            self.ratio = 0.0
+        if speed > MIN_SPEED_MPS and self.excess > 0.0:  # slip, measured: the loss itself
+            self.ratio = max(self.ratio, lost / speed)
+
+
+class SlipWitness:
+    """Integrates the accelerometer from the last force-free moments against the wheel speed."""
+
+    def __init__(self, dt: float, wheel_noise2: float, driven_fused: bool):
+        self.dt = dt
+        self.wheel_noise2 = wheel_noise2
+        self.driven_fused = driven_fused  # the fused wheels include driven ones: traction slips them
+        self.free = _Comparison(False)  # from the last step with no tyre force at all
+        self.straight = _Comparison(True)  # from the last step with no longitudinal tyre force
+        self.pull = min(1.0, dt / WHEEL_SMOOTH_S)  # the wheels' weight per step in the smoothing
+        self.ratio = 0.0  # the larger comparison's slip ratio
+        self.excess = 0.0  # m/s: slip seen now beyond what the comparisons' errors explain
+
+    def step(self, v_wheels: float, ax_m: float, bax: float, bax_var: float, r_vy: float,
+             fx: float = math.nan, fy: float = 0.0) -> float:
         """One step; returns the slip bound (m/s) the evidence so far puts on the fused wheels.
 
         ``v_wheels``: the fused wheels' speed as the car's vx (scale and kinematics applied), nan
         when not fused; ``ax_m``: the accelerometer as the filter integrates it (bias not removed);
         ``bax``, ``bax_var``: the filter's ax bias and its variance now; ``r_vy``: r vy, vx's other
-        rate in the body frame."""
-        ax = ax_m - bax
-        if not math.isfinite(v_wheels) or abs(ax) < ANCHOR_AX_MPS2 or not math.isfinite(self.v_ref):
-            self.v_ref = v_wheels
-            self.bax = bax
-            self.bax_var = bax_var
-            self.t = 0.0
-            self.ratio = 0.0
-            self.excess = 0.0
-            return 0.0
-        self.t += self.dt
-        self.v_ref += (ax_m - self.bax + r_vy) * self.dt
-        lost = self.v_ref - v_wheels  # > 0: the wheels are slower than the car
-        if self.v_ref < 0.0:
-            lost = -lost
-        braking = ax * self.v_ref < 0.0
-        if not braking:
-            lost = -lost if self.driven_fused else 0.0  # traction speeds up driven wheels only
-        sigma2 = self.bax_var * self.t * self.t + 2.0 * self.wheel_noise2
-        self.excess = max(0.0, lost - SLIP_SIGMAS * math.sqrt(sigma2) - SLIP_MARGIN_MPS)
-        speed = abs(v_wheels)
-        if speed > MIN_SPEED_MPS and self.excess > 0.0:  # slip, measured: the loss itself
-            self.ratio = max(self.ratio, lost / speed)
-        return self.ratio * speed
+        rate in the body frame. ``fx``, ``fy``: the force the tyres carry per mass (the specific
+        force less the sensor's own offsets, grade and bank left in: the tyres hold the car on
+        them); nan ``fx``: ``ax_m - bax`` (no split of the bias known), ``fy`` 0."""
+        if not math.isfinite(fx):
+            fx = ax_m - bax
+        known = math.isfinite(v_wheels)
+        for c, free in ((self.free, math.hypot(fx, fy) < ANCHOR_AX_MPS2),
+                        (self.straight, abs(fx) < ANCHOR_AX_MPS2)):
+            if not known or free or not math.isfinite(c.v_ref):
+                c.anchor(self, v_wheels, ax_m, bax, bax_var, r_vy)
+            else:
+                c.step(self, v_wheels, ax_m, r_vy, fx)
+        self.ratio = max(self.free.ratio, self.straight.ratio)
+        self.excess = max(self.free.excess, self.straight.excess)
+        return self.ratio * abs(v_wheels) if known else 0.0
