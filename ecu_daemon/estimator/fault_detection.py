@@ -102,6 +102,14 @@ SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to t
 # averaging (tens of ms; lag23 measured a RAV4's wheels 22-37 ms *ahead* of its accelerometer)
 WHEEL_YAW_LAG_MAX_S = 0.08
 SCALE_LAG_COND = 0.05  # r and rdot must be this far from collinear (1 - corr^2) to fit the lag apart
+# The front pair's yaw rate assumes both wheels steer alike; Ackermann geometry steers the inner one
+# more, by ~delta^2 T / L, which puts ~|v| |delta|^3 / L (rad/s) into (v_fr - v_fl) / (T cos delta).
+# Negligible at a lane change's angles (22 m/s, 0.05 rad: 0.001 rad/s) but not at the front axle's
+# limit (random seed 131, a plough on mu 0.23: 0.54 rad of road-wheel angle, the front pair read
+# 0.77 rad/s for 0.14). Beyond this the rear pair stands in for an isolated gyro (nothing better)
+# but neither pair judges it (as while braking): in a plough or a spin's counter-steer no pair rolls
+# kinematically (random seed 55: rear pair at 1 rad of slip read -0.07 rad/s for 0.35).
+FRONT_YAW_ACKERMANN_RADPS = 0.01  # a third of YAW_TOL_WHEELS
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
@@ -346,9 +354,9 @@ class FaultDetector:
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._all_wheels_stuck(k, wheels, wheels_ok, r_m - x[BR] if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        left, right = self._yaw_wheels(fl, fr, rl, rr, delta)
+        left, right, judge = self._yaw_wheels(fl, fr, rl, rr, delta)
         self._yaw(k, left, right, wheels_ok and not self.wheel_mask & self.yaw_pair_mask, r_m, ay_m, imu_ok, x,
-                  rdot, ax < -BRAKE_WITNESS_MPS2)
+                  rdot, ax < -BRAKE_WITNESS_MPS2 or not judge)
         iso = WHEEL_SPEED if self.wheel_mask else 0
         if self.lon.active:
             iso |= self.lon_culprit
@@ -385,11 +393,19 @@ class FaultDetector:
         wheel at (lf, +-T/2) reads (vx -+ r T/2) cos(delta) + (vy + lf r) sin(delta) (the wheel
         vote's model, :meth:`_each_wheel`): the lateral term is alike on both and cancels in the
         difference, so (v_fr - v_fl) / cos(delta) = r T as on the rear axle. Steering unknown
-        (NaN): cos(delta) = 1, off by < 0.5 % below 0.1 rad (any corner above ~10 m/s)."""
+        (NaN): cos(delta) = 1, off by < 0.5 % below 0.1 rad (any corner above ~10 m/s). With the
+        wheels steered so far that Ackermann geometry's unequal angles matter
+        (FRONT_YAW_ACKERMANN_RADPS), the rear pair is the substitute and no pair judges the gyro
+        (the third value, False: ``_yaw`` treats it as braking)."""
         if self.yaw_pair[0] != 0:
-            return rl, rr
-        c = math.cos(delta) if math.isfinite(delta) else 1.0
-        return fl / c, fr / c
+            return rl, rr, True
+        if not math.isfinite(delta):
+            return fl, fr, True
+        ad = abs(delta)
+        if 0.5 * abs(fl + fr) * ad * ad * ad > FRONT_YAW_ACKERMANN_RADPS * (self.lf + self.lr_m):
+            return rl, rr, False
+        c = math.cos(delta)
+        return fl / c, fr / c, True
 
     def _unchanged(self, key: str, k: int, value: float, witness: float, tol: float) -> bool:
         """Has ``value`` stayed bit-identical for STUCK_S while ``witness`` (what it should read, or
