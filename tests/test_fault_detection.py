@@ -656,3 +656,32 @@ def test_drive_slip_of_the_rear_axle_is_not_a_gyro_fault_on_a_rear_driven_car():
     # the same wheels on a car whose front axle drives: the rear pair is its witness, and it says
     # the gyro is off (the inputs are physically the rear-driven car's: the witness choice matters)
     assert _lane_change_rear_driven("front") >= 1
+
+
+def test_front_pair_at_large_steering_angles_does_not_judge_the_gyro():
+    """A rear-driven car ploughing at the front axle's limit (random seed 131, mu 0.23): 11.5 m/s,
+    r 0.14 rad/s, the driver winds the road-wheel angle up to 0.54 rad. Ackermann geometry steers
+    the inner front wheel ~delta^2 T / L more than the outer, so the front pair's difference over
+    cos(delta) reads several times r (seed 131: 0.77 rad/s). b1ecab4, without the limit, isolated
+    the gyro here (seed 131: suspect, its heading std widened to 20 deg and GNSS re-aligned it
+    through a wrong sideslip, 424 rows beyond 3 sigma); beyond FRONT_YAW_ACKERMANN_RADPS the pair does not judge, and the rear pair
+    (rolling kinematically here) is what would substitute."""
+    lr, lf, vx, r, T = 1.5, 1.25, 11.5, 0.14, TRACK
+    L = lf + lr
+    det = fd.FaultDetector(DT, T, lf, "rear", lambda fl, fr, rl, rr: 0.5 * (fl + fr), lr_m=lr)
+    x = _state(vx)
+    suspect = 0
+    for j in range(int(4.0 / DT)):
+        t = j * DT
+        delta = min(0.06 + 0.3 * max(t - 1.0, 0.0), 0.54)
+        cot = 1.0 / math.tan(delta)
+        d_in, d_out = math.atan(1.0 / (cot - T / (2 * L))), math.atan(1.0 / (cot + T / (2 * L)))
+        w = lf * r  # vy ~ 0
+        fl = (vx - r * T / 2) * math.cos(d_in) + w * math.sin(d_in)
+        fr = (vx + r * T / 2) * math.cos(d_out) + w * math.sin(d_out)
+        rl, rr = vx - r * T / 2, vx + r * T / 2
+        det.step(j, (fl, fr, rl, rr), True, r, 0.0, r * vx, True, x, 1e-4, 4e-4, delta, 0.0)
+        suspect += det.yaw_suspect
+    assert det.events["yaw_rate"] == 0
+    assert suspect == 0
+    assert abs(det.r_wheels - r) < 0.01  # the rear pair's, not the front's
