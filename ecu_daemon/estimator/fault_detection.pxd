@@ -21,6 +21,7 @@ cdef class FaultDetector:
     cdef public object wheel_latches, wheel_mask, wheel_z, wheel_z_excess_var, wheels_back
     cdef public object wheels_isolated, wheels_stuck, wheels_vouch_gyro, witnesses_agree
     cdef public object yaw_catch_up, yaw_disagreement, yaw_suspect, substitute_yaw_error, e_sub
+    cdef public object yaw_pair, yaw_pair_mask
     # The yaw vote (~half of the detector's per-step cost): its floating-point locals are C doubles
     # and its verdicts C flags. A Python float is an IEEE double and each of its operators is the
     # same C operation (+ - * / on two doubles, compiled with -ffp-contract=off: no fused
@@ -29,11 +30,11 @@ cdef class FaultDetector:
     # evaluated as Python, in the same order. Division keeps Python's ZeroDivisionError (no
     # cdivision), abs() is fabs(), max() of doubles compares as Python's (the first on ties and NaN).
     @cython.locals(a_slow=double, a_yaw=double, rdot_abs=double, wide=double, vx=double, kw=double,
-                   r_g=double, v_rear=double, e_w=double, e_ws=double, r_wheels=double, rw_lp=double,
+                   r_g=double, v_axle=double, e_w=double, e_ws=double, r_wheels=double, rw_lp=double,
                    d=double, ay=double, e_a=double, e_as=double, ref=double, tol_w=double, slow=double,
                    catch_up=double, e_sub=double, wheels_yaw=bint, have_w=bint, have_a=bint, w_fail=bint, a_fail=bint,
                    scale_fail=bint, jump=bint, gyro_suspect=bint)
-    cpdef _yaw(self, k, rl, rr, wheels_ok, r_m, ay_m, imu_ok, x, rdot, braking=*)
+    cpdef _yaw(self, k, left, right, wheels_ok, r_m, ay_m, imu_ok, x, rdot, braking=*)
     # the same for the wheel vote, the longitudinal window and the lateral window
     @cython.locals(h=double, c=double, s=double, lat=double, med=double, tol=double, others=double,
                    should=double, dev=double, d=double)
@@ -52,6 +53,7 @@ cdef class FaultDetector:
     cpdef _wheels_return(self, v, vx, p_vx, wheel_r2)
     cpdef _scale_test(self, r_w, d_w, d_a, rdot=*, e_w=*)
     cpdef _attribute(self, k)
+    cpdef _yaw_wheels(self, fl, fr, rl, rr, delta)
 
 
 # the hysteresis counters (a dozen latches updated every step): C ints and a C flag, so a latch's

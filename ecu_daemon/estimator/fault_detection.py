@@ -9,9 +9,10 @@ alive, in range and with good CRCs, is caught by physics rather than by its own 
   wrong is replaced by its axle partner, corrected by r * track);
 * longitudinal: the change of the wheel speed over a short window against the integrated
   accelerometer (``ax`` vs d(wheel speed)/dt);
-* yaw: the gyro against the rear-wheel speed difference ``(v_rr - v_rl) / track`` and against
-  ``ay / vx`` (the gyro is blamed only when both disagree with it; ``ay`` when only ``ay / vx``
-  does);
+* yaw: the gyro against the wheel speed difference of the free-rolling axle, ``(v_rr - v_rl) /
+  track`` (the front pair over ``cos(delta)`` on a rear-driven car: a driven axle's wheels slip
+  unequally in a corner; the rear pair on all-wheel drive) and against ``ay / vx`` (the gyro is
+  blamed only when both disagree with it; ``ay`` when only ``ay / vx`` does);
 * lateral: over a sliding window, the change of vy the accelerometer implies, the integral of
   ``ay - r vx``, against the change of the single-track model's vy. A constant ``ay`` error
   integrates into this residual while it only shifts the model's vy (a constant that cancels in
@@ -90,7 +91,7 @@ WHEEL_JUMP_MPS = 3.0  # wheel-speed change between two steps no tyre can make (>
 AX_IMPLAUSIBLE_MPS2 = 20.0  # beyond any car's longitudinal grip (2 g)
 AX_JUMP_MPS2 = 12.0  # change between two steps
 JUMP_MEMORY_S = 0.5  # a jump this close to the onset counts as evidence
-# --- yaw: gyro vs rear-wheel difference and vs ay / vx
+# --- yaw: gyro vs the free-rolling axle's wheel difference (yaw_pair) and vs ay / vx
 YAW_TAU_S = 0.1  # fast test: large faults, wide tolerance
 YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
 YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
@@ -101,6 +102,14 @@ SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to t
 # averaging (tens of ms; lag23 measured a RAV4's wheels 22-37 ms *ahead* of its accelerometer)
 WHEEL_YAW_LAG_MAX_S = 0.08
 SCALE_LAG_COND = 0.05  # r and rdot must be this far from collinear (1 - corr^2) to fit the lag apart
+# The front pair's yaw rate assumes both wheels steer alike; Ackermann geometry steers the inner one
+# more, by ~delta^2 T / L, which puts ~|v| |delta|^3 / L (rad/s) into (v_fr - v_fl) / (T cos delta).
+# Negligible at a lane change's angles (22 m/s, 0.05 rad: 0.001 rad/s) but not at the front axle's
+# limit (random seed 131, a plough on mu 0.23: 0.54 rad of road-wheel angle, the front pair read
+# 0.77 rad/s for 0.14). Beyond this the rear pair stands in for an isolated gyro (nothing better)
+# but neither pair judges it (as while braking): in a plough or a spin's counter-steer no pair rolls
+# kinematically (random seed 55: rear pair at 1 rad of slip read -0.07 rad/s for 0.35).
+FRONT_YAW_ACKERMANN_RADPS = 0.01  # a third of YAW_TOL_WHEELS
 YAW_TOL_RDOT = 0.1  # s: transients (yaw acceleration) widen the ay / vx tolerances
 GYRO_JUMP_RADPS = 0.25  # change between two steps (> 40 rad/s^2) the wheels do not show: a fault
 REPAIR_WINDOW_S = 1.0  # how far back the gyro's drift before its isolation is taken out of the heading
@@ -219,6 +228,12 @@ class FaultDetector:
         self.lf = lf_m
         self.fused_wheels = {"all": (0, 1, 2, 3), "rear": (0, 1)}.get(driven_axle, (2, 3))
         self._other_wheels = tuple(j for j in range(4) if j not in self.fused_wheels)
+        # the yaw witness: the axle whose wheels roll free, the one the speed fusion trusts (a driven
+        # axle's wheels slip unequally in a corner: random seed 21, a rear-driven car at 0.6 of its
+        # rear grip, read 0.10 rad/s on the rear wheels for 0.25 on gyro and front wheels, and the
+        # scale test isolated the good gyro at every turn-in); the rear one on all-wheel drive
+        self.yaw_pair = self.fused_wheels if len(self.fused_wheels) == 2 else (2, 3)
+        self.yaw_pair_mask = (1 << self.yaw_pair[0]) | (1 << self.yaw_pair[1])
         self._measured = measured_speed or (lambda fl, fr, rl, rr: 0.5 * (rl + rr))
         self.wheel_latches = [_Latch(ON_STEPS, OFF_STEPS) for _ in range(4)]
         self.wheel_mask = 0  # bit i: wheel i (fl, fr, rl, rr) disagrees with the others
@@ -293,8 +308,8 @@ class FaultDetector:
         self._a_lr = dt / (LR_TAU_S + dt)
         self.e_w = 0.0  # low-passed gyro - wheel yaw rate
         self.e_a = 0.0  # low-passed gyro - ay / vx
-        self.lr = 0.0  # learned (v_rr - v_rl) / v at zero yaw rate
-        self.r_wheels = math.nan  # yaw rate from the rear wheels (substitute for a faulty gyro)
+        self.lr = 0.0  # learned (v_right - v_left) / v of the witness pair at zero yaw rate
+        self.r_wheels = math.nan  # yaw rate from the witness pair (yaw_pair; substitute for a faulty gyro)
         self.ax_wheels = 0.0  # d(wheel speed)/dt over the window (substitute for a faulty ax)
         self.wheels_isolated = False
         self.isolated = 0
@@ -339,8 +354,9 @@ class FaultDetector:
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._all_wheels_stuck(k, wheels, wheels_ok, r_m - x[BR] if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
-        self._yaw(k, rl, rr, wheels_ok and not self.wheel_mask & 0b1100, r_m, ay_m, imu_ok, x, rdot,
-                  ax < -BRAKE_WITNESS_MPS2)
+        left, right, judge = self._yaw_wheels(fl, fr, rl, rr, delta)
+        self._yaw(k, left, right, wheels_ok and not self.wheel_mask & self.yaw_pair_mask, r_m, ay_m, imu_ok, x,
+                  rdot, ax < -BRAKE_WITNESS_MPS2 or not judge)
         iso = WHEEL_SPEED if self.wheel_mask else 0
         if self.lon.active:
             iso |= self.lon_culprit
@@ -370,6 +386,26 @@ class FaultDetector:
                 self.events[name] += 1
         self.isolated = iso
         return iso
+
+    def _yaw_wheels(self, fl: float, fr: float, rl: float, rr: float, delta: float) -> tuple:
+        """The yaw witness's (left, right) speeds along the body's x axis: the rear pair as read, the
+        front pair (the free-rolling axle of a rear-driven car) divided by cos(delta). A steered
+        wheel at (lf, +-T/2) reads (vx -+ r T/2) cos(delta) + (vy + lf r) sin(delta) (the wheel
+        vote's model, :meth:`_each_wheel`): the lateral term is alike on both and cancels in the
+        difference, so (v_fr - v_fl) / cos(delta) = r T as on the rear axle. Steering unknown
+        (NaN): cos(delta) = 1, off by < 0.5 % below 0.1 rad (any corner above ~10 m/s). With the
+        wheels steered so far that Ackermann geometry's unequal angles matter
+        (FRONT_YAW_ACKERMANN_RADPS), the rear pair is the substitute and no pair judges the gyro
+        (the third value, False: ``_yaw`` treats it as braking)."""
+        if self.yaw_pair[0] != 0:
+            return rl, rr, True
+        if not math.isfinite(delta):
+            return fl, fr, True
+        ad = abs(delta)
+        if 0.5 * abs(fl + fr) * ad * ad * ad > FRONT_YAW_ACKERMANN_RADPS * (self.lf + self.lr_m):
+            return rl, rr, False
+        c = math.cos(delta)
+        return fl / c, fr / c, True
 
     def _unchanged(self, key: str, k: int, value: float, witness: float, tol: float) -> bool:
         """Has ``value`` stayed bit-identical for STUCK_S while ``witness`` (what it should read, or
@@ -408,7 +444,7 @@ class FaultDetector:
             should = others - (cv[j] - w[j]) if abs(others) > STUCK_MIN_SPEED_MPS else math.nan
             if self._unchanged(WHEEL_KEYS[j], self._k, w[j], should, STUCK_WHEEL_MPS):
                 stuck |= 1 << j
-        if stuck & ~self.stuck_wheels & 0b1100:  # a rear wheel newly out: its yaw residual is stale
+        if stuck & ~self.stuck_wheels & self.yaw_pair_mask:  # a yaw witness newly out: its residual is stale
             self.e_w = self.e_ws = 0.0
         self.stuck_wheels = stuck
         mask = 0
@@ -546,7 +582,7 @@ class FaultDetector:
         self.wheels_back.active = True
         self.wheels_isolated = self.wheels_back.update(abs(v - vx) > tol)
 
-    def _yaw(self, k: int, rl: float, rr: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
+    def _yaw(self, k: int, left: float, right: float, wheels_ok: bool, r_m: float, ay_m: float, imu_ok: bool,
              x: list, rdot: float, braking: bool = False) -> None:
         if not imu_ok:
             self.yaw_catch_up = 0.0
@@ -558,21 +594,21 @@ class FaultDetector:
         vx = x[VX]
         kw = x[KW]
         r_g = r_m - x[BR]
-        v_rear = 0.5 * (rl + rr) * kw
+        v_axle = 0.5 * (left + right) * kw  # the witness axle's speed (yaw_pair)
         # the gyro's yaw acceleration through the same low-pass as e_w and the wheels' rate, so that
         # the scale test's LP(d) = s LP(r) + tau LP(rdot) holds as the filters are linear (against the
         # core's rdot, 0.05-0.08 s late, and a raw d_w, a wheel lead of 0.04 s read as a gyro scale)
         rg_lp = self._rg_lp
         self._rg_lp = r_g if rg_lp != rg_lp else rg_lp + a_yaw * (r_g - rg_lp)
         self._rdot_g = 0.0 if rg_lp != rg_lp else (self._rg_lp - rg_lp) / self.dt
-        wheels_yaw = wheels_ok and not (self.isolated & WHEELS) and v_rear > YAW_MIN_SPEED
+        wheels_yaw = wheels_ok and not (self.isolated & WHEELS) and v_axle > YAW_MIN_SPEED
         # the wheels' yaw rate still stands in for an isolated gyro while braking (nothing better),
-        # but it judges the gyro only while the rear wheels roll free (BRAKE_WITNESS_MPS2)
+        # but it judges the gyro only while the witness pair rolls free (BRAKE_WITNESS_MPS2)
         have_w = wheels_yaw and not braking
         e_w = self.e_w
         e_ws = self.e_ws
         if wheels_yaw:
-            r_wheels = self.r_wheels = ((rr - rl) * kw - self.lr * v_rear) / self.track
+            r_wheels = self.r_wheels = ((right - left) * kw - self.lr * v_axle) / self.track
             rw_lp = self._rw_lp
             self._rw_lp = r_wheels if rw_lp != rw_lp else rw_lp + a_yaw * (r_wheels - rw_lp)
             d = r_g - r_wheels
@@ -693,8 +729,8 @@ class FaultDetector:
         # while the gyro is out, the heading integrates its substitute (the wheels' yaw rate; 0
         # without wheels): how fast that may be off, measured against its one independent witness
         # (ay / vx, low-passed as e_a) plus that witness's transient allowance, else the wheels'
-        # own kinematic tolerance. The wheels of a driven axle slip unequally in a corner (random
-        # seed 21: rear wheels 0.14 rad/s below a right gyro): an error no random walk describes.
+        # own kinematic tolerance. Even the free-rolling pair's yaw rate is off by more than a
+        # random walk describes (track, radius and lag errors; all-wheel drive has no free axle).
         if have_a:
             e_sub = self.e_sub = self.e_sub + a_yaw * (((r_wheels if wheels_yaw else 0.0)
                                                         - (ay - self.lr_m * rdot) / vx) - self.e_sub)
@@ -721,8 +757,8 @@ class FaultDetector:
                     and ref < AY_RETURN_MIN_R):
                 ay_verdict = None
             ay_latch.update(ay_verdict)
-        if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_rear > 2.0 * YAW_MIN_SPEED:
-            mis = ((rr - rl) * kw - self.track * r_g) / v_rear
+        if have_w and not w_fail and not gyro.active and self.isolated == 0 and v_axle > 2.0 * YAW_MIN_SPEED:
+            mis = ((right - left) * kw - self.track * r_g) / v_axle
             self.lr += self._a_lr * (mis - self.lr)
             self.lr = min(max(self.lr, -LR_MAX), LR_MAX)
 
