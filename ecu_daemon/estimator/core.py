@@ -218,7 +218,10 @@ MODEL_BOUND = True
 # In an outage the same misfit already turns the bound off (law_holds, above) and nothing pairs the
 # model with a heading; widening there only traded availability (mu03_outage_30s: sideslip valid
 # above 5 m/s 92 -> 67 %) for rows that were within 3 sigma already. LAW_EXCESS_IN_OUTAGE keeps it
-# for comparison (False: the outage is left to law_holds).
+# for comparison (False: the outage is left to law_holds). Nor in a transient (|rdot| beyond
+# MODEL_STEADY_RDOT, where the model is unsteady anyway): the understeer relation leaves out the
+# tyres' relaxation lag behind the steering, which a step steer puts into the misfit at a force far
+# from any limit (relax_jturn_12: 75 deg at 400 deg/s, sideslip within 0.35 deg made invalid).
 LAW_EXCESS = True
 LAW_EXCESS_IN_OUTAGE = False
 MODEL_STEADY_S = 2.0
@@ -956,7 +959,8 @@ class Estimator:
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
-        if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S):
+        if (LAW_EXCESS and imu_ok and abs(rdot) <= MODEL_STEADY_RDOT
+                and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S)):
             law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0 or law_var > 0.0
