@@ -174,6 +174,45 @@ def test_single_track_law_holds_while_the_steering_agrees_with_both_axles():
     assert not st.law_holds(0.3, 0.0, 0.0, 0.0, 0.0)
 
 
+def test_single_track_law_excess_is_the_misfit_beyond_the_laws_own_3_sigma():
+    """core.LAW_EXCESS: the steering's misfit of the understeer relation beyond 3 sigma of both laws
+    and the steering is what the rear law's vy may be off by (an axle at its combined-slip limit on a
+    low-friction road). Zero wherever law_holds is true (no widening on a dry corner steered as the
+    law says), the excess squared beyond it, either sign, and zero without a steering angle."""
+    st = single_track()
+    vx, ay = 20.0, 4.0
+    r = ay / vx
+    n2 = (ay / 9.81) ** 2
+    y_f, var_f = st.front.predict(st.regressor_front(vx, ay, 0.0), n2, True)
+    y_r, var_r = st.rear.predict(st.regressor_rear(vx, ay, 0.0), n2, True)
+    delta = (st.L * r - (y_f - y_r)) / vx
+    lim = 3.0 * math.sqrt(var_f + var_r + (math.radians(0.3) * vx) ** 2)
+    assert st.law_excess_var(vx, r, ay, 0.0, delta) == 0.0
+    assert st.law_excess_var(vx, r, ay, 0.0, delta + 0.3 * y_f / vx) == 0.0
+    for sign in (1.0, -1.0):
+        d = sign * math.radians(5.0)
+        assert not st.law_holds(vx, r, ay, 0.0, delta + d)
+        assert st.law_excess_var(vx, r, ay, 0.0, delta + d) == pytest.approx((abs(d) * vx - lim) ** 2, rel=1e-9)
+    assert st.law_excess_var(vx, r, ay, 0.0, math.nan) == 0.0
+    assert st.law_excess_var(0.3, 0.0, 0.0, 0.0, 0.0) == 0.0
+
+
+def test_single_track_fuse_widened_by_the_law_excess_moves_vy_less():
+    """The excess widens the pseudo-measurement by its ~2 s correlation (CORNER_STEPS), a bias for
+    the corner: the same model innovation moves vy less and leaves more vy variance."""
+    st = single_track()
+    out = []
+    for law_var in (0.0, 0.5 ** 2):
+        x = np.zeros(NX)
+        x[VX] = 15.0
+        x[VY] = 0.8
+        P = np.eye(NX) * 0.01
+        assert st.fuse(x, P, 0.25, 3.5, 0.0, None, 1, 1.0, 0.0, law_var)
+        out.append((abs(x[VY] - 0.8), P[VY, VY]))
+    assert out[1][0] < out[0][0]
+    assert out[1][1] > out[0][1]
+
+
 def test_standstill_needs_the_hold_time():
     s = StandstillFusion(0.006, 0.01)
     assert not any(s.detect(0.0) for _ in range(s.hold_steps - 1))

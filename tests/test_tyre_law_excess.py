@@ -6,22 +6,18 @@ combined-slip limit on a low-friction road (braking in a corner after rain, powe
 car on snow) slips degrees beyond the law while the filter, whose vy in a steady corner only the
 model holds (one antenna cannot tell vy from heading), keeps a sideslip std of ~0.5 deg.
 
-Open (strict xfail, measured on ee24b24): the drive below has the sideslip valid 3.7 deg off,
-97.4 % of its valid rows within 3 sigma. A fix tried in randdrive32 (the steering's misfit of the
-understeer relation beyond 3 sigma of both laws widening the pseudo-measurement) passed it but cost
-the suite's mu03_outage_30s its availability and moved random seed 159's lie from sideslip into
-heading (report randdrive32): whoever fixes it sees XPASS here.
+Fixed by core.LAW_EXCESS (tyrelaw34): the steering's misfit of the understeer relation beyond 3
+sigma of both laws and the steering widens the pseudo-measurement while GNSS is fresh. Before it
+(main 40498ae) the drive below had the sideslip valid 3.7 deg off, 97.4 % of its valid rows within
+3 sigma.
 """
 from __future__ import annotations
-
-import pytest
 
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.suite import SuiteCase
 from ecu_daemon.suite import run_case
 
 
-@pytest.mark.xfail(strict=True, reason="open: sideslip valid 3.7 deg off at ~0.5 deg std (coverage 97.4 %)")
 def test_braking_in_a_corner_after_rain_keeps_the_sideslip_promise(tmp_path):
     # brake_turn's plan for mu 0.78 (18 -> 8 m/s at 5 m/s^2 in a 60 m circle), the road at 0.4 from
     # 21.2 s: the front ploughs at 25 deg of slip, the rear slides 5 deg under braking

@@ -205,6 +205,25 @@ YAW_SCALE_FIT_LOW = 0.25
 # with the law; before, a steady circle lost the bound with the GNSS (mag_circle_outage: std
 # 0.67-0.92 deg against an error of 0.03-0.08, invalid for the outage's 20 s).
 MODEL_BOUND = True
+# The single-track pseudo-measurement asserts the rear tyre law, whose lateral force is normalised by
+# g, not by the road's friction: an axle at its combined-slip limit on a low-friction road (braking
+# or power in a corner) slips degrees beyond it at a force the law calls linear (tools/random_drives.py
+# seed 40: mu 0.21, 0.17 g, rear slip 5.8 deg against ~1). With fresh GNSS that is a lie: one antenna
+# in a steady corner measures course = heading + sideslip, the model holds vy, the heading takes up
+# the rest, and the filter's vy std stays the model's (~0.5 deg of sideslip at 4-5 deg off; all 1378
+# such rows of seeds 12 and 159 had GNSS fresh). The steering sees it without vy or GNSS: the misfit
+# of the understeer relation beyond the laws' and the steering's 3 sigma (SingleTrackFusion.
+# law_excess_var) widens the pseudo-measurement (a bias for the corner, like the law's other errors)
+# and keeps the model's bound off, so the published std is the filter's own, grown for it.
+# In an outage the same misfit already turns the bound off (law_holds, above) and nothing pairs the
+# model with a heading; widening there only traded availability (mu03_outage_30s: sideslip valid
+# above 5 m/s 92 -> 67 %) for rows that were within 3 sigma already. LAW_EXCESS_IN_OUTAGE keeps it
+# for comparison (False: the outage is left to law_holds). Nor in a transient (|rdot| beyond
+# MODEL_STEADY_RDOT, where the model is unsteady anyway): the understeer relation leaves out the
+# tyres' relaxation lag behind the steering, which a step steer puts into the misfit at a force far
+# from any limit (relax_jturn_12: 75 deg at 400 deg/s, sideslip within 0.35 deg made invalid).
+LAW_EXCESS = True
+LAW_EXCESS_IN_OUTAGE = False
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -938,8 +957,13 @@ class Estimator:
             return self._invalid(t)
         r_c, ay_c, vy_shift = self.model_inputs.step(r_lp, r, ay, vx)
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
+        # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
+        law_var = 0.0
+        if (LAW_EXCESS and imu_ok and abs(rdot) <= MODEL_STEADY_RDOT
+                and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S)):
+            law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
-                or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0
+                or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0 or law_var > 0.0
                 or (t - self.last_gnss_fused_t > GNSS_FRESH_S
                     and not self.single_track.law_holds(vx, r_c, ay_c, rdot, delta))
                 or self.model_unsteady_t == math.inf):
@@ -996,7 +1020,7 @@ class Estimator:
                 # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
                 if self.single_track.fuse(x, P, r_c, ay_c, rdot, A, MODEL_EVERY,
                                           SUBSTITUTE_MODEL_VAR_SCALE if iso & (YAW_RATE | ACCEL_Y) else 1.0,
-                                          vy_shift):
+                                          vy_shift, law_var):
                     self.model_t = t
                     self.model_ay = ay_c
             if (steer_ok and imu_ok and not iso and abs(r) < STEER_LEARN_MAX_R

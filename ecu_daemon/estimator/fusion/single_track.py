@@ -286,6 +286,26 @@ class SingleTrackFusion:
         e = self.L * r - vx * delta - (y_f - y_r)
         return e * e <= LAW_HOLDS_SIGMA ** 2 * (var_f + var_r + (STEER_ERR_RAD * vx) ** 2)
 
+    def law_excess_var(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> float:
+        """Variance (m/s)^2 the rear law's vy may be off by beyond its own uncertainty, from the
+        steering: the part of the understeer relation's misfit (:meth:`law_holds`) beyond
+        LAW_HOLDS_SIGMA of both laws and the steering, squared (0 while the law holds, and without
+        a steering angle). Why the misfit bounds the rear's error too: the lateral force is
+        normalised by g, not by the road's friction, so on a low-friction road an axle at its
+        combined-slip limit (braking or power in a corner) slips degrees beyond a law that calls the
+        force linear, and the misfit is the only signal of it that needs no vy. It cannot say which
+        axle left its law (a ploughing front alone leaves the rear's vy intact), so it is an upper
+        bound: ``core.Estimator`` widens the pseudo-measurement by it only with fresh GNSS
+        (``core.LAW_EXCESS``), where the model's vy would otherwise be vouched for by the heading."""
+        if not vx >= MIN_SPEED or not math.isfinite(delta):
+            return 0.0
+        n2 = (ay / G) ** 2
+        y_r, var_r = self.rear.predict(self.regressor_rear(vx, ay, rdot), n2, True)
+        y_f, var_f = self.front.predict(self.regressor_front(vx, ay, rdot), n2, True)
+        e = abs(self.L * r - vx * delta - (y_f - y_r))
+        lim = LAW_HOLDS_SIGMA * math.sqrt(var_f + var_r + (STEER_ERR_RAD * vx) ** 2)
+        return (e - lim) ** 2 if e > lim else 0.0
+
     def substitute_vy_rate(self, vx: float, rdot: float) -> float:
         """|d vy / dt| the single-track model expects from the yaw acceleration ``rdot``: what an
         ay substituted by r vx (which says vy is steady) leaves out. In the steady state,
@@ -304,7 +324,7 @@ class SingleTrackFusion:
         return self.lr * r + (phi * k1 + phi * (n * n) * k3)
 
     def fuse(self, x: np.ndarray, P: np.ndarray, r: float, ay: float, rdot: float, A=None,
-             every: int = 1, var_scale: float = 1.0, shift: float = 0.0) -> bool:
+             every: int = 1, var_scale: float = 1.0, shift: float = 0.0, law_var: float = 0.0) -> bool:
         """Fuse the pseudo-measurement; ``every``: it is fused every n-th step (noise scaled);
         ``var_scale``: its variance widened (an input is a coarse substitute); ``shift``: what vy
         did since the instant the inputs describe (inputs lagged alike, :class:`LaggedModelInputs`)."""
@@ -312,6 +332,8 @@ class SingleTrackFusion:
         if vx < MIN_SPEED:
             return False
         vy_m, var = self.pseudo_measurement(vx, r, ay, rdot)
+        if law_var > 0.0:
+            var += CORNER_STEPS * law_var
         return kalman.index_update(x, P, vy_m + shift - x[VY], VY, var * var_scale / every, 0.0, A)
 
     def adapt_from(self, vx: float, vy: float, var_vy: float, r: float, ay: float, rdot: float,
