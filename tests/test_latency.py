@@ -338,27 +338,3 @@ def test_a_slalom_at_constant_speed_leaves_the_prior_alone():
                       seconds=60.0, vy_error=lambda t: (0.05 * math.sin(2 * math.pi * 0.4 * t - 0.5), 0.05))
     assert est.updates > 200
     assert est.delay_s == 0.4
-
-
-# --- references that share the GNSS fixes ------------------------------------------------------
-
-def test_the_same_gnss_fixes_seen_through_two_references_count_once():
-    """Wheels and accelerometer are both regressed against the same GNSS speeds, so the fixes'
-    own errors are in both residuals: their likelihood-ratio profiles are not independent evidence
-    (random drive 20: both put a 0.58 s receiver at 0.80 s, summed to a std of 0.05 s, and the
-    heading of the circle that followed was valid 2-3 deg off beyond 3 sigma; the replay is
-    tests/test_latency_prior_wrong.py). Two references with the same residuals carry one
-    reference's information; two whose residuals share nothing add up."""
-    from ecu_daemon.estimator.latency import combined_profile
-    lr = np.array([9.0, 1.0, 0.0, 4.0, 25.0])
-    assert combined_profile([(lr, False, 0.02), (lr, False, 0.02)]) == pytest.approx(lr)
-    assert combined_profile([(lr, False, 0.02)]) == pytest.approx(lr)
-    # a reference far noisier than the GNSS fixes (the shared part) is nearly independent
-    assert combined_profile([(lr, False, 0.02), (lr, False, 2.0)]) == pytest.approx(2 * lr / 1.1)
-
-
-def test_shared_correlation_bounds():
-    from ecu_daemon.estimator.latency import shared_correlation
-    assert shared_correlation([0.01, 0.01]) == pytest.approx(1.0)  # both residuals the GNSS noise alone
-    assert shared_correlation([0.01, 0.04]) == pytest.approx(0.5)  # at most the smaller one shared
-    assert shared_correlation([0.0, 0.04]) == 0.0

@@ -18,10 +18,8 @@ The wheels are not a clean clock: a braked wheel turns slower than the car by v 
 (simulated: +0.04 s at 25 m/s, +0.12 s at 50 m/s), and real wheel-speed signals are filtered and
 lag. So a velocity receiver's speed is also regressed on the integrated accelerometer
 (:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
-offset in the fit), and the two likelihood-ratio profiles add, each by its information, less what
-they share (both are fitted to the same GNSS speeds, whose errors are in both residuals:
-:func:`combined_profile`), except that wheels whose best delay the accelerometer rejects are left
-out (``attach``); without it
+offset in the fit), and the two likelihood-ratio profiles add, each by its information, except
+that wheels whose best delay the accelerometer rejects are left out (``attach``); without it
 the wheels' fixes whose window does not brake judge them the same way (:meth:`observe`). The
 accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
 mid-corner (and after a GNSS outage, until vy is known again), and it carries less information
@@ -271,8 +269,7 @@ class LatencyEstimator:
 
     def attach(self, other: "LatencyEstimator") -> None:
         """Identify the delay from ``other``'s statistics too (another timing reference of the
-        same receiver): the likelihood-ratio profiles add, so each counts by its information, and what
-        their residuals share (the GNSS fixes' own errors) counts once (:func:`combined_profile`)."""
+        same receiver): the likelihood-ratio profiles add, so each counts by its information."""
         self.references.append(other)
         other.owner = self
 
@@ -327,7 +324,7 @@ class LatencyEstimator:
         i = int(np.argmin(c))
         # RSS excess over the residual variance per fix
         s2 = max(c[i], 1e-12) / max(n - p, 1.0)
-        return (c - c[i]) / s2, bool(c[i] < 0.2 * median(c)), s2
+        return (c - c[i]) / s2, bool(c[i] < 0.2 * median(c))
 
     def _refine(self) -> None:
         if self.owner is not None:
@@ -362,7 +359,7 @@ class LatencyEstimator:
         profiles = [p for p in profiles if p is not None]
         if not profiles:
             return
-        lr = combined_profile(profiles)
+        lr = np.sum([p[0] for p in profiles], axis=0)
         i = int(np.argmin(lr))
         if i == 0 or i == len(lr) - 1:
             return
@@ -423,34 +420,6 @@ class LatencyEstimator:
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
         self.std_s = max(std, STD_FALL * self.std_s)
-
-
-def shared_correlation(resid_var: list[float]) -> float:
-    """An upper bound of the correlation between the timing references' residuals (0..1).
-
-    Every reference (the wheels, the integrated accelerometer) is regressed against the same GNSS
-    speeds: a residual is ``e_gnss + e_ref``, and the part ``e_gnss`` is the same fix's error in
-    every one. Their likelihood-ratio profiles are then not independent evidence, and a plain sum
-    counts the GNSS noise once per reference: on a drive whose only speed changes are the ends of
-    one slow ramp, wheels and accelerometer both put a 0.58 s receiver at 0.80 s with a 4-sigma set
-    of +-0.35 s each, summed to a std of 0.05 s; the courses of the circle that followed, fused
-    0.2 s off, carried the heading 2-3 deg off at 0.6 deg of std (random drive 20). The shared
-    variance is at most the smallest residual variance, so the correlation is at most
-    ``sqrt(min / max)``; the equicorrelated sum is divided by ``1 + (k - 1) rho``."""
-    lo = min(resid_var)
-    hi = max(resid_var)
-    if not hi > 0.0:
-        return 1.0
-    return math.sqrt(max(lo, 0.0) / hi)
-
-
-def combined_profile(profiles: list) -> np.ndarray:
-    """The references' likelihood-ratio profiles ``(lr, clear, residual variance)`` as one: summed,
-    and divided by ``1 + (k - 1) rho`` for what their residuals share (:func:`shared_correlation`)."""
-    lr = np.sum([p[0] for p in profiles], axis=0)
-    if len(profiles) > 1:
-        lr = lr / (1.0 + (len(profiles) - 1) * shared_correlation([p[2] for p in profiles]))
-    return lr
 
 
 def latency_costs_reference(zz: np.ndarray, zy: np.ndarray, syy: float, floor: float, c: np.ndarray) -> bool:
