@@ -280,11 +280,17 @@ class SingleTrackFusion:
         False without a steering angle (``delta`` NaN) or below MIN_SPEED."""
         if not vx >= MIN_SPEED or not math.isfinite(delta):
             return False
+        e, var = self._understeer_misfit(vx, r, ay, rdot, delta)
+        return e * e <= LAW_HOLDS_SIGMA ** 2 * var
+
+    def _understeer_misfit(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> tuple[float, float]:
+        """(misfit, its variance) of the understeer relation: ``L r - vx delta - (y_f - y_r)`` (m/s),
+        and both laws' uncertainty (counted once) plus the steering's; the one quantity
+        :meth:`law_holds` tests and :meth:`law_excess_var` measures beyond its 3 sigma."""
         n2 = (ay / G) ** 2
         y_r, var_r = self.rear.predict(self.regressor_rear(vx, ay, rdot), n2, True)
         y_f, var_f = self.front.predict(self.regressor_front(vx, ay, rdot), n2, True)
-        e = self.L * r - vx * delta - (y_f - y_r)
-        return e * e <= LAW_HOLDS_SIGMA ** 2 * (var_f + var_r + (STEER_ERR_RAD * vx) ** 2)
+        return self.L * r - vx * delta - (y_f - y_r), var_f + var_r + (STEER_ERR_RAD * vx) ** 2
 
     def law_excess_var(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> float:
         """Variance (m/s)^2 the rear law's vy may be off by beyond its own uncertainty, from the
@@ -299,11 +305,9 @@ class SingleTrackFusion:
         (``core.LAW_EXCESS``), where the model's vy would otherwise be vouched for by the heading."""
         if not vx >= MIN_SPEED or not math.isfinite(delta):
             return 0.0
-        n2 = (ay / G) ** 2
-        y_r, var_r = self.rear.predict(self.regressor_rear(vx, ay, rdot), n2, True)
-        y_f, var_f = self.front.predict(self.regressor_front(vx, ay, rdot), n2, True)
-        e = abs(self.L * r - vx * delta - (y_f - y_r))
-        lim = LAW_HOLDS_SIGMA * math.sqrt(var_f + var_r + (STEER_ERR_RAD * vx) ** 2)
+        e, var = self._understeer_misfit(vx, r, ay, rdot, delta)
+        e = abs(e)
+        lim = LAW_HOLDS_SIGMA * math.sqrt(var)
         return (e - lim) ** 2 if e > lim else 0.0
 
     def substitute_vy_rate(self, vx: float, rdot: float) -> float:
