@@ -18,8 +18,9 @@ The wheels are not a clean clock: a braked wheel turns slower than the car by v 
 (simulated: +0.04 s at 25 m/s, +0.12 s at 50 m/s), and real wheel-speed signals are filtered and
 lag. So a velocity receiver's speed is also regressed on the integrated accelerometer
 (:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
-offset in the fit), and the two likelihood-ratio profiles add, each by its information, except
-that wheels whose best delay the accelerometer rejects are left out (``attach``); without it
+offset in the fit), and the two likelihood-ratio profiles add, each by its information (the
+std counts the GNSS fixes' own noise, which is in both residuals, once: :func:`combined_profile`),
+except that wheels whose best delay the accelerometer rejects are left out (``attach``); without it
 the wheels' fixes whose window does not brake judge them the same way (:meth:`observe`). The
 accelerometer alone is not enough: its integral breaks off while the sideslip is unknown
 mid-corner (and after a GNSS outage, until vy is known again), and it carries less information
@@ -272,7 +273,8 @@ class LatencyEstimator:
 
     def attach(self, other: "LatencyEstimator") -> None:
         """Identify the delay from ``other``'s statistics too (another timing reference of the
-        same receiver): the likelihood-ratio profiles add, so each counts by its information."""
+        same receiver): the likelihood-ratio profiles add, so each counts by its information; the
+        std counts what their residuals share (the GNSS fixes' own noise) once (:func:`combined_profile`)."""
         self.references.append(other)
         other.owner = self
 
@@ -458,7 +460,7 @@ def shared_correlation(resid_var: list[float], gnss_var: float = math.nan) -> fl
                 rho = 1.0  # both fit the fixes exactly: nothing but what they share
             else:
                 rho = math.sqrt(min(var[i], var[j]) / hi)
-                if gnss_var >= 0.0:  # (False for NaN: unknown noise, the bound stands)
+                if gnss_var >= 0.0 and rho > 0.0:  # (False for NaN: unknown noise, the bound stands)
                     rho = min(rho, gnss_var / math.sqrt(var[i] * var[j]))
             total += rho
     return total / (k * (k - 1) / 2)
