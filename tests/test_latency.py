@@ -338,3 +338,77 @@ def test_a_slalom_at_constant_speed_leaves_the_prior_alone():
                       seconds=60.0, vy_error=lambda t: (0.05 * math.sin(2 * math.pi * 0.4 * t - 0.5), 0.05))
     assert est.updates > 200
     assert est.delay_s == 0.4
+
+
+# --- references that share the GNSS fixes ------------------------------------------------------
+
+def test_two_references_whose_residuals_are_the_same_gnss_noise_count_once():
+    """Wheels and accelerometer are both regressed against the same GNSS speeds, so the fixes'
+    own noise is in both residuals. Where it is all of them (the simulator's drives, random drive
+    20: residual 0.10 m/s per fix, receiver noise 0.10-0.15 m/s) the two profiles carry one
+    reference's information, not two (the plain sum made drive 20's latency std 0.05 s with the
+    delay 0.2 s off, and its circle's heading valid 3 deg off beyond 3 sigma)."""
+    from ecu_daemon.estimator.latency import combined_profile, information_share
+    lr = np.array([9.0, 1.0, 0.0, 4.0, 25.0])
+    both = [(lr, False, 0.01), (lr, False, 0.01)]
+    assert combined_profile(both, 0.15 ** 2) == pytest.approx(lr)  # noise above both residuals: all shared
+    assert combined_profile(both, 0.1 ** 2) == pytest.approx(lr)
+    assert information_share(both, math.nan) == pytest.approx(0.5)  # unknown noise: the bound
+    assert combined_profile([(lr, False, 0.01)], 0.01) == pytest.approx(lr)  # one reference: itself
+
+
+def test_references_noisier_than_the_gnss_fixes_add_as_independent_evidence():
+    """What two residuals share is the fixes' own noise and no more: references whose own errors
+    dominate (a real car's filtered wheels, an accelerometer on a rough road) are nearly
+    independent, and their information adds. The bound sqrt(min / max) alone (lat34) would have
+    halved it."""
+    from ecu_daemon.estimator.latency import combined_profile, shared_correlation
+    lr = np.array([9.0, 1.0, 0.0, 4.0, 25.0])
+    # GNSS 0.05 m/s, both residuals 0.2 m/s: rho = 0.0025 / 0.04
+    assert shared_correlation([0.04, 0.04], 0.05 ** 2) == pytest.approx(0.0625)
+    assert combined_profile([(lr, False, 0.04), (lr, False, 0.04)], 0.05 ** 2) == pytest.approx(2 * lr / 1.0625)
+    assert shared_correlation([0.04, 0.04]) == pytest.approx(1.0)  # the bound, were the noise unknown
+
+
+def test_the_shared_correlation_never_exceeds_what_the_smaller_residual_allows():
+    from ecu_daemon.estimator.latency import shared_correlation
+    # the shared variance is at most the smaller residual's: rho <= sqrt(min / max)
+    assert shared_correlation([0.01, 0.04], 1.0) == pytest.approx(0.5)
+    assert shared_correlation([0.01, 0.04], math.nan) == pytest.approx(0.5)
+    assert shared_correlation([0.01, 0.04], 0.004) == pytest.approx(0.2)  # 0.004 / sqrt(0.01 * 0.04)
+    assert shared_correlation([0.0, 0.04], 0.01) == 0.0  # a reference without residual shares nothing
+    assert shared_correlation([0.0, 0.0], 0.01) == 1.0  # both fit exactly: nothing but the shared part
+    assert shared_correlation([0.04], 0.01) == 0.0
+
+
+def test_the_std_counts_the_shared_noise_once_while_the_decision_keeps_the_sum():
+    """Two references with the same statistics (both residuals the fixes' own noise): the delay
+    is decided on the summed profile (the identification's speed, which the stiffness regression
+    learns on, stays as it was: slalom_dry's k_r went 30 % off when the decision used the
+    shared-out profile, lat34), but the std is as wide as one reference's, not narrowed as
+    independent evidence would narrow it (by up to sqrt 2)."""
+    def drive(attach: bool, gnss_var: float, seed: int):
+        est = LatencyEstimator(0.01, 0.3, 0.6)
+        if attach:
+            twin = LatencyEstimator(0.01, 0.3, 0.6)
+            est.attach(twin)
+        est.gnss_var = gnss_var
+        rng = np.random.default_rng(seed)
+        n = est.max_steps + 1
+        for j in range(400):
+            t = j * 0.2
+            x = 10.0 + 2.0 * np.sin(0.5 * (t - 0.01 * (np.arange(n) + 1)))
+            y = 10.0 + 2.0 * math.sin(0.5 * (t - 0.3)) + rng.normal(0.0, 0.1)
+            if attach:
+                twin._accumulate(x, y)
+            est.observe_series(x, y)
+        return est
+    ratios = []
+    for seed in (1, 2, 3, 4):
+        alone, shared, summed = drive(False, 0.01, seed), drive(True, 0.01, seed), drive(True, 0.0, seed)
+        assert shared.delay_s == summed.delay_s == alone.delay_s == 0.3  # a right prior stays
+        assert shared.std_s == pytest.approx(alone.std_s)  # one reference's width ...
+        assert shared.std_s >= summed.std_s  # ... never narrower than the sum's
+        ratios.append(shared.std_s / summed.std_s)
+    print(ratios)
+    assert max(ratios) > 1.2  # where the profile's width sets the std, the sum would have narrowed it
