@@ -10,14 +10,18 @@ rear tyres are on their limit and slip several times the law's angle (tools/rand
 too (both axles leave their law alike), so the model held vy 1.5-1.9 deg off at a 0.5 deg std.
 
 The driven wheels measure it. Their speed against the free-rolling front wheels is the rear
-wheels' longitudinal slip ratio kappa, the lesser of the two sides (see ``DriveSlip.step``). A tyre well inside its grip slips ``F_x / (C_x F_z)``, below
-``KAPPA_PER_FORCE`` times its normalised drive force; far beyond that it is on its limit (seed 40:
-3.4 % for a linear 0.6-0.9 %). On its limit a tyre's force points along its slip vector (isotropic
-sliding friction): ``tan(alpha) / kappa = F_y / F_x``, so the rear slip angle is
+wheels' longitudinal slip ratio kappa, the lesser of the two sides (see ``DriveSlip.step``). A
+tyre well inside its grip slips ``F_x / (C_x F_z)``, below ``KAPPA_PER_FORCE`` times its normalised
+drive force; far beyond that it is on its limit (seed 40: the less-slipping side 2.2 % ahead, where
+a linear tyre (C_x 15) would be 0.8 %). On its limit a tyre's force points along its slip vector
+(isotropic sliding friction): ``tan(alpha) / kappa = F_y / F_x``, so the rear slip angle is
 ``atan(kappa F_yr / F_xr)``, with F_yr from the force balance (the model's own regressor) and F_xr
 the tyres' longitudinal force per mass (the accelerometer less its offset). F_xr leaves out the
-rolling resistance and drag the drive also overcomes, so the angle is overstated (seed 40: 3.7 deg
-for 2.7), the safe side for a variance.
+rolling resistance and drag the drive also overcomes (the angle overstated), while the less-slipping
+side is the outer, loaded wheel, whose own F_y / F_x is above the axle's (understated): seed 40
+reads 1.5-1.7 deg where the rear slips 2.6-3.3 deg and the law says 0.6. That is a lower bound on
+the law's error, not a measurement of vy: it widens the pseudo-measurement (by ~1 deg of slip
+here), and GNSS, fresh, then holds vy (the published std is the filter's own).
 
 Only for a rear-driven car (the front pair rolls free; on a front-driven one the front law is not
 in the pseudo-measurement, and an all-wheel drive has no free axle), while driving (F_x > 0).
@@ -28,9 +32,9 @@ import math
 
 #: slip ratio per unit of normalised drive force (F_x / F_z) a tyre inside its grip takes at most:
 #: 1 / C_x for C_x = 15, the soft end of passenger-car tyres (as wheel_speed.SLIP_PER_MPS2). The
-#: force is the net one (less than the drive's by drag and rolling resistance), and the rear's
-#: static load share (less than under drive by the load transfer): both put a tyre at its limit
-#: sooner, so the threshold errs towards "inside the grip"
+#: force is the net one, below the drive's by drag and rolling resistance (the threshold lower: at
+#: 40 m/s by about half), the load the rear's static share, below its share under drive (the
+#: threshold higher); KAPPA_TOL covers what is left
 KAPPA_PER_FORCE = 1.0 / 15.0
 #: slip ratio neither the law nor the limit explains: front and rear tyre radii differ (wear, size)
 #: by up to ~1 % while the wheel scale learns one, and the smoothed wheels' noise
