@@ -310,6 +310,19 @@ class SingleTrackFusion:
         lim = LAW_HOLDS_SIGMA * math.sqrt(var)
         return (e - lim) ** 2 if e > lim else 0.0
 
+    def drive_excess_var(self, vx: float, ay: float, rdot: float, alpha: float) -> float:
+        """Variance (m/s)^2 the rear law's vy is off by when the driven rear axle is on its friction
+        limit and slips ``alpha`` (rad, magnitude; ``drive_slip.DriveSlip``): the slip beyond the
+        law's own (counted once, as :meth:`model_error`), as a speed, squared; 0 when ``alpha`` is
+        not beyond it. Why the whole difference and not its part beyond 3 sigma
+        (:meth:`law_excess_var`): the limit is already established by the wheels, and what the law
+        misses there is the angle, not a noise around it."""
+        if not vx >= MIN_SPEED or not alpha > 0.0:
+            return 0.0
+        y, _ = self.rear.predict(self.regressor_rear(vx, ay, rdot), (ay / G) ** 2, True)
+        e = vx * math.tan(alpha) - abs(y)
+        return e * e if e > 0.0 else 0.0
+
     def substitute_vy_rate(self, vx: float, rdot: float) -> float:
         """|d vy / dt| the single-track model expects from the yaw acceleration ``rdot``: what an
         ay substituted by r vx (which says vy is steady) leaves out. In the steady state,
