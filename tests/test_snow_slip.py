@@ -81,9 +81,9 @@ SNOW_AWD_CORNER = Scenario(name='random_v1_s193', manoeuvre='demo', mu=0.429, mu
 
 # Drive 83 broke again on the merge with the tyre-law excess (core.LAW_EXCESS: 0.9808, 175 rows) not
 # through r vy but through the anchor: after its icy patch (mu g 1.06 m/s^2) the tyres ran at |f|
-# ~1 m/s^2, the force-free threshold, and which comparison ran when the wheels slipped turned on
-# 0.1-0.4 m/s^2 of the bank's split of b_ay that the excess's vy moved. The windowed comparisons
-# (wheel_slip.WINDOW_S) need no anchor.
+# ~1 m/s^2, the force-free threshold, and whether a comparison ran when the wheels slipped (1242 s)
+# turned on the lateral force the witness was given, which the excess moved by up to 0.4 m/s^2
+# (through b_ay). The windowed comparisons (wheel_slip.WINDOW_S) need no anchor.
 @pytest.mark.parametrize("sc, worst_mps", [(SNOW_DOWNHILL, 1.2), (SNOW_AWD_CORNER, 0.8)],
                          ids=["snow_downhill_s83", "snow_awd_corner_s193"])
 def test_slip_at_small_ax_on_snow_keeps_the_vx_promise(sc, worst_mps, tmp_path):

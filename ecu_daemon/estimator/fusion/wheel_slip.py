@@ -41,9 +41,10 @@ through a snowy corner slips its wheels at |ax| < 1 m/s^2 (drives 193, 239: 0.3-
 Both are anchored by a force threshold, and on ice that threshold is the grip itself (random drive
 83 after its patch of mu 0.11: mu g = 1.06 m/s^2, the tyres at |f| 0.95-1.07 for 12 s). There the
 free comparison restarts whenever |f| dips below 1 m/s^2, and a slip of 0.34 m/s built within 0.3 s
-(a brake on ice) is never seen; or, anchored seconds before, its bias x time allowance (and the r vy
-term, 0.1 m/s of drift after 8 s) hides it. Which of the two happened turned on 0.1-0.4 m/s^2 of
-the bank's split of b_ay (road.py), moved by the tyre-law excess's vy. So two more comparisons need
+(a brake on ice) is never seen; or, anchored 8 s before, its reference has drifted 0.12 m/s and its
+bias x time allowance hides the rest. Which of the two happened turned on fy, i.e. on the filter's
+b_ay: the tyre-law excess (core.LAW_EXCESS) moved it (0.45 against 0.35 m/s^2 without, at 1241 s),
+and fy by up to 0.4 m/s^2 with it, which no threshold should hinge on. So two more comparisons need
 no anchor at all: windows of WINDOW_S, restarted from the smoothed wheels, staggered by half of it.
 Slip builds while the wheels decelerate faster than the car, and a window's loss is what built within
 it: a lower bound on the slip (it was >= 0 at the window's start), with the allowance of a 1 s
