@@ -109,3 +109,40 @@ def test_a_corner_without_slip_reads_none():
     # 20 s at 6 m/s^2 lateral on a dry road, the wheels following the car: the long comparison's
     # allowance (bias x time, noise, margin) holds
     assert _corner(SlipWitness(DT, 0.08 ** 2, driven_fused=True), 20.0, 0.2, 6.0, 0.05, 0.0, 0.0, 20.0) == 0.0
+
+
+def _ice(w: SlipWitness, at_limit: bool, slip: float, seconds: float = 10.0, slip_after: float = 8.0,
+         bax_var: float = 0.015 ** 2) -> float:
+    """Braking through a corner on ice at the grip (mu 0.11: mu g 1.06 m/s^2), the tyres' force
+    flickering about the 1 m/s^2 threshold (|(fx, fy)| 0.96 every 7th step, 1.08 otherwise), the
+    car at constant speed (downhill); after ``slip_after`` s the wheels fall ``slip`` m/s behind
+    within 0.3 s (a brake on ice, random drive 83 at 1242 s). Returns the largest bound."""
+    v, bax = 12.0, -0.6
+    w.step(v, bax, bax, bax_var, 0.0, 0.0, 0.0)  # force-free before the corner: the anchor
+    best = 0.0
+    for i in range(round(seconds / DT)):
+        lost = slip * min(max(i * DT - slip_after, 0.0) / 0.3, 1.0)
+        fy = 0.75 if i % 7 == 0 else 0.9
+        best = max(best, w.step(v - lost, bax, bax, bax_var, 0.0, -0.6, fy, at_limit))
+    return best
+
+
+def test_a_slip_built_at_the_grip_on_ice_is_seen_whatever_the_force_threshold_says():
+    # 0.34 m/s within 0.3 s, 8 s into the corner: the free comparison either restarts on the dips
+    # below 1 m/s^2 or, run from the corner's entry, hides it in its 8 s bias x time allowance; a
+    # 1 s window sees it whole, and holds it while the steering says the tyres are beyond their law
+    assert _ice(SlipWitness(DT, 0.046 ** 2, driven_fused=False), True, 0.34) > 0.2
+    # the same wheels without slip: nothing read into them, however long the corner
+    assert _ice(SlipWitness(DT, 0.046 ** 2, driven_fused=False), True, 0.0, seconds=20.0) == 0.0
+
+
+def test_the_held_window_slip_ends_only_where_the_tyres_are_force_free_and_inside_their_law():
+    w = SlipWitness(DT, 0.046 ** 2, driven_fused=False)
+    _ice(w, True, 0.34)
+    v = 12.0 - 0.34
+    held = w.ratio
+    assert held > 0.0
+    # the slip held (wheels decelerating with the car): a dip below 1 m/s^2 at the limit keeps it
+    assert w.step(v, -0.6, -0.6, 0.015 ** 2, 0.0, -0.6, 0.7, True) > 0.2 and w.ratio >= held
+    # force-free inside the law: released
+    assert w.step(12.0, -0.6, -0.6, 0.015 ** 2, 0.0, 0.0, 0.0, False) == 0.0 and w.ratio == 0.0

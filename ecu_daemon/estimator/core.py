@@ -1011,8 +1011,9 @@ class Estimator:
             wheels.as_vx(wheel_z, xl[KW], xl[VY], r, delta if steer_ok else 0.0)
             if wheels_ok and imu_ok and not iso & (WHEELS | ACCEL_X) else math.nan,
             ax_m, xl[BAX], P[BAX, BAX], r * xl[VY],
-            # the tyres' force: the specific force less the sensor's offsets (road.py's split)
-            ax_m - float(self.road.grade.x[1]), ay_m - float(self.road.bank.x[1]))
+            # the tyres' force: the specific force less the sensor's offsets (road.py's split); and
+            # whether the steering says a tyre has left its law (then a small force is no release)
+            ax_m - float(self.road.grade.x[1]), ay_m - float(self.road.bank.x[1]), law_var > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
 
         # --- aiding sources at this step -------------------------------------------------

@@ -37,6 +37,19 @@ through a snowy corner slips its wheels at |ax| < 1 m/s^2 (drives 193, 239: 0.3-
 * one anchored where |fx| alone is below it (the abs33 rule, with the tyres' force for the car's
   acceleration): short, so sensitive to the slip an ABS or a brake in a corner builds within
   0.3 s. Anchored on a slipping tyre it sees only the slip added since: less, never more.
+
+Both are anchored by a force threshold, and on ice that threshold is the grip itself (random drive
+83 after its patch of mu 0.11: mu g = 1.06 m/s^2, the tyres at |f| 0.95-1.07 for 12 s). There the
+free comparison restarts whenever |f| dips below 1 m/s^2, and a slip of 0.34 m/s built within 0.3 s
+(a brake on ice) is never seen; or, anchored 8 s before, its reference has drifted 0.12 m/s and its
+bias x time allowance hides the rest. Which of the two happened turned on fy, i.e. on the filter's
+b_ay: the tyre-law excess (core.LAW_EXCESS) moved it (0.45 against 0.35 m/s^2 without, at 1241 s),
+and fy by up to 0.4 m/s^2 with it, which no threshold should hinge on. So two more comparisons need
+no anchor at all: windows of WINDOW_S, restarted from the smoothed wheels, staggered by half of it.
+Slip builds while the wheels decelerate faster than the car, and a window's loss is what built within
+it: a lower bound on the slip (it was >= 0 at the window's start), with the allowance of a 1 s
+comparison. A held slip does not build any further, so a window keeps the largest ratio it has seen
+until the tyres are force-free and inside their law (``at_limit`` False): then it starts over at 0.
 """
 from __future__ import annotations
 
@@ -69,6 +82,11 @@ SLIP_SCALE_MARGIN = 0.02
 WHEEL_SMOOTH_S = 0.1
 #: lowest speed (m/s) a slip ratio is taken at (wheels read 0 below ~0.3 m/s)
 MIN_SPEED_MPS = 2.0
+#: s: the windowed comparisons' length; two run staggered by half of it, so a slip built within
+#: WINDOW_S / 2 (an ABS, a brake on ice: ~0.3 s) lies whole inside one of them. Short, so the bias x
+#: time allowance stays below the wheels' noise (3 sigma of a 0.015 m/s^2 bias is 0.05 m/s after
+#: 1 s) and the r vy term cannot drift them (0.1 rad/s x 0.4 m/s of vy std: 0.04 m/s after 1 s)
+WINDOW_S = 1.0
 
 
 class _Comparison:
@@ -99,6 +117,16 @@ class _Comparison:
         self.bax_var = bax_var
         self.t = 0.0
         self.ratio = 0.0
+        self.excess = 0.0
+        self.diff = 0.0
+
+    def rewindow(self, bax: float, bax_var: float) -> None:
+        """Start a new window from the smoothed wheels, the ratio seen so far kept (see SlipWitness)."""
+        self.v_ref -= self.diff  # the wheels, low-passed (diff is v_ref - wheels, low-passed)
+        self.v0 = self.v_ref
+        self.bax = bax
+        self.bax_var = bax_var
+        self.t = 0.0
         self.excess = 0.0
         self.diff = 0.0
 
@@ -133,12 +161,14 @@ class SlipWitness:
         self.driven_fused = driven_fused  # the fused wheels include driven ones: traction slips them
         self.free = _Comparison(False)  # from the last step with no tyre force at all
         self.straight = _Comparison(True)  # from the last step with no longitudinal tyre force
+        # windows restarted every WINDOW_S, their ratios held until the tyres are force-free
+        self.windows = (_Comparison(True), _Comparison(True))
         self.pull = min(1.0, dt / WHEEL_SMOOTH_S)  # the wheels' weight per step in the smoothing
         self.ratio = 0.0  # the larger comparison's slip ratio
         self.excess = 0.0  # m/s: slip seen now beyond what the comparisons' errors explain
 
     def step(self, v_wheels: float, ax_m: float, bax: float, bax_var: float, r_vy: float,
-             fx: float = math.nan, fy: float = 0.0) -> float:
+             fx: float = math.nan, fy: float = 0.0, at_limit: bool = False) -> float:
         """One step; returns the slip bound (m/s) the evidence so far puts on the fused wheels.
 
         ``v_wheels``: the fused wheels' speed as the car's vx (scale and kinematics applied), nan
@@ -146,16 +176,32 @@ class SlipWitness:
         ``bax``, ``bax_var``: the filter's ax bias and its variance now; ``r_vy``: r vy, vx's other
         rate in the body frame. ``fx``, ``fy``: the force the tyres carry per mass (the specific
         force less the sensor's own offsets, grade and bank left in: the tyres hold the car on
-        them); nan ``fx``: ``ax_m - bax`` (no split of the bias known), ``fy`` 0."""
+        them); nan ``fx``: ``ax_m - bax`` (no split of the bias known), ``fy`` 0. ``at_limit``: the
+        steering says a tyre has left its linear law (``SingleTrackFusion.law_excess_var`` > 0): a
+        small force is then no sign of a slip-free tyre, so the windows' held slip is kept."""
         if not math.isfinite(fx):
             fx = ax_m - bax
         known = math.isfinite(v_wheels)
-        for c, free in ((self.free, math.hypot(fx, fy) < ANCHOR_AX_MPS2),
-                        (self.straight, abs(fx) < ANCHOR_AX_MPS2)):
-            if not known or free or not math.isfinite(c.v_ref):
+        free = math.hypot(fx, fy) < ANCHOR_AX_MPS2
+        for c, anchor in ((self.free, free), (self.straight, abs(fx) < ANCHOR_AX_MPS2)):
+            if not known or anchor or not math.isfinite(c.v_ref):
                 c.anchor(self, v_wheels, ax_m, bax, bax_var, r_vy)
             else:
                 c.step(self, v_wheels, ax_m, r_vy, fx)
-        self.ratio = max(self.free.ratio, self.straight.ratio)
-        self.excess = max(self.free.excess, self.straight.excess)
+        # the windows' held slip ends only where the tyres are force-free *and* inside their law: at
+        # the limit (the steering's misfit of the understeer law, core.LAW_EXCESS) the grip itself
+        # may be ~1 m/s^2 (ice, mu 0.11), and |f| flickering about the threshold there is no release
+        slip_free = free and not at_limit
+        for i, c in enumerate(self.windows):
+            if not known or slip_free or not math.isfinite(c.v_ref):
+                c.anchor(self, v_wheels, ax_m, bax, bax_var, r_vy)
+                c.t = -0.5 * WINDOW_S * i  # the stagger: the second window's first one is half as long
+            elif c.t >= WINDOW_S:
+                c.rewindow(bax, bax_var)
+                c.step(self, v_wheels, ax_m, r_vy, fx)
+            else:
+                c.step(self, v_wheels, ax_m, r_vy, fx)
+        w0, w1 = self.windows
+        self.ratio = max(self.free.ratio, self.straight.ratio, w0.ratio, w1.ratio)
+        self.excess = max(self.free.excess, self.straight.excess, w0.excess, w1.excess)
         return self.ratio * abs(v_wheels) if known else 0.0
