@@ -77,6 +77,21 @@ def test_a_broken_promise_is_coverage_below_99_percent_or_a_valid_error_beyond_t
     assert rd.broken(figures) == ["worst-heading", "cov-vx"]
 
 
+def test_a_drive_never_above_5_mps_is_summed_with_the_rest(rd):
+    """evaluation.json writes a figure with no rows to take it over as null: a reversing drive
+    (seed 348) has no valid fraction above 5 m/s. It counts as missing, not as a crash of the whole
+    run's summary after every drive was replayed."""
+    slow = {"valid_rows": 900, "valid_beyond_3sigma": 0, "coverage_3sigma": 1.0, "worst_error_valid": 0.01,
+            "valid_fraction": 0.8, "valid_fraction_above_5mps": None, "time_to_valid_after_fix_s": None}
+    fast = dict(slow, valid_fraction_above_5mps=0.9, valid_beyond_3sigma=3)
+    drives = [{"seed": s, "error": None, "figures": {q: rd._quantity(v) for q in rd.QUANTITIES},
+               "broken": []} for s, v in ((348, slow), (349, fast))]
+    assert math.isnan(drives[0]["figures"]["vx"]["valid_fraction_above_5mps"])
+    overall = rd.summary(drives)
+    assert overall["vx"]["mean_valid_fraction_above_5mps"] == pytest.approx(0.9)
+    assert overall["vx"]["beyond_3sigma"] == 3 and overall["vx"]["valid_rows"] == 1800
+
+
 def test_a_drive_the_chassis_dbc_cannot_carry_is_listed_not_scored_and_not_a_broken_promise(rd, tmp_path):
     """Seed 165 (generator v1): a straight drive on ice spins out after the friction drop and its
     wheels turn backwards faster than the chassis DBC's wheel-speed signals reach (-10.016 m/s).

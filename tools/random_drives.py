@@ -200,12 +200,19 @@ def _quantity(v: dict) -> dict:
     """The honesty figures of one quantity's ``validity`` block (evaluate.validity_metrics)."""
     n = v.get("valid_rows", 0)
     beyond = v.get("valid_beyond_3sigma", 0)
+
+    def num(key: str) -> float:
+        # evaluation.json writes a figure with no rows to take it over as null (a reversing drive
+        # never above 5 m/s has no valid fraction there): NaN here, as every other missing figure
+        x = v.get(key)
+        return math.nan if x is None else x
+
     return {"valid_rows": n, "beyond_3sigma": beyond,
             "beyond_3sigma_pct": 100.0 * beyond / n if n else math.nan,
-            "coverage_3sigma": v.get("coverage_3sigma", math.nan),
-            "worst_error_valid": v.get("worst_error_valid", math.nan),
-            "valid_fraction": v.get("valid_fraction", math.nan),
-            "valid_fraction_above_5mps": v.get("valid_fraction_above_5mps", math.nan)}
+            "coverage_3sigma": num("coverage_3sigma"),
+            "worst_error_valid": num("worst_error_valid"),
+            "valid_fraction": num("valid_fraction"),
+            "valid_fraction_above_5mps": num("valid_fraction_above_5mps")}
 
 
 def broken(figures: dict) -> list[str]:
