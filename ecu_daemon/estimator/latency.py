@@ -16,7 +16,9 @@ a ratio that steps at the corner's exit (measured: -0.13 s on a 9 m circle at 6 
 The wheels are not a clean clock: a braked wheel turns slower than the car by v * kappa
 (kappa ~ ax * m / C_x), which reads as a delay error of about v * m / C_x in braking phases
 (simulated: +0.04 s at 25 m/s, +0.12 s at 50 m/s), and real wheel-speed signals are filtered and
-lag. So a velocity receiver's speed is also regressed on the integrated accelerometer
+lag. On an all-wheel drive every fused wheel slips in traction too, so the wheels lead the car by
+v / (C_x g) on every speed change, and no unbraked window has a speed change to time the GNSS: there
+the expected slip (the wheel fusion's ``SLIP_PER_MPS2``) is taken out of the regressor (:meth:`observe`). So a velocity receiver's speed is also regressed on the integrated accelerometer
 (:class:`SpeedIntegral`: no slip, no lag; its bias and the integration constant are a ramp and an
 offset in the fit), and the two likelihood-ratio profiles add, each by its information (the
 std counts the GNSS fixes' own noise, which is in both residuals, once: :func:`combined_profile`),
