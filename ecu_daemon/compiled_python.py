@@ -46,6 +46,7 @@ MODULES = (
     "ecu_daemon/estimator/spin_check.py",  # SpinCheck.step: every step
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/wheel_slip.py",  # SlipWitness: every wheel-speed step
+    "ecu_daemon/estimator/fusion/drive_slip.py",  # DriveSlip.step: every step of a rear-driven car
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",
     "ecu_daemon/estimator/fusion/gnss_velocity.py",

@@ -122,3 +122,82 @@ def test_drive_slip_reads_the_rear_slip_angle_from_the_friction_ellipse_only_at_
     assert _settled(DriveSlip(DT, "rear", 1.036, 1.607), 10.0, 0.034, 0.33, 0.63, math.nan) == 0.0
     # a hard launch on a dry road: 3 m/s^2 of drive at 4 % slip is a linear tyre's (C_x 15-20)
     assert _settled(DriveSlip(DT, "rear", 1.036, 1.607), 10.0, 0.04, 3.0, 0.63) == 0.0
+
+
+def test_a_reset_empties_the_drive_slip_low_pass():
+    """After a reset the rule starts from nothing: one step of the same slip is 6 % of it through
+    the 0.1 s low-pass, inside the grip, where the state kept would fire at once."""
+    ds = DriveSlip(DT, "rear", 1.036, 1.607)
+    assert _settled(ds, 10.0, 0.034, 0.33, 0.63) > 0.0
+    ds.reset()
+    assert (ds.kappa, ds.fx, ds.alpha) == (0.0, 0.0, 0.0)
+    vf = 10.0 * math.cos(0.02)
+    assert ds.step(10.0, vf, vf, 10.34, 10.34, 0.02, 0.33, 0.63) == 0.0
+
+
+def _rear_driven(name: str):
+    import dataclasses
+
+    from ecu_daemon.sim import SCENARIOS, vehicle_config
+    sc = SCENARIOS[name]
+    sc = dataclasses.replace(sc, vehicle=dataclasses.replace(sc.vehicle, driven_axle="rear"))
+    return sc, vehicle_config(sc)
+
+
+def test_a_filter_reinitialisation_empties_the_drive_slip():
+    """core.Estimator._initialize (after a divergence, a logging gap, a spin's release) starts the
+    rule afresh: the low-pass held the wheels of the state the filter has just given up (after a
+    spin the slide's slip ratio, seconds of it at 0.1 s)."""
+    from ecu_daemon.estimator import Estimator
+    _, cfg = _rear_driven("dlc_dry")
+    est = Estimator(cfg)
+    assert est.drive_slip.on
+    ds = est.drive_slip
+    ds.kappa, ds.fx, ds.alpha = 0.2, 1.5, 0.05  # a spin's slip ratio, still in the low-pass
+    est._reset(100)
+    est._initialize(100, 10.0, 0.0, 0.0)
+    assert (ds.kappa, ds.fx, ds.alpha) == (0.0, 0.0, 0.0)
+
+
+def test_wheels_the_fault_detector_isolated_do_not_feed_the_rule():
+    """A rear-driven car's free front pair reading 23 % low (a scale fault, the suite's size, for 5 s
+    in the dry lane change at 22 m/s): the rear wheels run 30 % "ahead" of the front, which to the
+    rule is a drive far beyond its grip (integ35: it fired on 788 steps, 68 deg of rear slip angle,
+    all while the fault detector had the wheels isolated). Isolated wheels measure nothing: the rule
+    must not fire while they are, nor from the low-pass they fed."""
+    import dataclasses
+    import sys
+
+    from ecu_daemon.estimator import Estimator
+    from ecu_daemon.estimator.fault_detection import WHEELS
+    from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
+    from ecu_daemon.sim.sensors import Fault
+    sys.path.insert(0, "tests")
+    from drive_samples import decoded_events
+
+    sc = SCENARIOS["dlc_dry"]
+    faults = tuple(Fault(w, "scaled", 22.0, 5.0, 0.77) for w in ("wheel_speed_fl", "wheel_speed_fr"))
+    sc = dataclasses.replace(sc, vehicle=dataclasses.replace(sc.vehicle, driven_axle="rear"),
+                             sensors=dataclasses.replace(sc.sensors, faults=faults))
+    cfg = vehicle_config(sc)
+    est = Estimator(cfg)
+    ds = est.drive_slip
+    step = ds.step
+    fired_isolated = []
+
+    def watched(*a):
+        alpha = step(*a)
+        if alpha > 0.0 and est.fdi.isolated & WHEELS:
+            fired_isolated.append(alpha)
+        return alpha
+
+    ds.step = watched
+    isolated_steps = 0
+    for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
+        (est.push_gnss if kind else est.push_input)(s)
+        for _ in est.advance_to(t - 1e-6):
+            if est.fdi.isolated & WHEELS:
+                isolated_steps += 1
+                assert ds.alpha == 0.0
+    assert isolated_steps > 500  # the fault detector saw the fault (~1200 steps)
+    assert fired_isolated == []

@@ -757,6 +757,9 @@ class Estimator:
         self.turn_lp = abs(r_m - x[BR])
         self.align_lat_var = 0.0
         self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
+        # the drive-slip low-pass (0.1 s) holds the wheels before the re-initialisation: after a spin
+        # the slide's slip ratio, after a gap or a divergence wheels no longer of this car state
+        self.drive_slip.reset()
         self.initialized = True
         self.aligned = False
 
@@ -969,9 +972,15 @@ class Estimator:
         # the rear slip angle a driven rear axle on its friction limit takes (DRIVE_SLIP, drive_slip.py)
         drive_alpha = 0.0
         if DRIVE_SLIP and self.drive_slip.on:
-            drive_alpha = self.drive_slip.step(
-                vx, fl, fr, rl, rr, delta, ax_m - float(self.road.grade.x[1]),
-                -self.single_track.regressor_rear(1.0, ay_c, rdot)) if wheels_ok and imu_ok else 0.0
+            if iso & WHEELS:
+                # a wheel sensor the fault detector has isolated measures no slip: its speed against
+                # the other axle is its fault (a rear pair reading high is a drive at its limit to
+                # the rule), and the low-pass it fed holds that fault until it is emptied
+                self.drive_slip.reset()
+            elif wheels_ok and imu_ok:
+                drive_alpha = self.drive_slip.step(
+                    vx, fl, fr, rl, rr, delta, ax_m - float(self.road.grade.x[1]),
+                    -self.single_track.regressor_rear(1.0, ay_c, rdot))
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
         if (LAW_EXCESS and imu_ok and abs(rdot) <= MODEL_STEADY_RDOT
