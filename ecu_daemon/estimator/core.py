@@ -1536,7 +1536,7 @@ class Estimator:
         # the step the sample was received at, not the one it is applied at: live, a sample read
         # late is applied at a later step, and that lateness is not the receiver's latency
         k_rx = min(k, step_of(g.t, self.dt))
-        # what every timing reference's residual shares: this fix's own speed noise (latency.combined_profile)
+        # what every timing reference's residual shares: this fix's own speed noise (latency.information_share)
         lat.gnss_var = fus.sigma(g) ** 2
         if not self.fdi.isolated & WHEELS:  # the identification regresses GNSS on the wheels
             lat.observe(k_rx, speed, h, (fus.lever_x, fus.lever_y), self.wheels)

@@ -112,17 +112,16 @@ class _Comparison:
         else:
             self.v_ref = v_wheels
         self.anchored = math.isfinite(v_wheels)
-        self.v0 = self.v_ref
-        self.bax = bax
-        self.bax_var = bax_var
-        self.t = 0.0
         self.ratio = 0.0
-        self.excess = 0.0
-        self.diff = 0.0
+        self._restart(bax, bax_var)
 
     def rewindow(self, bax: float, bax_var: float) -> None:
         """Start a new window from the smoothed wheels, the ratio seen so far kept (see SlipWitness)."""
         self.v_ref -= self.diff  # the wheels, low-passed (diff is v_ref - wheels, low-passed)
+        self._restart(bax, bax_var)
+
+    def _restart(self, bax: float, bax_var: float) -> None:
+        """The comparison starts over from v_ref with the filter's ax bias now (anchor, rewindow)."""
         self.v0 = self.v_ref
         self.bax = bax
         self.bax_var = bax_var
