@@ -231,6 +231,13 @@ LAW_EXCESS_IN_OUTAGE = False
 # tyre's slip for its drive force the rear is on its limit, and its slip angle follows from the
 # friction ellipse; the difference to the law's joins the law excess (same gates).
 DRIVE_SLIP = True
+# A spin's re-initialisation keeps the gyro's bias as the filter knew it when the slide began
+# (its std grown by the bias walk over the slide), not the warm-restart prior (0.3 deg/s): a slide
+# changes the car's motion, not the sensor's offset, and with the prior the heading after it rests
+# on a bias the sliding car then teaches wrong (random drives 424 and 297: a rear-driven car spins
+# on a friction drop, then circles with its rear on its limit; the bias learned 0.3-0.5 deg/s off,
+# the heading 6 deg off at a 1.4 deg std, valid). ``Estimator._after_spin``.
+SPIN_KEEPS_GYRO_BIAS = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -467,6 +474,10 @@ class Estimator:
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self.spin = SpinCheck(dt, veh.track_m)  # a spinning car: nothing promised (spin_check.py)
+        self.yaw_bias_walk = es.yaw_rate_bias_walk
+        # (yaw-rate bias, its variance, t) when the last slide began; what _after_spin carries over
+        self.spin_bias = None
+        self.bias_carry = None  # (yaw-rate bias, variance) the next _initialize starts from
         self.axis_swap = AxisSwapCheck(dt)  # ax and ay each against its witness (a swapped mapping)
         self.gyro_gate = GyroScaleGate(veh.track_m, GSC_EVERY * dt)  # the gyro's scale against wheels and ay (a unit error)
         # ... a sensor's mapping, not a state: once confirmed, a restart with the same yaw-rate mapping
@@ -749,6 +760,11 @@ class Estimator:
         std = np.array([math.hypot(0.3, kw_std * vx), 0.1 + math.radians(1.5) * abs(vx) + abs(x[VY]) * 0.3,
                         math.pi, math.radians(0.3 if have else 1.0), 0.3, 0.3, kw_std,
                         0.02 if "accel_y_gain" in L else 0.05])
+        carry = self.bias_carry
+        if carry is not None:  # after a spin: the bias as learned before the slide (_after_spin)
+            self.bias_carry = None
+            x[BR] = carry[0]
+            std[BR] = math.sqrt(carry[1])
         h.P[i] = np.diag(std ** 2)
         h.A[i] = np.eye(NX)
         # the heading will come from GNSS courses of the turn the car is in now: their latency error
@@ -781,6 +797,10 @@ class Estimator:
         log.warning("spin: the car grips again (%.1f s after the slide began): filter and fault "
                     "detector re-initialised", (k * self.dt) - self.spin.fired_t)
         self._reset(k)
+        sb = self.spin_bias
+        if SPIN_KEEPS_GYRO_BIAS and sb is not None:  # the gyro's offset did not slide (SPIN_KEEPS_GYRO_BIAS)
+            self.bias_carry = (sb[0], sb[1] + self.yaw_bias_walk ** 2 * max(k * self.dt - sb[2], 0.0))
+        self.spin_bias = None
 
     def _reset(self, k: int) -> None:
         """Re-initialise after divergence / non-finite state, keeping what was learned."""
@@ -961,6 +981,8 @@ class Estimator:
         if spin.step(t, vx, r_g - xl[BR], ay_g - xl[BAY] - xl[GAY] * ay_g,
                      wheel_z * kw if wheels_ok else math.nan, rl * kw, rr * kw, imu_published):
             if spin.fired_t == t:
+                # the bias the filter has learned up to the slide (the slide's own steps may teach it wrong)
+                self.spin_bias = (xl[BR], float(P[BR, BR]), t)
                 log.warning("spin: sideslip %+.0f deg within ~0.5 s at r vx %.1f m/s^2: the car slides beyond its "
                             "grip; vx, sideslip and heading invalid until it grips again",
                             math.degrees(spin.dbeta), (r_g - xl[BR]) * vx)
