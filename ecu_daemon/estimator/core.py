@@ -225,6 +225,22 @@ MODEL_BOUND = True
 # from any limit (relax_jturn_12: 75 deg at 400 deg/s, sideslip within 0.35 deg made invalid).
 LAW_EXCESS = True
 LAW_EXCESS_IN_OUTAGE = False
+# A transient is no sign that a tyre has come back inside its law: a car sliding (random drive 279:
+# a rear-driven car spun out on ice, rear slip 60 deg at 1.3 m/s, the steering's misfit ~1.5 m/s)
+# swings its yaw rate as it slides, and with the excess dropped at |rdot| > MODEL_STEADY_RDOT the
+# pseudo-measurement came back at its full weight (at low speed the law is vy = lr r, its std
+# ~0.02 m/s): one update moved vy by 2.3 m/s (9 sigma of the filter's own), vx with it through the
+# front wheels' (vy + lf r) sin(delta) at 42 deg of steering, and the GNSS fixes after it were
+# rejected as outliers: vx valid 1.9 m/s off. So in a transient the excess of the last steady step
+# is held (the misfit itself is not taken there: relaxation lag, above); it is 0 on a straight
+# before a step steer, so a transient entered inside the law (relax_jturn_12) stays unwidened.
+# What is held is the least excess over a whole steady stretch of LAW_HOLD_STEADY_S, not the last
+# step's: a step steer's first steps come before the (low-passed) yaw rate moves, so the steering
+# alone puts a misfit into them (relax_jturn_12: 0.24 m/s; held through the turn-in that cost 3
+# points of sideslip validity at 0.34 deg error). A slide's misfit lasts seconds; a turn-in's
+# lasts a few steps, and the relaxation lag decays with l / vx (0.5 m at 5 m/s: 0.1 s).
+LAW_EXCESS_HOLD = True
+LAW_HOLD_STEADY_S = 0.5
 # The steering's misfit misses a rear-driven car with the power on at its limit on ice (both axles
 # leave their law alike: random drive 40, mu 0.21, 0.16 g, rear slip 2.7 deg against the law's 0.6).
 # The driven rear wheels' slip against the free front does (fusion/drive_slip.py): beyond a linear
@@ -456,6 +472,9 @@ class Estimator:
         self.model_t = -math.inf  # last single-track fusion (MODEL_BOUND) and its lateral acceleration
         self.model_ay = 0.0
         self.model_unsteady_t = math.inf  # last step the model's bound could not apply (MODEL_STEADY_S)
+        self.law_var_held = 0.0  # the law excess of the last steady stretch, held through a transient
+        self.law_steady_t = math.inf  # last step in a transient (or without the check): LAW_HOLD_STEADY_S
+        self.law_var_min = math.inf
         self.last_gnss_fused_t = -math.inf
         self.gnss_run_t = -math.inf  # first fix of the current run of fused GNSS (no gap > HEADING_FRESH_S)
         self.mag_bridged = False  # the magnetometer held the heading in the gap before that run
@@ -773,6 +792,9 @@ class Estimator:
         self.turn_lp = abs(r_m - x[BR])
         self.align_lat_var = 0.0
         self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
+        self.law_var_held = 0.0  # no misfit measured on this state yet (LAW_EXCESS_HOLD)
+        self.law_steady_t = math.inf
+        self.law_var_min = math.inf
         # the drive-slip low-pass (0.1 s) holds the wheels before the re-initialisation: after a spin
         # the slide's slip ratio, after a gap or a divergence wheels no longer of this car state
         self.drive_slip.reset()
@@ -1005,11 +1027,29 @@ class Estimator:
                     -self.single_track.regressor_rear(1.0, ay_c, rdot))
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
-        if (LAW_EXCESS and imu_ok and abs(rdot) <= MODEL_STEADY_RDOT
-                and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S)):
-            law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
-            if drive_alpha > 0.0:  # the driven rear on its limit: the law's slip angle, not its noise
-                law_var = max(law_var, self.single_track.drive_excess_var(vx, ay_c, rdot, drive_alpha))
+        if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S):
+            if abs(rdot) <= MODEL_STEADY_RDOT:
+                law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
+                if drive_alpha > 0.0:  # the driven rear on its limit: the law's slip angle, not its noise
+                    law_var = max(law_var, self.single_track.drive_excess_var(vx, ay_c, rdot, drive_alpha))
+                # what held throughout a steady stretch of LAW_HOLD_STEADY_S (its least) is what a
+                # transient keeps: a turn-in's first steps, the yaw rate not yet moving, are no slide
+                self.law_var_min = min(self.law_var_min, law_var)
+                self.law_steady_t = min(self.law_steady_t, t)  # a stretch begins (inf after a restart)
+                if t - self.law_steady_t >= LAW_HOLD_STEADY_S:
+                    self.law_var_held = self.law_var_min
+                    self.law_var_min = math.inf
+                    self.law_steady_t = t
+            else:
+                self.law_steady_t = t
+                self.law_var_min = math.inf
+                if LAW_EXCESS_HOLD:
+                    # a transient hides the misfit (relaxation lag), it does not end a slide (LAW_EXCESS_HOLD)
+                    law_var = self.law_var_held
+        else:
+            self.law_var_held = 0.0
+            self.law_var_min = math.inf
+            self.law_steady_t = t
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0 or law_var > 0.0
                 or (t - self.last_gnss_fused_t > GNSS_FRESH_S
