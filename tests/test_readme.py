@@ -103,7 +103,7 @@ def _run_setup_line(script: str, tmp_path: Path) -> None:
                                                                 "build"))
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
     r = subprocess.run(["bash", "-eo", "pipefail", "-c", setup], cwd=copy, env=env, capture_output=True,
-                       text=True, timeout=900)
+                       text=True, timeout=2400)  # a hung build's limit: it compiles every module (test_packaging)
     assert r.returncode == 0, f"{setup}\n{r.stderr[-2000:]}"
     assert run == ".venv/bin/ecu-daemon demo"
     r = subprocess.run(["bash", "-c", run + " --duration 6"], cwd=copy, env=env, capture_output=True,
