@@ -1732,7 +1732,8 @@ class Estimator:
         x = h.X[i]
         was = chk.flagged
         chk.observe(s * self.dt, s, self.dt, self._yaw_sum_since(chk.k_last, s), fus.course(g), fus.sigma(g),
-                    g.speed_mps, float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s)
+                    g.speed_mps, float(x[VX]), float(x[VY]), float(h.aux[i, AUX_R]), fus.lever_y, lat.std_s,
+                    lat.delay_s if self.delay_compensation else 0.0)
         ysc = self.yaw_scale_checks[g.source]
         if self.fdi.isolated & YAW_RATE:  # a substituted yaw rate says nothing of the gyro's scale
             ysc.restart()
@@ -1755,7 +1756,8 @@ class Estimator:
                     vy_m_std = math.sqrt(vy_m_std * vy_m_std + ex)
             ysc.observe(s * self.dt, s, self.dt, r_sum, fus.course(g), fus.sigma(g), g.speed_mps,
                         vx_s, vy_m, float(a[AUX_R]), fus.lever_y, lat.std_s,
-                        math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std)
+                        math.sqrt(max(h.P[i][BR, BR], 0.0)), vy_m_std,
+                        lat.delay_s if self.delay_compensation else 0.0)
             e = ysc.take_change()
             if e:  # the gyro's scale changed (yaw_scale_check.py): what it turned wrong is in the state
                 self._widen_for_scale_change(s, e, vx_s)

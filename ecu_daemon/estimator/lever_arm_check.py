@@ -19,7 +19,9 @@ part of the error), the gyro is.
 A GNSS latency error dd turns the course by r dd, which on a circle at one speed is the same
 regressor as dx r / vx: it is a fourth unknown, with the latency estimator's std as its prior
 (latency.py identifies it from speed changes), so only what the latency cannot explain is read as
-a lever arm. When the fit puts dx beyond LEVER_TOL_M by Z_FLAG of its standard deviations the
+a lever arm. That error is the one of the delay each fix was placed with: while the
+identification moves the delay every fix in the fit is rebased on the current one
+(``rebase_latency``), so the prior is about one error and the move is not read as dx. When the fit puts dx beyond LEVER_TOL_M by Z_FLAG of its standard deviations the
 lever arm is flagged (sticky: a configuration does not fix itself; one log line); from Z_SUSPECT
 on, ``heading_std`` gives the course error such a lever arm makes, |dx| |r| / vx, remembered over
 TURN_MEMORY_S after the corner (the filter's heading keeps the error until straight-line GNSS
@@ -112,6 +114,21 @@ def marginalise_offset(info: np.ndarray, rhs: np.ndarray) -> None:
     rhs[0] = 0.0
 
 
+def rebase_latency(info: np.ndarray, rhs: np.ndarray, theta: np.ndarray, j: int, delta: float) -> None:
+    """The fit's latency-error unknown j is the error of the delay the fixes were placed with; the
+    delay moved by ``delta`` (s) since the last fix. Each fix already in the information was placed
+    with the old delay, whose error is the new one's less delta: as a fixed linear change of unknown
+    (theta_j' = theta_j + delta) it is exact in information form, rhs' = rhs + info[:, j] delta, and
+    every fix, old and new, then shares one latency error, that of the current delay, which is what
+    the prior (the latency estimator's std) is about. Without it a delay still being identified while
+    the car circles leaves r x (its change) in the courses, which the fit reads as what else grows
+    through the circle: a gyro scale of -2.8 % on a gyro with none (random drive 417: the delay moved
+    0.32 -> 0.57 s in a 0.56 rad/s circle; the scale was applied and the heading moved 5.5 deg)."""
+    if delta:
+        rhs += info[:, j] * delta
+        theta[j] += delta
+
+
 def fit_predict_reference(h: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
     """The fit's prediction at regressors h and its variance there."""
     return float(h @ theta), float(h @ cov @ h)
@@ -158,16 +175,23 @@ class LeverArmCheck:
         self.excess = 0.0  # |dx| the heading std covers while suspected
         self.turn = 0.0  # |r| / vx remembered over TURN_MEMORY_S
         self.turn_t = -math.inf
+        self.delay_s = None  # the delay the fixes in the information were placed with (rebase_latency)
 
     def restart(self) -> None:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
         self.k_last = -1
 
     def observe(self, t: float, k: int, dt: float, r_sum: float | None, course: float, sigma_v: float,
-                speed: float, vx: float, vy: float, r: float, lever_y: float, latency_std_s: float) -> None:
+                speed: float, vx: float, vy: float, r: float, lever_y: float, latency_std_s: float,
+                delay_s: float | None = None) -> None:
         """A GNSS course of time of validity ``t`` at stored step ``k``, with the filter's vx, vy
         and the bias-corrected yaw rate r there; ``r_sum``: the sum of the bias-corrected yaw rates
-        of the steps k_last+1 .. k (``yaw_sum``, np.sum's bits; None if the history no longer holds them)."""
+        of the steps k_last+1 .. k (``yaw_sum``, np.sum's bits; None if the history no longer holds them);
+        ``delay_s`` the delay the fix was placed with (``rebase_latency``; None: the fixes' delays are taken as one)."""
+        if delay_s is not None:
+            if self.delay_s is not None:
+                rebase_latency(self.info, self.rhs, self.theta, 3, delay_s - self.delay_s)
+            self.delay_s = delay_s
         if self.t0 is None:
             self.t0 = t
         ratio = r / vx if vx > 1.0 else 0.0

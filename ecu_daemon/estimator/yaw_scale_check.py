@@ -17,7 +17,12 @@ against the gyro's heading,
 with t_run the run's start (a new offset after a gap) and I the bias-corrected yaw rate integrated since the run's start (rad, counterclockwise), is
 fitted for [c0 (per run), db (residual bias), s, dx (antenna lever arm x error), dd (latency
 error)]: the residual ``lever_arm_check.LeverArmCheck`` fits, with the integral as a fifth
-column. The fit's s is the heading error per radian the gyro integrates: s / (1 + s) for a gyro
+column. The latency error is that of the delay each fix was placed with,
+so while the identification still moves the delay (a wrong prior corrected in a circle's first
+seconds) the fixes' errors differ by the known moves: every fix is rebased on the current delay
+(``lever_arm_check.rebase_latency``), else the move, r x 0.25 s on a 0.56 rad/s circle, is read as
+a scale (random drive 417: -2.8 % on an exact gyro, applied, the heading moved 5.5 deg and was
+promised to 1.4 deg while 6.5 deg off). The fit's s is the heading error per radian the gyro integrates: s / (1 + s) for a gyro
 reading (1 + s) r, which is also what the core's s |r_gyro vx| needs. It is a separate fit, not a fifth column of that one, because the lever-arm flag's timing
 was sized on a four-unknown fit (one more unknown widens its dx std and delays its flag), and
 because the two need different priors: here the bias column is held by the filter's yaw-bias std
@@ -73,7 +78,7 @@ import numpy as np
 
 from . import lever_arm_check
 from .lever_arm_check import COURSE_NOISE_RAD, CORR_FIXES, GATE_SIGMA, LEVER_TOL_M, MAX_GAP_S, MIN_SPEED, \
-    marginalise_offset
+    marginalise_offset, rebase_latency
 
 #: prior std of the scale error: the core's constant before this fit existed (core.YAW_SCALE_STD),
 #: an automotive MEMS gyro's sensitivity tolerance after calibration; a drive without corners
@@ -188,6 +193,8 @@ class YawScaleCheck:
         self.changes = 0
         self.step = 0.0
         self.change_heading = 0.0
+        # the delay the fixes in the information were placed with (``rebase_latency``; None: none yet)
+        self.delay_s = None
 
     def restart(self) -> None:
         """Forget the gyro integral (a filter reset): the next fix opens a new offset."""
@@ -195,10 +202,16 @@ class YawScaleCheck:
 
     def observe(self, t: float, k: int, dt: float, r_sum: float | None, course: float, sigma_v: float, speed: float,
                 vx: float, vy: float, r: float, lever_y: float, latency_std_s: float, bias_std: float,
-                vy_std: float = 0.0) -> None:
+                vy_std: float = 0.0, delay_s: float | None = None) -> None:
         """As ``LeverArmCheck.observe``, plus ``bias_std``: the filter's yaw-rate bias std (rad/s);
         ``vy`` is the single-track model's (not the filter's, which takes part of a scale error into
-        its sideslip, so that a fit against it saw a third of a 1 % error) and ``vy_std`` its error."""
+        its sideslip, so that a fit against it saw a third of a 1 % error) and ``vy_std`` its error;
+        ``delay_s`` the delay this fix was placed with (the latency column is rebased on it:
+        ``lever_arm_check.rebase_latency``; None: the fixes' delays are taken as one)."""
+        if delay_s is not None:
+            if self.delay_s is not None:
+                rebase_latency(self.info, self.rhs, self.theta, 4, delay_s - self.delay_s)
+            self.delay_s = delay_s
         if speed < MIN_SPEED or vx < MIN_SPEED:
             self.k_last = -1
             return
