@@ -114,9 +114,11 @@ def marginalise_offset(info: np.ndarray, rhs: np.ndarray) -> None:
     rhs[0] = 0.0
 
 
-def rebase_latency(info: np.ndarray, rhs: np.ndarray, theta: np.ndarray, j: int, delta: float) -> None:
-    """The fit's latency-error unknown j is the error of the delay the fixes were placed with; the
-    delay moved by ``delta`` (s) since the last fix. Each fix already in the information was placed
+def rebase_latency(info: np.ndarray, rhs: np.ndarray, theta: np.ndarray, j: int,
+                   old: float | None, new: float | None) -> float | None:
+    """The fit's latency-error unknown j is the error of the delay the fixes were placed with (``old``,
+    None: none yet); this fix was placed with ``new`` (None: the fixes' delays are taken as one), so
+    the delay moved by delta = new - old. Returns the delay the information is now about. Each fix already in the information was placed
     with the old delay, whose error is the new one's less delta: as a fixed linear change of unknown
     (theta_j' = theta_j + delta) it is exact in information form, rhs' = rhs + info[:, j] delta, and
     every fix, old and new, then shares one latency error, that of the current delay, which is what
@@ -124,9 +126,13 @@ def rebase_latency(info: np.ndarray, rhs: np.ndarray, theta: np.ndarray, j: int,
     the car circles leaves r x (its change) in the courses, which the fit reads as what else grows
     through the circle: a gyro scale of -2.8 % on a gyro with none (random drive 417: the delay moved
     0.32 -> 0.57 s in a 0.56 rad/s circle; the scale was applied and the heading moved 5.5 deg)."""
-    if delta:
+    if new is None:
+        return old
+    if old is not None and new != old:
+        delta = new - old
         rhs += info[:, j] * delta
         theta[j] += delta
+    return new
 
 
 def fit_predict_reference(h: np.ndarray, theta: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
@@ -188,10 +194,7 @@ class LeverArmCheck:
         and the bias-corrected yaw rate r there; ``r_sum``: the sum of the bias-corrected yaw rates
         of the steps k_last+1 .. k (``yaw_sum``, np.sum's bits; None if the history no longer holds them);
         ``delay_s`` the delay the fix was placed with (``rebase_latency``; None: the fixes' delays are taken as one)."""
-        if delay_s is not None:
-            if self.delay_s is not None:
-                rebase_latency(self.info, self.rhs, self.theta, 3, delay_s - self.delay_s)
-            self.delay_s = delay_s
+        self.delay_s = rebase_latency(self.info, self.rhs, self.theta, 3, self.delay_s, delay_s)
         if self.t0 is None:
             self.t0 = t
         ratio = r / vx if vx > 1.0 else 0.0

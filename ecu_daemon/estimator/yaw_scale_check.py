@@ -208,10 +208,7 @@ class YawScaleCheck:
         its sideslip, so that a fit against it saw a third of a 1 % error) and ``vy_std`` its error;
         ``delay_s`` the delay this fix was placed with (the latency column is rebased on it:
         ``lever_arm_check.rebase_latency``; None: the fixes' delays are taken as one)."""
-        if delay_s is not None:
-            if self.delay_s is not None:
-                rebase_latency(self.info, self.rhs, self.theta, 4, delay_s - self.delay_s)
-            self.delay_s = delay_s
+        self.delay_s = rebase_latency(self.info, self.rhs, self.theta, 4, self.delay_s, delay_s)
         if speed < MIN_SPEED or vx < MIN_SPEED:
             self.k_last = -1
             return
