@@ -19,10 +19,14 @@ carries is a lower bound: every force an axle carried on this drive (front or re
 braking or driving, computed alike) was at most mu times its load. With mu at that bound the rear's
 lateral capacity beside its braking force is sqrt((mu Fz)^2 - Fx^2), and the rear's lateral
 utilisation u = Fy / capacity an upper bound of the true one. A brush tyre at lateral utilisation u
-slips 3 (1 - (1 - u)^(1/3)) / u times its linear angle (1 at u = 0, 3 at the limit), so the rear
-slips at most that ratio times the linear law's angle; what this exceeds the law (its saturation term
-included) by is how far the pseudo-measurement may be off: ``SingleTrackFusion.brake_excess_var``
-turns it into the same widening as the steering's misfit (``core.BRAKE_GRIP``). Widening only, never
+slips 3 (1 - (1 - u)^(1/3)) / u times its linear angle (1 at u = 0, 3 at the limit). What braking
+adds is that ratio less the one the same lateral force takes at the rear's static load without a
+brake force (u0 against the same grip): a steady corner at the most grip the drive has shown is the
+law's own range (its saturation term), not braking's (``UNBRAKED_BASE``; the suite's flying_6_r9r_h250
+and gyro_scale_+-1pct lost their sideslip availability without it, drag and grade read as braking).
+The rear then slips at most the linear angle times 1 + that addition; what this exceeds the law by is
+how far the pseudo-measurement may be off: ``SingleTrackFusion.brake_excess_var`` turns it into the
+same widening as the steering's misfit (``core.BRAKE_GRIP``). Widening only, never
 a measurement of vy: with fresh GNSS the filter's own vy carries the sideslip, and the published std
 is the filter's, grown for it. The linear angle is taken with the softer of the configured and the
 learned rear compliance: the learned one is fitted in corners without braking and may come out too
@@ -50,6 +54,11 @@ MIN_SPEED_MPS = 3.0
 MU_FLOOR = 0.15
 #: the slip ratio of a brush tyre at its limit against its linear angle
 RATIO_AT_LIMIT = 3.0
+#: the ratio returned is braking's own addition, 1 + brush(u) - brush(u0) with u0 the same lateral
+#: force's utilisation at the rear's static load without brake force: a steady corner at the most
+#: grip the drive has shown is no braking effect (the suite's flying_6_r9r_h250 and gyro_scale_+-1pct:
+#: a drag or grade deceleration at the corner's own maximum read as u = 1; sideslip invalid while right)
+UNBRAKED_BASE = True
 
 
 def brush_ratio(u: float) -> float:
@@ -88,7 +97,7 @@ class BrakeGrip:
         """One step: ``ax`` the tyres' longitudinal force per mass (the specific force less the
         sensor's offset and the grade), ``fy_front``, ``fy_rear`` the axles' lateral forces per mass
         (the model's regressors); returns the ratio (>= 1) by which the rear may slip beyond its
-        linear angle while braking, 1.0 otherwise."""
+        linear angle while braking (1 + braking's addition, ``UNBRAKED_BASE``), 1.0 otherwise."""
         self.u = 0.0
         self.ratio = 1.0
         if not (math.isfinite(ax) and math.isfinite(fy_front) and math.isfinite(fy_rear)):
@@ -116,4 +125,9 @@ class BrakeGrip:
         u = 1.0 if cap2 <= 0.0 else min(abs(fy_rear) / math.sqrt(cap2), 1.0)
         self.u = u
         self.ratio = brush_ratio(u)
+        if UNBRAKED_BASE:
+            # what braking adds: the same lateral force at the rear's static load and no brake force
+            # slips brush_ratio(u0) already (a steady corner at the grip shown: the law's own range)
+            u0 = min(abs(fy_rear) / (self.mu_shown * G * self.lf / L), 1.0)
+            self.ratio = 1.0 + max(self.ratio - brush_ratio(u0), 0.0)
         return self.ratio
