@@ -116,7 +116,7 @@ def test_braking_in_a_corner_keeps_the_sideslip_promise(tmp_path):
     braking = (ax < -1.0) & (np.abs(ay) > 1.0) & (est["sideslip_valid"] > 0.5)
     assert braking.sum() > 150, braking.sum()
     beyond = int(np.sum(err[braking] > 3.0 * est["sideslip_std_rad"][braking]))
-    # main (BRAKE_GRIP off): 240 of them beyond 3 sigma, up to 2.55 deg off at a 0.45 deg std
+    # main (BRAKE_GRIP off): 251 of them beyond 3 sigma (seen), up to 2.55 deg off at a 0.45 deg std
     assert beyond == 0, beyond
     assert math.degrees(err[braking].max()) <= 2.0, math.degrees(err[braking].max())
     # what is left on this drive is the steady corner before the second braking (the learned rear
