@@ -48,6 +48,7 @@ MODULES = (
     "ecu_daemon/estimator/fusion/wheel_slip.py",  # SlipWitness: every wheel-speed step
     "ecu_daemon/estimator/fusion/drive_slip.py",  # DriveSlip.step: every step of a rear-driven car
     "ecu_daemon/estimator/fusion/friction_limit.py",  # FrictionLimit.step: every step with fresh GNSS
+    "ecu_daemon/estimator/fusion/brake_grip.py",  # BrakeGrip.step: every step with the IMU
     "ecu_daemon/estimator/fusion/single_track.py",
     "ecu_daemon/estimator/fusion/standstill.py",
     "ecu_daemon/estimator/fusion/gnss_velocity.py",

@@ -51,6 +51,7 @@ from .fusion.single_track import LaggedModelInputs, SingleTrackFusion, std_keys 
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_slip import SlipWitness
+from .fusion.brake_grip import BrakeGrip
 from .fusion.drive_slip import DriveSlip
 from .fusion.friction_limit import FrictionLimit
 from .fusion.wheel_speed import WheelSpeedFusion
@@ -248,6 +249,13 @@ LAW_HOLD_STEADY_S = 0.5
 # tyre's slip for its drive force the rear is on its limit, and its slip angle follows from the
 # friction ellipse; the difference to the law's joins the law excess (same gates).
 DRIVE_SLIP = True
+# Braking in a corner takes load off the rear and the rear brakes take their share of what is left of
+# its friction ellipse: the rear nears its limit while the front, which drives the steering's misfit,
+# stays inside its grip (random drives 507, 504, 637: ax -4.6 at ay 3.8 m/s^2, rear slip 3.4 deg, the
+# law ~1; 301 on snow). fusion/brake_grip.py bounds the rear's lateral utilisation by the grip the
+# road has shown and a brush tyre's slip at it; what that exceeds the law by joins the law excess
+# (same gates). False: main's behaviour bit for bit.
+BRAKE_GRIP = True
 # A spin's re-initialisation keeps the gyro's bias as the filter knew it when the slide began
 # (its std grown by the bias walk over the slide), not the warm-restart prior (0.3 deg/s): a slide
 # changes the car's motion, not the sensor's offset, and with the prior the heading after it rests
@@ -432,6 +440,9 @@ class Estimator:
         self.drive_slip = DriveSlip(dt, veh.driven_axle, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m)
         self.friction = FrictionLimit()  # FRICTION_MEMORY
         self.friction_var = 0.0  # its held law excess at the last step ((m/s)^2)
+        # the rear axle's friction ellipse at its braking load against the road's grip shown (brake_grip.py)
+        self.brake_grip = BrakeGrip(dt, veh.driven_axle, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
+                                    veh.cg_height_m)
         self.standstill = StandstillFusion(dt, es.yaw_rate_noise_radps)
         self.single_track = SingleTrackFusion(
             veh.mass_kg, veh.yaw_inertia_kgm2, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
@@ -813,6 +824,8 @@ class Estimator:
         # the drive-slip low-pass (0.1 s) holds the wheels before the re-initialisation: after a spin
         # the slide's slip ratio, after a gap or a divergence wheels no longer of this car state
         self.drive_slip.reset()
+        if BRAKE_GRIP:
+            self.brake_grip.reset()
         self.initialized = True
         self.aligned = False
 
@@ -1040,6 +1053,12 @@ class Estimator:
                 drive_alpha = self.drive_slip.step(
                     vx, fl, fr, rl, rr, delta, ax_m - float(self.road.grade.x[1]),
                     -self.single_track.regressor_rear(1.0, ay_c, rdot))
+        # how far the rear may slip beyond its law while braking in a corner (BRAKE_GRIP, brake_grip.py)
+        brake_ratio = 1.0
+        if BRAKE_GRIP and imu_ok:
+            brake_ratio = self.brake_grip.step(
+                vx, ax_m - float(self.road.grade.x[1]), -self.single_track.regressor_front(1.0, ay_c, rdot),
+                -self.single_track.regressor_rear(1.0, ay_c, rdot))
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
         if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S):
@@ -1067,6 +1086,11 @@ class Estimator:
                 # present misfit (held through the whole limit, slaloms on snow lost 60 points of
                 # sideslip validity at 0.5 deg error; the model's bound is off while it is nonzero)
                 self.friction_var = self.friction.step(t, vx, ay_c, law_var)
+            if brake_ratio > 1.0:
+                # the rear braking in a corner may slip this far beyond its law; from the measured forces
+                # (no steering, no relaxation lag), so in a transient too: the speed falls, the yaw rate
+                # with it (drive 507: |rdot| beyond MODEL_STEADY_RDOT through the braking's second half)
+                law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, brake_ratio))
         else:
             self.law_var_held = 0.0
             self.law_var_min = math.inf
