@@ -52,7 +52,7 @@ from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import StandstillFusion
 from .fusion.wheel_slip import SlipWitness
 from .fusion.brake_grip import BrakeGrip
-from .fusion.drive_slip import DriveSlip
+from .fusion.drive_slip import DriveSlip, resistance
 from .fusion.friction_limit import FrictionLimit
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
@@ -249,6 +249,13 @@ LAW_HOLD_STEADY_S = 0.5
 # tyre's slip for its drive force the rear is on its limit, and its slip angle follows from the
 # friction ellipse; the difference to the law's joins the law excess (same gates).
 DRIVE_SLIP = True
+# The drive-slip rule's "while driving" is the drive force, not the net force: at a steady speed on
+# a circle the rear tyres push against rolling resistance and the front's lateral force tilted by the
+# steering while the accelerometer's net force reads ~0 (random drive 279: a rear-driven car on a
+# 44 m circle, the friction halving to 0.105; the rear wheels 1.3-2.9 % ahead of the free front at a
+# net force of -0.03 to -0.11 m/s^2, the rule silent, sideslip valid 3.46 deg off). True: the gate
+# and the linear tyre's slip take net force + drive_slip.resistance(); False: main's rule bit for bit.
+DRIVE_RESISTANCE = True
 # Braking in a corner takes load off the rear and the rear brakes take their share of what is left of
 # its friction ellipse: the rear nears its limit while the front, which drives the steering's misfit,
 # stays inside its grip (random drives 507, 504, 637: ax -4.6 at ay 3.8 m/s^2, rear slip 3.4 deg, the
@@ -1052,7 +1059,9 @@ class Estimator:
             elif wheels_ok and imu_ok:
                 drive_alpha = self.drive_slip.step(
                     vx, fl, fr, rl, rr, delta, ax_m - float(self.road.grade.x[1]),
-                    -self.single_track.regressor_rear(1.0, ay_c, rdot))
+                    -self.single_track.regressor_rear(1.0, ay_c, rdot),
+                    resistance(-self.single_track.regressor_front(1.0, ay_c, rdot), delta)
+                    if DRIVE_RESISTANCE else 0.0)
         # how far the rear may slip beyond its law while braking in a corner (BRAKE_GRIP, brake_grip.py)
         brake_ratio = 1.0
         if BRAKE_GRIP and imu_ok:
