@@ -96,6 +96,14 @@ def test_a_steered_pair_turns_a_vy_error_into_vx_by_tan_delta():
     # 760 at 26.8 s: vx 9.3, delta -43.8 deg, r -0.29, L 2.72: 6.3 m/s of misfit, ~6 m/s of vx
     b = steered_wheel_vx.vx_error_bound(1.0, 9.3, -0.29, math.radians(-43.8), 2.718)
     assert 5.0 < b < 7.0, b
+    # there the rear's force (m ay lf - Iz rdot: ay ~0, rdot -1.3 rad/s^2) is positive, the misfit
+    # negative: the rear is beyond its law, the term stands
+    assert steered_wheel_vx.vx_error_bound(1.0, 9.3, -0.29, math.radians(-43.8), 2.718, 4209.4 * 1.3) == b
+    # a plough (random drive 770 at 1255.5 s: 18 m/s, delta 21.6 deg, r 0.115, the rear's force and the
+    # misfit both positive): the rear grips, no vy missed
+    assert steered_wheel_vx.vx_error_bound(1.0, 18.2, 0.115, math.radians(21.6), 2.7, 1000.0) == 0.0
+    # ... but not below 5 m/s, where the misfit's sign does not say which axle let go
+    assert steered_wheel_vx.vx_error_bound(1.0, 2.2, 0.115, math.radians(21.6), 2.7, 1000.0) > 0.0
 
 
 def test_the_speed_gap_is_what_the_last_fix_and_the_acceleration_since_cannot_explain():

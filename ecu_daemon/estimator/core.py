@@ -462,6 +462,8 @@ class Estimator:
         self.mag_new = False
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
         self.wheelbase = veh.cg_to_front_axle_m + veh.cg_to_rear_axle_m  # steered_wheel_vx.py
+        self.mass_lf = veh.mass_kg * veh.cg_to_front_axle_m  # the rear's force: m ay lf - Iz rdot (steered_wheel_vx.py)
+        self.yaw_inertia = veh.yaw_inertia_kgm2
         # slip measured against the accelerometer: the linear law's bound fails at the friction limit
         self.slip_witness = SlipWitness(dt, self.wheels.noise2, self.wheels.use_all)
         # a driven rear axle on its limit, from its wheels against the free front (drive_slip.py)
@@ -1164,7 +1166,8 @@ class Estimator:
             ax_m - float(self.road.grade.x[1]), ay_m - float(self.road.bank.x[1]), law_var > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
-            sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase)
+            sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
+                                                  self.mass_lf * ay - self.yaw_inertia * rdot)
                   if wheels_ok and steer_ok and not iso & WHEELS and not self.sideslip_vouched else 0.0)
             self.steer_vy_hold = max(sv, self.steer_vy_hold * self._slip_decay)
         if GNSS_SPEED_GAP:  # the filter's antenna speed against the last fix's bound (gnss_speed_gap.py)
