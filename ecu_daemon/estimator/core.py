@@ -39,6 +39,9 @@ from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from .axis_swap_check import AxisSwapCheck
 from .spin_check import SpinCheck
+from . import steered_wheel_vx
+from . import gnss_speed_gap
+from .gnss_speed_gap import GnssSpeedGap
 from .gyro_scale_gate import GSC_EVERY, GyroScaleGate
 from .estimate import (STATUS_GNSS_FRESH, STATUS_GNSS_HEADING, STATUS_GNSS_REJECTED, STATUS_HEADING_ALIGNED,
                        STATUS_INPUT_STALE, STATUS_KINEMATIC_OBSERVABLE, STATUS_MAGNETOMETER, STATUS_MODEL_FALLBACK,
@@ -282,6 +285,30 @@ SPIN_KEEPS_GYRO_BIAS = True
 # cost slaloms and lane changes on snow up to 60 points of sideslip validity at errors within 0.5
 # deg (random drives 636, 563, 505, 515). False: main's behaviour, bit for bit.
 FRICTION_MEMORY = True
+# The steered front pair measures vx only through vy (vx cos delta + (vy + lf r) sin delta): in a slide
+# the filter's vy stays near a gripping car's at a gripping std while the driver counter-steers, and vx
+# was published valid 4.65 m/s (random drive 760) and 2.34 m/s (297) off at 0.2-0.34 m/s. The published
+# vx std carries the vx error the steering's misfit (vx delta - L r, the axles' slip difference) puts
+# through the fused wheels, held with the wheel-slip memory (steered_wheel_vx.py), while the sideslip
+# is not valid (a valid one vouches for vy, and vx's std already carries its share). False: main's
+# behaviour, bit for bit.
+STEERED_WHEEL_VY = True
+# After a spin the filter re-initialises from the wheels with a gripping car's vy while the car may
+# still slide sideways (random drive 879: 13 m/s at -80 deg sideslip, vx published valid 2.6 m/s off;
+# 760 after its spin); the fault detector isolates GNSS, the one source that sees it. A fix's speed
+# against the filter's antenna speed, beyond the GNSS/wheel tolerance while the sideslip is not
+# valid, floors vx's published std by the gap until the next fix (gnss_speed_gap.py). False: main's
+# behaviour, bit for bit.
+GNSS_SPEED_GAP = True
+# GNSS measures the speed and the course; vx is speed x cos(sideslip), so with the wheels out (not
+# trusted) vx rests on the sideslip. A car sliding on ice (random drive 770: mu 0.21, r vx never
+# beyond the spin check's 1.2 g, the fault detector isolating the wheels, the gyro and ay in turn)
+# kept the model's vy ~0 at 0.5-0.8 m/s while the sideslip reached -47 to -110 deg: the filter
+# read the GNSS velocity as vx (heading off by the sideslip) and published it valid 7.6 m/s off.
+# So vx from GNSS alone is promised only where the sideslip's own conditions hold (the IMU trusted,
+# its std below the valid bound), or where the speed itself is within the frame's vx std.
+# False: main's behaviour, bit for bit.
+GNSS_VX_NEEDS_SIDESLIP = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -441,6 +468,9 @@ class Estimator:
                                           es.mag_norm_tol, es.mag_dip_tol_deg, es.mag_gate_sigma)
         self.mag_new = False
         self.wheels = WheelSpeedFusion(veh.driven_axle, veh.cg_to_front_axle_m, es.wheel_speed_noise_mps)
+        self.wheelbase = veh.cg_to_front_axle_m + veh.cg_to_rear_axle_m  # steered_wheel_vx.py
+        self.mass_lf = veh.mass_kg * veh.cg_to_front_axle_m  # the rear's force: m ay lf - Iz rdot (steered_wheel_vx.py)
+        self.yaw_inertia = veh.yaw_inertia_kgm2
         # slip measured against the accelerometer: the linear law's bound fails at the friction limit
         self.slip_witness = SlipWitness(dt, self.wheels.noise2, self.wheels.use_all)
         # a driven rear axle on its limit, from its wheels against the free front (drive_slip.py)
@@ -574,6 +604,9 @@ class Estimator:
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
+        self.speed_gap = GnssSpeedGap(GNSS_WHEEL_TOL_MPS, GNSS_WHEEL_TOL_REL)  # GNSS_SPEED_GAP
+        self.sideslip_vouched = False  # the last estimate's sideslip valid (GNSS_SPEED_GAP)
+        self.steer_vy_hold = 0.0  # held vx error a missed vy puts through steered wheels (STEERED_WHEEL_VY)
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
         # lateral-acceleration noise covers (1 sigma over the check's window). Beyond it vy may be
         # drifting faster than its std grows: an ay error below the fault tolerance (which real
@@ -1141,6 +1174,15 @@ class Estimator:
             # whether the steering says a tyre has left its law (then a small force is no release)
             ax_m - float(self.road.grade.x[1]), ay_m - float(self.road.bank.x[1]), law_var > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
+        if STEERED_WHEEL_VY:
+            sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
+                                                  self.mass_lf * ay - self.yaw_inertia * rdot)
+                  if wheels_ok and steer_ok and not iso & WHEELS and not self.sideslip_vouched else 0.0)
+            self.steer_vy_hold = max(sv, self.steer_vy_hold * self._slip_decay)
+        if GNSS_SPEED_GAP:  # the filter's antenna speed against the last fix's bound (gnss_speed_gap.py)
+            fus0 = self.receivers[0]
+            self.speed_gap.step(vx - r * fus0.lever_y, xl[VY] + r * fus0.lever_x, math.hypot(ax_m, ay_m),
+                                self.dt, self.sideslip_vouched)
 
         # --- aiding sources at this step -------------------------------------------------
         status = 0
@@ -1358,6 +1400,7 @@ class Estimator:
         Finite on purpose: a downstream tool that averages a column must not be poisoned by a NaN
         from the first step before the IMU's first frame; the validity bits say "do not use".
         """
+        self.sideslip_vouched = False  # (GNSS_SPEED_GAP)
         status = STATUS_INPUT_STALE
         if self._reset_flag:
             status |= STATUS_RESET
@@ -1478,6 +1521,10 @@ class Estimator:
         # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
         # speed that vx follows: nonzero while the state cannot (yet) learn it
         vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])
+        if STEERED_WHEEL_VY:  # a vy the model missed, through the steered wheels (steered_wheel_vx.py)
+            vx_std = math.hypot(vx_std, self.steer_vy_hold)
+        if GNSS_SPEED_GAP:  # GNSS speed shows the velocity this far off (gnss_speed_gap.py)
+            vx_std = max(vx_std, self.speed_gap.gap)
         # a re-seeded scale not yet checked across speeds: what an offset seen as that scale would
         # make vx wrong by here (WheelScaleSeed.offset_bound: a missing DBC offset looks like a tyre)
         vx_std = math.hypot(vx_std, self.wheel_scale_seed.offset_bound(vx))
@@ -1494,14 +1541,6 @@ class Estimator:
         # valid only from sources that agree: wheels fused with no run of rejections, or fresh
         # GNSS (with the wheels out, vx is dead reckoning from ax between GNSS fixes)
         wheels_trusted = wheels_ok and not iso & WHEELS and self.wheel_reject_t == math.inf
-        # a sliding / spinning car (spin_check.py): no source measures vx, vy or the heading's
-        # kinematics then, so velocity, sideslip (through vel_valid) and heading are not promised
-        spinning = self.spin.active
-        vel_valid = (imu_ok and not spinning and (wheels_trusted or gnss_fresh)
-                     and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
-                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
-                     and not self.wheel_scale_seed.offset_found
-                     and not self.axis_swap.swapped and self.gyro_gate.motion_ok())
         # with the gyro isolated, sideslip rests on the wheels' yaw rate and the model: promised
         # only while ay vouches for that substitute and the wheels are trusted (its std says how well);
         # with ay isolated, on the gyro (ay = r vx) and the model: promised while the wheels vouch
@@ -1513,19 +1552,32 @@ class Estimator:
             imu_trusted = wheels_trusted and fdi.wheels_vouch_gyro
         else:
             imu_trusted = not fdi.yaw_suspect
+        gnss_vx = gnss_fresh
+        if GNSS_VX_NEEDS_SIDESLIP and gnss_fresh and not wheels_trusted:  # vx = speed x cos(sideslip)
+            gnss_vx = (imu_trusted and beta_std < SIDESLIP_STD_VALID) or sp2 <= VX_STD_VALID * VX_STD_VALID
+        # a sliding / spinning car (spin_check.py): no source measures vx, vy or the heading's
+        # kinematics then, so velocity, sideslip (through vel_valid) and heading are not promised
+        spinning = self.spin.active
+        vel_valid = (imu_ok and not spinning and (wheels_trusted or gnss_vx)
+                     and (iso & (WHEELS | ACCEL_X)) != WHEELS | ACCEL_X
+                     and not self._gnss_conflict(t) and not self.lon_scale.failing and not wsc.wrong
+                     and not self.wheel_scale_seed.offset_found
+                     and not self.axis_swap.swapped and self.gyro_gate.motion_ok())
         st = self.single_track
         rx_ok = True  # every receiver's last fix fused (a loop: no generator object per step)
         for f in self.receivers:
             if f.consecutive_rejects != 0:
                 rx_ok = False
                 break
+        ss_valid = (vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
+                    and not self.lat_scale.failing and wsc.confirmed
+                    and (iso & YAW_RATE != 0 or self.gyro_gate.sideslip_ok()))
+        self.sideslip_vouched = ss_valid
         return _new_estimate(Estimate, (
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, vy_std,
             r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
-            vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
-            and not self.lat_scale.failing and wsc.confirmed
-            and (iso & YAW_RATE != 0 or self.gyro_gate.sideslip_ok()),
+            ss_valid,
             imu_ok and not spinning and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
             and not self.axis_swap.swapped and self.gyro_gate.heading_ok()
             and rx_ok and self.heading.consecutive_rejects < 2
@@ -1632,6 +1684,12 @@ class Estimator:
         self.fix_steps[g.source] = (g.fix_time_utc_s, s)
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
+        if GNSS_SPEED_GAP:  # the speed the fix allows, widened by the acceleration since (gnss_speed_gap.py)
+            spread = 0.0
+            for j in range(s, h.last + 1):
+                a = h.aux[h.slot(j)]
+                spread += (math.hypot(float(a[AUX_AX]), float(a[AUX_AY])) + gnss_speed_gap.ACCEL_ERR) * self.dt
+            self.speed_gap.fix(speed, spread)
         if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
             wsc = self.wheel_scale_check
             if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed, h.aux[js, AUX_AX]):
