@@ -297,8 +297,8 @@ STEERED_WHEEL_VY = True
 # still slide sideways (random drive 879: 13 m/s at -80 deg sideslip, vx published valid 2.6 m/s off;
 # 760 after its spin); the fault detector isolates GNSS, the one source that sees it. A fix's speed
 # against the filter's antenna speed, beyond the GNSS/wheel tolerance while the sideslip is not
-# valid, floors vx's published std by the gap until the next fix (gnss_speed_gap.py). False: main's
-# behaviour, bit for bit.
+# valid, floors vx's published std by the gap to the last fix's speed widened by the acceleration
+# measured since (gnss_speed_gap.py: no timer). False: main's behaviour, bit for bit.
 GNSS_SPEED_GAP = True
 # GNSS measures the speed and the course; vx is speed x cos(sideslip), so with the wheels out (not
 # trusted) vx rests on the sideslip. A car sliding on ice (random drive 770: mu 0.21, r vx never
