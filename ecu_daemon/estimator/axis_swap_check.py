@@ -25,6 +25,21 @@ agree), votes for neither. A window close to one hypothesis votes for it. A run 
 as-mapped votes takes it back. A configuration does not change while the daemon runs: between
 corners the verdict stands, so sideslip, heading and velocity (all of them integrate the two
 axes) are not promised while it says swapped. Nothing is fused differently.
+
+The witness leaves ``r vy`` out (within ``SWAP_TOL_MPS2``): a car sliding sideways breaks that, and
+the slide itself then reads as a swap. Random drive 499 (j-turn on mu 0.35, the rear out from 22 s,
+a 180 deg spin to a stop at 29-31 s): at 28.9-29.3 s, vx 1.3 -> -0.4 m/s, vy 3.4-4.3 m/s at a yaw
+rate of -1 rad/s, ``r vy`` ~4 m/s^2 (the check's whole tolerance is 1): five windows voted
+"swapped" (d 0.4-1.3 m/s^2 from it, 4-5 as mapped) after 26 as-mapped ones, and the verdict stood
+to the end of the drive (the straight after it tells the mappings nothing): heading valid above 5 m/s
+0.50 against 0.69 without it. The spin check knows nothing of that slide (r vx never beyond
+1.2 g on that road; below 5 m/s it does not judge), but the filter does: its vy and vy's std are the
+slide state it has, and ``|r| (|vy| + 3 std)`` bounds the term the witness leaves out (4.5-5.2
+m/s^2 there). A step where that bound is beyond ``SWAP_RVY_MPS2`` restarts the window, as a missing
+input does: a window over a slide votes for neither mapping. A swapped mapping is still convicted
+where the witness holds (tests/test_accel_axes_swapped.py: the 15 m circle's turn-in, dlc_dry's
+acceleration, where r is ~0). Its cost: a swap that made the filter's own vy large enough would go
+unjudged while it does (the single-track model holds vy to a gripping car's).
 """
 from __future__ import annotations
 
@@ -35,6 +50,7 @@ SWAP_EVERY = 10  # steps between ring samples (60 ms)
 SWAP_TOL_MPS2 = 1.0  # bias 0.3, 6 % bank gravity 0.6, roll, r vy, dvy/dt, an unconfigured IMU lever arm
 SWAP_TOL_REL = 0.1  # of the excitation |(dv/dt, r vx)|: wheel slip and scale, the speed's lag
 SWAP_VOTES = 5  # consecutive windows (0.3 s of sliding windows) for a verdict either way
+SWAP_RVY_MPS2 = SWAP_TOL_MPS2  # |r| (|vy| + 3 std) beyond which the window is no witness (a slide)
 
 
 class AxisSwapCheck:
@@ -60,13 +76,14 @@ class AxisSwapCheck:
         self._ring = [None] * self._n
         self._cum = [0.0, 0.0, 0.0]
 
-    def step(self, k: int, v: float, ax: float, ay: float, r: float, vx: float) -> bool:
+    def step(self, k: int, v: float, ax: float, ay: float, r: float, vx: float, rvy: float = 0.0) -> bool:
         """One estimator step: ``v`` the fused wheel speed (scaled), ``ax``, ``ay`` the accelerometer
         as mapped (at the CG, body axes), ``r`` the bias-corrected yaw rate, ``vx`` the filter's;
-        any NaN (a stale or isolated input): the window restarts. True the first time the verdict
-        says swapped (the caller logs :meth:`message`)."""
+        any NaN (a stale or isolated input): the window restarts. ``rvy``: a bound of ``|r vy|``
+        (the filter's ``|r| (|vy| + 3 std)``); beyond ``SWAP_RVY_MPS2`` (a slide) the window restarts
+        too. True the first time the verdict says swapped (the caller logs :meth:`message`)."""
         rv = r * vx
-        if not (ax == ax and ay == ay and rv == rv and v == v):
+        if not (ax == ax and ay == ay and rv == rv and v == v) or rvy > SWAP_RVY_MPS2:
             self._restart()
             return False
         c = self._cum

@@ -273,6 +273,12 @@ BRAKE_GRIP = True
 # on a friction drop, then circles with its rear on its limit; the bias learned 0.3-0.5 deg/s off,
 # the heading 6 deg off at a 1.4 deg std, valid). ``Estimator._after_spin``.
 SPIN_KEEPS_GYRO_BIAS = True
+# The axis-swap check's witness (ax = dv/dt, ay = r vx) leaves r vy out; a car sliding sideways puts
+# metres per second into vy and the slide reads as a swap (random drive 499: a 180 deg spin at a
+# stop, |r vy| ~4 m/s^2, a "swapped" verdict that stood to the end, heading valid 0.50 against 0.69).
+# The filter's own |vy| + 3 std, times |r|, bounds that term: beyond the check's tolerance the window
+# judges nothing (axis_swap_check.SWAP_RVY_MPS2).
+AXIS_SWAP_SLIDE = True
 # An axle seen beyond its law (the steering's misfit) says the road's friction is near |ay| / g, and
 # in a corner both axles use the same share of their load: while |ay| stays at that limit the rear
 # may be as far beyond its law as the steering has shown, even where the misfit shrinks because both
@@ -990,9 +996,12 @@ class Estimator:
         # fault detector blame it: ay does not turn with it), the rear wheels'; no witness while
         # the wheels are isolated. An isolated ax or ay is still judged: no single-sensor fault
         # makes ax read r vx and ay dv/dt.
+        r_sw = fdi.r_wheels if iso & YAW_RATE else r_m - xpl[BR]
+        # the witness leaves r vy out: a window over a slide (the filter's |vy| + 3 std, times r,
+        # beyond the check's tolerance) is no evidence either way (AXIS_SWAP_SLIDE)
+        rvy = abs(r_sw) * (abs(xpl[VY]) + 3.0 * math.sqrt(max(Pp[VY, VY], 0.0))) if AXIS_SWAP_SLIDE else 0.0
         if self.axis_swap.step(k, wheel_z * xpl[KW] if wheels_ok and not iso & WHEELS else math.nan,
-                               ax_m if imu_published else math.nan, ay_m,
-                               fdi.r_wheels if iso & YAW_RATE else r_m - xpl[BR], xpl[VX]):
+                               ax_m if imu_published else math.nan, ay_m, r_sw, xpl[VX], rvy):
             log.warning("%s", self.axis_swap.message())
         # the gyro's scale against the rear wheels' and ay's yaw rates (gyro_scale_gate.py): inputs
         # as mapped (a unit error is what is judged; the bias states absorb a wrong mapping), each
