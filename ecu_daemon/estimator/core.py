@@ -611,6 +611,9 @@ class Estimator:
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
         self.speed_gap = GnssSpeedGap(GNSS_WHEEL_TOL_MPS, GNSS_WHEEL_TOL_REL)  # GNSS_SPEED_GAP
+        # each history slot's widening of the speed bound, (|(ax, ay)| + ACCEL_ERR) dt from the aux row
+        # written with it (the same floats, the same bits): a fix sums a Python list, not numpy rows
+        self.gap_terms = [0.0] * self.hist.n
         self.sideslip_vouched = False  # the last estimate's sideslip valid (GNSS_SPEED_GAP)
         self.steer_vy_hold = 0.0  # held vx error a missed vy puts through steered wheels (STEERED_WHEEL_VY)
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
@@ -1259,6 +1262,8 @@ class Estimator:
         aux[3] = wheel_z
         aux[4] = delta
         aux[5] = ax
+        if GNSS_SPEED_GAP:  # aux's ax and ay as _on_gnss's loop summed them (gnss_speed_gap.py)
+            self.gap_terms[i] = gnss_speed_gap.term(ax, ay, self.dt)
         h.last = k
         for cons in self.considers:
             if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
@@ -1694,11 +1699,9 @@ class Estimator:
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
         if GNSS_SPEED_GAP:  # the speed the fix allows, widened by the acceleration since (gnss_speed_gap.py)
-            spread = 0.0
-            for j in range(s, h.last + 1):
-                a = h.aux[h.slot(j)]
-                spread += (math.hypot(float(a[AUX_AX]), float(a[AUX_AY])) + gnss_speed_gap.ACCEL_ERR) * self.dt
-            self.speed_gap.fix(speed, spread)
+            # each step's term as _step stored it beside aux (gap_terms), summed in step order as
+            # the loop over aux rows summed them (spread_from_rows): the same bits, no numpy reads
+            self.speed_gap.fix(speed, gnss_speed_gap.spread_since(self.gap_terms, s, h.last, h.n))
         if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
             wsc = self.wheel_scale_check
             if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed, h.aux[js, AUX_AX]):
