@@ -44,6 +44,8 @@ MODULES = (
     "ecu_daemon/estimator/line_fit.py",  # LineFit: the gyro-scale gate's and the wheel-yaw check's fits
     "ecu_daemon/estimator/rear_axle_yaw.py",  # rear_speed_difference: the spin check's every step, the gates'
     "ecu_daemon/estimator/spin_check.py",  # SpinCheck.step: every step
+    "ecu_daemon/estimator/gnss_speed_gap.py",  # GnssSpeedGap.step, term: every step; spread_since: every fix
+    "ecu_daemon/estimator/steered_wheel_vx.py",  # vx_error_bound: every step the sideslip is not vouched
     "ecu_daemon/estimator/fusion/wheel_speed.py",
     "ecu_daemon/estimator/fusion/wheel_slip.py",  # SlipWitness: every wheel-speed step
     "ecu_daemon/estimator/fusion/drive_slip.py",  # DriveSlip.step: every step of a rear-driven car

@@ -611,6 +611,9 @@ class Estimator:
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
         self.speed_gap = GnssSpeedGap(GNSS_WHEEL_TOL_MPS, GNSS_WHEEL_TOL_REL)  # GNSS_SPEED_GAP
+        # each history slot's widening of the speed bound, (|(ax, ay)| + ACCEL_ERR) dt from the aux row
+        # written with it (the same floats, the same bits): a fix sums a Python list, not numpy rows
+        self.gap_terms = [0.0] * self.hist.n
         self.sideslip_vouched = False  # the last estimate's sideslip valid (GNSS_SPEED_GAP)
         self.steer_vy_hold = 0.0  # held vx error a missed vy puts through steered wheels (STEERED_WHEEL_VY)
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
@@ -1092,6 +1095,14 @@ class Estimator:
         self.turn_lp += self._lp_turn * (abs(r) - self.turn_lp)
         # the rear slip angle a driven rear axle on its friction limit takes (DRIVE_SLIP, drive_slip.py)
         drive_alpha = 0.0
+        # read once for the rules below (the drive slip, the brake grip, the slip witness): the grade
+        # filter's offset as a Python float, and the axles' force regressors (pure functions of
+        # ay_c and rdot; nothing below changes them before the slip witness)
+        ax_off = float(self.road.grade.x[1])
+        if imu_ok:
+            st = self.single_track
+            reg_f = -st.regressor_front(1.0, ay_c, rdot)
+            reg_r = -st.regressor_rear(1.0, ay_c, rdot)
         if DRIVE_SLIP and self.drive_slip.on:
             if iso & WHEELS:
                 # a wheel sensor the fault detector has isolated measures no slip: its speed against
@@ -1100,16 +1111,12 @@ class Estimator:
                 self.drive_slip.reset()
             elif wheels_ok and imu_ok:
                 drive_alpha = self.drive_slip.step(
-                    vx, fl, fr, rl, rr, delta, ax_m - float(self.road.grade.x[1]),
-                    -self.single_track.regressor_rear(1.0, ay_c, rdot),
-                    resistance(-self.single_track.regressor_front(1.0, ay_c, rdot), delta)
-                    if DRIVE_RESISTANCE else 0.0)
+                    vx, fl, fr, rl, rr, delta, ax_m - ax_off, reg_r,
+                    resistance(reg_f, delta) if DRIVE_RESISTANCE else 0.0)
         # how far the rear may slip beyond its law while braking in a corner (BRAKE_GRIP, brake_grip.py)
         brake_ratio = 1.0
         if BRAKE_GRIP and imu_ok:
-            brake_ratio = self.brake_grip.step(
-                vx, ax_m - float(self.road.grade.x[1]), -self.single_track.regressor_front(1.0, ay_c, rdot),
-                -self.single_track.regressor_rear(1.0, ay_c, rdot))
+            brake_ratio = self.brake_grip.step(vx, ax_m - ax_off, reg_f, reg_r)
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
         if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S):
@@ -1181,7 +1188,7 @@ class Estimator:
             ax_m, xl[BAX], P[BAX, BAX], r * xl[VY],
             # the tyres' force: the specific force less the sensor's offsets (road.py's split); and
             # whether the steering says a tyre has left its law (then a small force is no release)
-            ax_m - float(self.road.grade.x[1]), ay_m - float(self.road.bank.x[1]), law_var > 0.0)
+            ax_m - ax_off, ay_m - float(self.road.bank.x[1]), law_var > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
             sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
@@ -1259,6 +1266,8 @@ class Estimator:
         aux[3] = wheel_z
         aux[4] = delta
         aux[5] = ax
+        if GNSS_SPEED_GAP:  # aux's ax and ay as _on_gnss's loop summed them (gnss_speed_gap.py)
+            self.gap_terms[i] = gnss_speed_gap.term(ax, ay, self.dt)
         h.last = k
         for cons in self.considers:
             if cons.var:  # never a state yet (no dual-antenna heading): C is zero and stays so
@@ -1694,11 +1703,9 @@ class Estimator:
         js = h.slot(s)
         agree = self._gnss_agrees_with_wheels(s, speed)
         if GNSS_SPEED_GAP:  # the speed the fix allows, widened by the acceleration since (gnss_speed_gap.py)
-            spread = 0.0
-            for j in range(s, h.last + 1):
-                a = h.aux[h.slot(j)]
-                spread += (math.hypot(float(a[AUX_AX]), float(a[AUX_AY])) + gnss_speed_gap.ACCEL_ERR) * self.dt
-            self.speed_gap.fix(speed, spread)
+            # each step's term as _step stored it beside aux (gap_terms), summed in step order as
+            # the loop over aux rows summed them (spread_from_rows): the same bits, no numpy reads
+            self.speed_gap.fix(speed, gnss_speed_gap.spread_since(self.gap_terms, s, h.last, h.n))
         if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
             wsc = self.wheel_scale_check
             if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed, h.aux[js, AUX_AX]):

@@ -32,6 +32,34 @@ import math
 ACCEL_ERR = 1.0
 
 
+def term(ax: float, ay: float, dt: float) -> float:
+    """One step's widening of the bound: the measured horizontal acceleration's magnitude plus
+    ``ACCEL_ERR``, over the step."""
+    return (math.hypot(ax, ay) + ACCEL_ERR) * dt
+
+
+def spread_since(terms: list, s: int, last: int, n: int) -> float:
+    """The bound's widening from step ``s`` to ``last`` (both stored in a history of ``n`` slots):
+    each step's :func:`term` as the estimator stored it in slot ``step % n``, summed in step order
+    from 0.0, so the bits are those of :func:`spread_from_rows` over the same steps (a running total
+    would subtract two long sums: other bits). ~40 ns a step compiled, where reading the history's
+    numpy rows cost ~0.6 us a step (83 steps at every fix of a 0.5 s receiver; perf39)."""
+    spread = 0.0
+    for j in range(s, last + 1):
+        spread += terms[j % n]
+    return spread
+
+
+def spread_from_rows(aux, s: int, last: int, n: int, dt: float, i_ax: int, i_ay: int) -> float:
+    """The reference: the same sum read from the history's aux rows (``StepHistory.aux``), as the
+    estimator computed it at every fix before perf39 (``tests/test_slide_vx.py`` compares the two)."""
+    spread = 0.0
+    for j in range(s, last + 1):
+        a = aux[j % n]
+        spread += (math.hypot(float(a[i_ax]), float(a[i_ay])) + ACCEL_ERR) * dt
+    return spread
+
+
 class GnssSpeedGap:
     """The speed the last usable fix allows now, and the filter's distance beyond it."""
 
