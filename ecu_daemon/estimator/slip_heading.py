@@ -1,8 +1,8 @@
 """Heading std while wheel slip biases vx: one antenna's heading is no better than the sideslip.
 
 Why (issue 7, random drive 1006): a single GNSS antenna measures the velocity vector, its speed and
-its course; the heading is that course less the sideslip (ISO 8855: course = heading + sideslip,
-counted the same way round). The wheels measure vx, and under braking (or traction) at a tyre's
+its course; the heading is that course less the sideslip (heading clockwise from north, sideslip
+positive to the left, ISO 8855: course = heading - sideslip). The wheels measure vx, and under braking (or traction) at a tyre's
 limit their longitudinal slip makes that vx wrong by a bias over the whole manoeuvre (the wheel-slip
 bound ``Estimator.slip_hold``: published on vx's std, not grown in P, so P still holds vx to the
 wheels' noise). Each fix then asks the filter to split a speed it cannot reach with that vx: the
