@@ -321,8 +321,10 @@ GNSS_VX_NEEDS_SIDESLIP = True
 # speed with that vx, the rest going into vy, and turns the heading the other way by the sideslip's
 # error to keep the course (random drive 1006: braking at -3 m/s^2 at the limit of a 0.55 road, the
 # wheels 1.8 m/s slow, sideslip 3.4 deg off at its 2.1 deg std, invalid; heading 5.0 deg off at
-# 1.45 deg, valid). While that bias is the larger part of vx's error and the heading rests on
-# courses, the published heading std is at least the sideslip's (slip_heading.py).
+# 1.45 deg, valid). While that bias is the larger part of vx's error, the heading rests on
+# courses and the fixes hold it (P's heading std not far below the sideslip's: not one the gyro
+# carries from before, random drive 499), the published heading std is at least the sideslip's
+# (slip_heading.py).
 # False: main's behaviour, bit for bit.
 SLIP_HEADING = True
 MODEL_STEADY_S = 2.0
@@ -1535,7 +1537,7 @@ class Estimator:
         e = max(e, self.gyro_gate.heading_std())
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
-            psi_std = max(psi_std, slip_heading.heading_floor(self.slip_hold, sd[VX], beta_std))
+            psi_std = max(psi_std, slip_heading.heading_floor(self.slip_hold, sd[VX], beta_std, sd[PSI]))
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))

@@ -19,6 +19,14 @@ P already grants vx (it is then the larger part of vx's error) and the heading r
 fresh dual-antenna heading), the published heading std is at least the sideslip's. A car braking
 with the sideslip known (valid: its std below 0.67 deg) keeps its heading valid; one braking with
 the sideslip unknown does not promise the heading the same fixes have split.
+
+The fixes move the heading only as far as P lets them: a course residual is split between heading
+and sideslip by their variances. A heading the gyro carries from before (P's heading std a small
+part of the sideslip's) is not the one the fixes set, and the bias has not reached it (random drive
+499: a spin to a stop on mu 0.35, heading P std 0.47 deg against a sideslip std of 3.7-4.5 deg at
+1 Hz fixes, the slip witness at 0.5-1.0 m/s: the heading 0.35 deg off, right; without this the floor
+cost it 9 points of heading validity). So the floor applies while P's heading std is at least
+``HELD_SHARE`` of the sideslip's (1006: 1.4-7.7 deg against 2.0-4 deg).
 """
 from __future__ import annotations
 
@@ -26,12 +34,16 @@ import math
 
 #: 1 / sqrt(3): a bias uniform up to its bound, as std (the published vx std's slip term)
 _UNIFORM = 1.0 / math.sqrt(3.0)
+#: P's heading std, as a share of the sideslip's, from which the fixes' split moves the heading
+#: materially (a residual's share for the heading is r^2 / (1 + r^2): 10 % at r = 1/3)
+HELD_SHARE = 1.0 / 3.0
 
 
-def heading_floor(slip_bound: float, vx_std_filter: float, sideslip_std: float) -> float:
+def heading_floor(slip_bound: float, vx_std_filter: float, sideslip_std: float,
+                  heading_std_filter: float) -> float:
     """The heading std (rad) a wheel-slip bias up to ``slip_bound`` (m/s) leaves at least, given
-    the filter's own vx std (m/s) and the sideslip's published std (rad): that std while the bias
-    is the larger part of vx's error, else 0."""
-    if slip_bound * _UNIFORM > vx_std_filter:
+    the filter's own vx and heading stds (m/s, rad) and the sideslip's published std (rad): that
+    std while the bias is the larger part of vx's error and the fixes hold the heading, else 0."""
+    if slip_bound * _UNIFORM > vx_std_filter and heading_std_filter >= HELD_SHARE * sideslip_std:
         return sideslip_std
     return 0.0
