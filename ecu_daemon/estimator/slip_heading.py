@@ -2,15 +2,16 @@
 
 Why (issue 7, random drive 1006): a single GNSS antenna measures the velocity vector, its speed and
 its course; the heading is that course less the sideslip (heading clockwise from north, sideslip
-positive to the left, ISO 8855: course = heading - sideslip). The wheels measure vx, and under braking (or traction) at a tyre's
-limit their longitudinal slip makes that vx wrong by a bias over the whole manoeuvre (the wheel-slip
-bound ``Estimator.slip_hold``: published on vx's std, not grown in P, so P still holds vx to the
-wheels' noise). Each fix then asks the filter to split a speed it cannot reach with that vx: the
-rest goes into vy, so the sideslip turns by the fix's share of the bias, and the heading turns the
-other way by the same angle to keep the fix's course (1006: a steady circle on a friction drop from
-0.90 to 0.55, the driver braking at -3 m/s^2 at 4.3 m/s^2 lateral; the wheels 1.8 m/s slow, the
-sideslip 3.4 deg off at its own 2.1 deg std -- not valid, rightly -- and the heading 5.0 deg off at
-1.45 deg, valid: 93 rows beyond 3 sigma, the car sliding from -2.4 to -10 deg of sideslip).
+positive to the left, ISO 8855: course = heading - sideslip). The wheels measure vx, and under
+braking (or traction) at a tyre's limit their longitudinal slip makes that vx wrong by a bias over
+the whole manoeuvre (the wheel-slip bound ``Estimator.slip_hold``: published on vx's std, not grown
+in P, so P still holds vx to the wheels' noise). Each fix then asks the filter to split a speed it
+cannot reach with that vx: the rest goes into vy, so the sideslip turns by the fix's share of the
+bias, and the heading turns the other way by the same angle to keep the fix's course (1006: a steady
+circle on a friction drop from 0.90 to 0.55, the driver braking at -3 m/s^2 at 4.3 m/s^2 lateral;
+the wheels 1.8 m/s slow, the sideslip 3.4 deg off at its own 2.1 deg std -- not valid, rightly --
+and the heading 5.0 deg off at 1.45 deg, valid: 93 rows beyond 3 sigma, the car sliding from -2.4 to
+-10 deg of sideslip).
 
 The heading's own covariance cannot see it (the bias is not a state) and the sideslip's std can:
 where the fixes have been splitting a biased vx, the heading error is the sideslip error (course
