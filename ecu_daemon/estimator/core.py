@@ -39,6 +39,7 @@ from ..step_grid import last_step_at, step_of
 from . import backend, kalman
 from .axis_swap_check import AxisSwapCheck
 from .spin_check import SpinCheck
+from . import slip_heading
 from . import steered_wheel_vx
 from . import gnss_speed_gap
 from .gnss_speed_gap import GnssSpeedGap
@@ -315,6 +316,17 @@ GNSS_SPEED_GAP = True
 # its std below the valid bound), or where the speed itself is within the frame's vx std.
 # False: main's behaviour, bit for bit.
 GNSS_VX_NEEDS_SIDESLIP = True
+# One antenna's heading is its course less the sideslip. Wheel slip under braking or traction makes
+# the wheels' vx wrong by a bias (slip_hold) that P does not carry; each GNSS fix then splits its
+# speed with that vx, the rest going into vy, and turns the heading the other way by the sideslip's
+# error to keep the course (random drive 1006: braking at -3 m/s^2 at the limit of a 0.55 road, the
+# wheels 1.8 m/s slow, sideslip 3.4 deg off at its 2.1 deg std, invalid; heading 5.0 deg off at
+# 1.45 deg, valid). While that bias is the larger part of vx's error, the heading rests on
+# courses and the fixes hold it (P's heading std not far below the sideslip's: not one the gyro
+# carries from before, random drive 499), the published heading std is at least the sideslip's
+# (slip_heading.py).
+# False: main's behaviour, bit for bit.
+SLIP_HEADING = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -1533,6 +1545,8 @@ class Estimator:
         # and the slow turns an unconfirmed gyro and the rear wheels disagreed on (GyroScaleGate.heading_std)
         e = max(e, self.gyro_gate.heading_std())
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
+        if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
+            psi_std = max(psi_std, slip_heading.heading_floor(self.slip_hold, sd[VX], beta_std, sd[PSI]))
         # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
         # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))

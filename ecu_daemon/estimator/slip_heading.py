@@ -1,0 +1,50 @@
+"""Heading std while wheel slip biases vx: one antenna's heading is no better than the sideslip.
+
+Why (issue 7, random drive 1006): a single GNSS antenna measures the velocity vector, its speed and
+its course; the heading is that course less the sideslip (heading clockwise from north, sideslip
+positive to the left, ISO 8855: course = heading - sideslip). The wheels measure vx, and under
+braking (or traction) at a tyre's limit their longitudinal slip makes that vx wrong by a bias over
+the whole manoeuvre (the wheel-slip bound ``Estimator.slip_hold``: published on vx's std, not grown
+in P, so P still holds vx to the wheels' noise). Each fix then asks the filter to split a speed it
+cannot reach with that vx: the rest goes into vy, so the sideslip turns by the fix's share of the
+bias, and the heading turns the other way by the same angle to keep the fix's course (1006: a steady
+circle on a friction drop from 0.90 to 0.55, the driver braking at -3 m/s^2 at 4.3 m/s^2 lateral;
+the wheels 1.8 m/s slow, the sideslip 3.4 deg off at its own 2.1 deg std -- not valid, rightly --
+and the heading 5.0 deg off at 1.45 deg, valid: 93 rows beyond 3 sigma, the car sliding from -2.4 to
+-10 deg of sideslip).
+
+The heading's own covariance cannot see it (the bias is not a state) and the sideslip's std can:
+where the fixes have been splitting a biased vx, the heading error is the sideslip error (course
+intact, 1006: -1.3 deg of course against -5.0 of heading). So while the wheel-slip bias exceeds what
+P already grants vx (it is then the larger part of vx's error) and the heading rests on courses (no
+fresh dual-antenna heading), the published heading std is at least the sideslip's. A car braking
+with the sideslip known (valid: its std below 0.67 deg) keeps its heading valid; one braking with
+the sideslip unknown does not promise the heading the same fixes have split.
+
+The fixes move the heading only as far as P lets them: a course residual is split between heading
+and sideslip by their variances. A heading the gyro carries from before (P's heading std a small
+part of the sideslip's) is not the one the fixes set, and the bias has not reached it (random drive
+499: a spin to a stop on mu 0.35, heading P std 0.47 deg against a sideslip std of 3.7-4.5 deg at
+1 Hz fixes, the slip witness at 0.5-1.0 m/s: the heading 0.35 deg off, right; without this the floor
+cost it 9 points of heading validity). So the floor applies while P's heading std is at least
+``HELD_SHARE`` of the sideslip's (1006: 1.4-7.7 deg against 2.0-4 deg).
+"""
+from __future__ import annotations
+
+import math
+
+#: 1 / sqrt(3): a bias uniform up to its bound, as std (the published vx std's slip term)
+_UNIFORM = 1.0 / math.sqrt(3.0)
+#: P's heading std, as a share of the sideslip's, from which the fixes' split moves the heading
+#: materially (a residual's share for the heading is r^2 / (1 + r^2): 10 % at r = 1/3)
+HELD_SHARE = 1.0 / 3.0
+
+
+def heading_floor(slip_bound: float, vx_std_filter: float, sideslip_std: float,
+                  heading_std_filter: float) -> float:
+    """The heading std (rad) a wheel-slip bias up to ``slip_bound`` (m/s) leaves at least, given
+    the filter's own vx and heading stds (m/s, rad) and the sideslip's published std (rad): that
+    std while the bias is the larger part of vx's error and the fixes hold the heading, else 0."""
+    if slip_bound * _UNIFORM > vx_std_filter and heading_std_filter >= HELD_SHARE * sideslip_std:
+        return sideslip_std
+    return 0.0
