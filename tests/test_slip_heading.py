@@ -56,12 +56,12 @@ def test_the_heading_is_no_better_than_the_sideslip_while_slip_biases_vx():
     beta_std = math.radians(2.1)
     # 1006 at 1264.2 s: slip bound 2.6 m/s (1.5 m/s as std) against P's vx std 0.26 m/s, P's
     # heading std 1.37 deg
-    assert slip_heading.heading_floor(2.6, 0.26, beta_std, math.radians(1.37)) == beta_std
+    assert slip_heading.heading_floor(2.6 / math.sqrt(3.0), 0.26, beta_std, math.radians(1.37)) == beta_std
     # no braking slip beyond what P grants vx: nothing
-    assert slip_heading.heading_floor(0.1, 0.26, beta_std, math.radians(1.37)) == 0.0
+    assert slip_heading.heading_floor(0.1 / math.sqrt(3.0), 0.26, beta_std, math.radians(1.37)) == 0.0
     assert slip_heading.heading_floor(0.0, 0.05, beta_std, math.radians(1.37)) == 0.0
     # 499 at 1224 s: a heading the gyro carries (0.47 deg) against a sideslip std of 3.8 deg
-    assert slip_heading.heading_floor(0.8, 0.23, math.radians(3.8), math.radians(0.47)) == 0.0
+    assert slip_heading.heading_floor(0.8 / math.sqrt(3.0), 0.23, math.radians(3.8), math.radians(0.47)) == 0.0
 
 
 def test_braking_at_the_limit_does_not_publish_the_heading_the_slipping_wheels_turned(tmp_path):

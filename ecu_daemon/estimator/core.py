@@ -1545,11 +1545,12 @@ class Estimator:
         # and the slow turns an unconfirmed gyro and the rear wheels disagreed on (GyroScaleGate.heading_std)
         e = max(e, self.gyro_gate.heading_std())
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
+        # Wheel slip under braking: a bias over the whole manoeuvre that the wheel updates pass
+        # into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
+        slip_std = self.slip_hold / math.sqrt(3.0)
         if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
-            psi_std = max(psi_std, slip_heading.heading_floor(self.slip_hold, sd[VX], beta_std, sd[PSI]))
-        # Likewise wheel slip under braking: a bias over the whole manoeuvre that the wheel
-        # updates pass into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
-        vx_std = math.hypot(sd[VX], self.slip_hold / math.sqrt(3.0))
+            psi_std = max(psi_std, slip_heading.heading_floor(slip_std, sd[VX], beta_std, sd[PSI]))
+        vx_std = math.hypot(sd[VX], slip_std)
         # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
         # speed that vx follows: nonzero while the state cannot (yet) learn it
         vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])

@@ -32,10 +32,15 @@ import math
 ACCEL_ERR = 1.0
 
 
+def widening(accel: float, dt: float) -> float:
+    """One step's widening of the bound: the measured horizontal acceleration's magnitude
+    ``accel`` plus ``ACCEL_ERR``, over the step (m/s)."""
+    return (accel + ACCEL_ERR) * dt
+
+
 def term(ax: float, ay: float, dt: float) -> float:
-    """One step's widening of the bound: the measured horizontal acceleration's magnitude plus
-    ``ACCEL_ERR``, over the step."""
-    return (math.hypot(ax, ay) + ACCEL_ERR) * dt
+    """:func:`widening` from the acceleration's components, as the fix's sum stores it."""
+    return widening(math.hypot(ax, ay), dt)
 
 
 def spread_since(terms: list, s: int, last: int, n: int) -> float:
@@ -52,7 +57,8 @@ def spread_since(terms: list, s: int, last: int, n: int) -> float:
 
 def spread_from_rows(aux, s: int, last: int, n: int, dt: float, i_ax: int, i_ay: int) -> float:
     """The reference: the same sum read from the history's aux rows (``StepHistory.aux``), as the
-    estimator computed it at every fix before perf39 (``tests/test_slide_vx.py`` compares the two)."""
+    estimator computed it at every fix before perf39 (``tests/test_gnss_speed_gap.py`` compares the
+    two bit for bit). Kept literal: the reference the new sum is held to."""
     spread = 0.0
     for j in range(s, last + 1):
         a = aux[j % n]
@@ -79,7 +85,7 @@ class GnssSpeedGap:
     def step(self, vx_ant: float, vy_ant: float, accel: float, dt: float, vouched: bool) -> float:
         """One estimator step: the filter's antenna velocity, the measured horizontal acceleration's
         magnitude, ``vouched``: the last estimate's sideslip was valid. Returns the gap."""
-        self.spread += (accel + ACCEL_ERR) * dt if math.isfinite(accel) else math.inf
+        self.spread += widening(accel, dt) if math.isfinite(accel) else math.inf
         gap = 0.0
         s = self.speed
         if not vouched and math.isfinite(s):

@@ -33,18 +33,17 @@ from __future__ import annotations
 
 import math
 
-#: 1 / sqrt(3): a bias uniform up to its bound, as std (the published vx std's slip term)
-_UNIFORM = 1.0 / math.sqrt(3.0)
 #: P's heading std, as a share of the sideslip's, from which the fixes' split moves the heading
 #: materially (a residual's share for the heading is r^2 / (1 + r^2): 10 % at r = 1/3)
 HELD_SHARE = 1.0 / 3.0
 
 
-def heading_floor(slip_bound: float, vx_std_filter: float, sideslip_std: float,
+def heading_floor(slip_std: float, vx_std_filter: float, sideslip_std: float,
                   heading_std_filter: float) -> float:
-    """The heading std (rad) a wheel-slip bias up to ``slip_bound`` (m/s) leaves at least, given
+    """The heading std (rad) a wheel-slip bias leaves at least, given that bias as the std published
+    on vx (``slip_std``, m/s: ``core.Estimator.slip_hold`` / sqrt 3, a bias uniform up to its bound),
     the filter's own vx and heading stds (m/s, rad) and the sideslip's published std (rad): that
     std while the bias is the larger part of vx's error and the fixes hold the heading, else 0."""
-    if slip_bound * _UNIFORM > vx_std_filter and heading_std_filter >= HELD_SHARE * sideslip_std:
+    if slip_std > vx_std_filter and heading_std_filter >= HELD_SHARE * sideslip_std:
         return sideslip_std
     return 0.0
