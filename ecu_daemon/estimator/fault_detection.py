@@ -67,6 +67,7 @@ import math
 import numpy as np
 
 from . import estimate as est_mod
+from . import gyro_vote
 from .kinematic import BAX, BAY, BR, GAY, KW, VX, VY
 
 WHEELS = est_mod.STATUS_WHEELS_ISOLATED
@@ -218,10 +219,12 @@ class FaultDetector:
     """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
 
     def __init__(self, dt: float, track_m: float, lf_m: float = 1.2, driven_axle: str = "front",
-                 measured_speed=None, model_vy=None, lr_m: float = 1.5):
+                 measured_speed=None, model_vy=None, lr_m: float = 1.5, witnesses_must_agree: bool = False):
         """``measured_speed(fl, fr, rl, rr)``: the wheel speed the filter fuses (``WheelSpeedFusion``);
         ``model_vy(vx, r, ay, rdot)``: the single-track model's vy (None: no lateral window check);
-        ``lr_m``: CG to rear axle (the kinematic dvy/dt = lr * rdot in the ay / vx check)."""
+        ``lr_m``: CG to rear axle (the kinematic dvy/dt = lr * rdot in the ay / vx check);
+        ``witnesses_must_agree``: the gyro is isolated only when its witnesses agree (gyro_vote.py)."""
+        self.witnesses_must_agree = witnesses_must_agree
         self.lr_m = lr_m
         self.dt = dt
         self.track = track_m
@@ -303,6 +306,7 @@ class FaultDetector:
         # weighted means of 1, r, r^2, d_w, r d_w, d_a, r d_a, rdot, rdot^2, r rdot, rdot e_w, e_w, r e_w
         # (scale test)
         self._scale = [0.0] * 13
+        self._scale_ay = [0.0] * 3  # the same of rdot e_a, e_a, r e_a (gyro_vote.py's timing term for ay / vx)
         self.witnesses_agree = False  # ay / vx passes the gyro's ay test against the wheels' yaw rate
         self.wheels_vouch_gyro = False  # the wheels' yaw rate passes the gyro (ay's substitute r vx)
         self._a_lr = dt / (LR_TAU_S + dt)
@@ -718,7 +722,11 @@ class FaultDetector:
         elif self._w_fail_since < 0:
             self._w_fail_since = k
         was = gyro.active
-        if gyro.update((w_fail and (a_fail or not a_witness)) if have_w else None):
+        verdict = (w_fail and (a_fail or not a_witness)) if have_w else None
+        if self.witnesses_must_agree and not was:  # two witnesses that contradict each other cannot tell
+            verdict = gyro_vote.onset_verdict(verdict, self.witnesses_agree, a_witness,
+                                              jump or gyro_stuck)
+        if gyro.update(verdict):
             if not was:
                 self._plan_heading_repair(k)
                 self._relearn = [0.0] * 6
@@ -726,6 +734,7 @@ class FaultDetector:
                 self._relearn_bias()
         elif was and self._scale[0] > 0.0:  # back: a slope from the fault (a zero, a stuck value) is not its
             self._scale = [0.0] * 13
+            self._scale_ay = [0.0] * 3
         # while the gyro is out, the heading integrates its substitute (the wheels' yaw rate; 0
         # without wheels): how fast that may be off, measured against its one independent witness
         # (ay / vx, low-passed as e_a) plus that witness's transient allowance, else the wheels'
@@ -784,6 +793,11 @@ class FaultDetector:
         for j, v in enumerate((1.0, r_g, r_g * r_g, d_w, r_g * d_w, d_a, r_g * d_a,
                                rdot, rdot * rdot, r_g * rdot, rdot * e_w, e_w, r_g * e_w)):
             m[j] += a * (v - m[j])
+        if self.witnesses_must_agree:
+            ma = self._scale_ay
+            e_a = self.e_a
+            for j, v in enumerate((rdot * e_a, e_a, r_g * e_a)):
+                ma[j] += a * (v - ma[j])
         w = m[0]
         mr = m[1] / w
         var_r = m[2] / w - mr * mr
@@ -803,7 +817,14 @@ class FaultDetector:
             if abs(s_t) < abs(s_w):
                 s_w = s_t
         s_a = (m[6] / w - mr * m[5] / w) / var_r
-        return (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
+        if self.witnesses_must_agree and var_q > 0.0 and det > SCALE_LAG_COND * var_r * var_q:
+            ma = self._scale_ay
+            s_a = gyro_vote.ay_slope(s_a, var_r, var_q, cov_rq, det, ma[0] / w - mq * ma[1] / w,
+                                     ma[2] / w - mr * ma[1] / w)
+        fail = (s_w > SCALE_TOL and s_a > SCALE_TOL) or (s_w < -SCALE_TOL and s_a < -SCALE_TOL)
+        if fail and self.witnesses_must_agree:  # a scale error puts one slope into both (gyro_vote.py)
+            return gyro_vote.slopes_agree(s_w, s_a)
+        return fail
 
     def _plan_heading_repair(self, k: int) -> None:
         """The gyro is isolated at step k: the heading it integrated since the disagreement began
