@@ -180,7 +180,8 @@ class GyroScaleGate:
             dev = min(dev, abs(g - w) - GSC_AGREE * abs(w))
         if dev > GSC_QUIET:
             self.exercised = True
-        self.by_speed.sample(dev > GSC_QUIET, s < GSC_MIN_SPEED, len(witnesses) > 0)
+        # no sideslip is promised below GSC_MIN_SPEED nor reversing (core: vx > MIN_SPEED_SIDESLIP)
+        self.by_speed.sample(dev > GSC_QUIET, s < GSC_MIN_SPEED or vx < 0.0, len(witnesses) > 0)
         if s < GSC_MIN_SPEED:
             # below the fits' speed the wheels still count the rotation, one quantum at a time:
             # summed, their disagreement with the gyro is what its scale did to the heading (the
@@ -192,6 +193,11 @@ class GyroScaleGate:
                 self.slow_turn += (g - ww + c * vs / self.track) * self.sample_dt
                 self.by_speed.turn(g - ww + c * vs / self.track, ww)
             return False
+        if vx < 0.0 and ww == ww and abs(rl) > 0.0 and abs(rr) > 0.0:
+            # reversing at speed: the wheels count the turn for slow_exercise.py as below it (1209:
+            # a reverse curve at 3.0 m/s, where ay / vx with a bank exercised a right gyro)
+            c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
+            self.by_speed.turn(g - ww + c * vs / self.track, ww)
         if ww == ww and v >= GSC_MIN_SPEED and abs(ax) <= GSC_MAX_AX:  # either way (ww above)
             self.wheels.observe(g_raw * self.track, vs, ww * self.track)
         if ay == ay:

@@ -10,8 +10,11 @@ main 88d1c19: sideslip valid on 0.50 of the rows above 5 m/s; 1362 reverses at -
 22 deg curve at 1228-1242 s, then drives straight at 10 m/s: invalid at a 0.21 deg std, 0.10-0.16
 deg off).
 
-Physics: no sideslip is promised below ``MIN_SPEED_SIDESLIP`` (= ``GSC_MIN_SPEED``), so a slow turn
-can spoil a later promise only through what the filter remembers of it:
+Physics: no sideslip is promised below ``MIN_SPEED_SIDESLIP`` (= ``GSC_MIN_SPEED``) nor reversing
+(core promises it at ``vx > MIN_SPEED_SIDESLIP`` only), so a turn there can spoil a later promise
+only through what the filter remembers of it (reversing at speed counts as slow: 1209 reversed
+through its curve at 2.8-3.0 m/s, where ay / vx on a bank put a right gyro's samples beyond
+``GSC_QUIET`` of the witness):
 
 * the heading, which the gyro turned by its scale times the rotation: with P's heading std small,
   each fix's course (heading + sideslip) splits that error into the sideslip. Sample by sample the
@@ -50,14 +53,15 @@ class SlowExercise:
         self.wheels_turn = 0.0  # rad: the rear wheels' rotation there (absolute, summed)
 
     def turn(self, diff: float, ww: float) -> None:
-        """A slow sample both rear wheels count: the gyro less the wheels' yaw rate (``diff``,
+        """A slow (or reversing) sample both rear wheels count: the gyro less the wheels' yaw rate (``diff``,
         the radius difference taken out) and the wheels' yaw rate ``ww`` (rad/s)."""
         self.disagree += diff * self.sample_dt
         self.wheels_turn += abs(ww) * self.sample_dt
 
     def sample(self, exercised: bool, slow: bool, witnessed: bool) -> None:
         """One gate sample: ``exercised`` beyond GSC_QUIET of 0 and of the witnesses, ``slow``
-        below GSC_MIN_SPEED, ``witnessed`` at least one witness read the yaw rate."""
+        below GSC_MIN_SPEED or reversing (no sideslip promised), ``witnessed`` at least one witness
+        read the yaw rate."""
         if slow:
             if exercised:
                 self.slow = True
