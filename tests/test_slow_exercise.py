@@ -151,3 +151,13 @@ def test_unwitnessed_samples_at_speed_do_not_forget():
     for _ in range(200):
         ex.sample(False, False, False)
     assert ex.slow
+
+
+def test_a_slow_turn_the_wheels_did_not_count_is_never_forgotten():
+    """Wheels stale or isolated through the slow turn (NaN): no rotation witnessed, so a flip there
+    would sum to no disagreement; it stays withheld until a witness confirms the gyro."""
+    ex = SlowExercise(0.06)
+    for i in range(100):
+        ex.sample(True, True, False, counted=False)
+    _quiet_straight(ex, 10.0)
+    assert ex.slow

@@ -181,7 +181,9 @@ class GyroScaleGate:
         if dev > GSC_QUIET:
             self.exercised = True
         # no sideslip is promised below GSC_MIN_SPEED nor reversing (core: vx > MIN_SPEED_SIDESLIP)
-        self.by_speed.sample(dev > GSC_QUIET, s < GSC_MIN_SPEED or vx < 0.0, len(witnesses) > 0)
+        # (the rear wheels count the turn where both move: below, an exercised sample is never forgiven)
+        self.by_speed.sample(dev > GSC_QUIET, s < GSC_MIN_SPEED or vx < 0.0, len(witnesses) > 0,
+                             s >= GSC_STILL and abs(rl) > 0.0 and abs(rr) > 0.0)
         if s < GSC_MIN_SPEED:
             # below the fits' speed the wheels still count the rotation, one quantum at a time:
             # summed, their disagreement with the gyro is what its scale did to the heading (the

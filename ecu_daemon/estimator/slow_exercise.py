@@ -51,6 +51,7 @@ class SlowExercise:
         self.quiet_s = 0.0  # witnessed quiet samples at speed since the last slow exercise (s)
         self.disagree = 0.0  # rad: the gyro's rotation less the rear wheels', below the fits' speed
         self.wheels_turn = 0.0  # rad: the rear wheels' rotation there (absolute, summed)
+        self.uncounted = False  # a slow exercise the rear wheels did not count (stale, isolated, at 0)
 
     def turn(self, diff: float, ww: float) -> None:
         """A slow (or reversing) sample both rear wheels count: the gyro less the wheels' yaw rate (``diff``,
@@ -58,19 +59,22 @@ class SlowExercise:
         self.disagree += diff * self.sample_dt
         self.wheels_turn += abs(ww) * self.sample_dt
 
-    def sample(self, exercised: bool, slow: bool, witnessed: bool) -> None:
+    def sample(self, exercised: bool, slow: bool, witnessed: bool, counted: bool = True) -> None:
         """One gate sample: ``exercised`` beyond GSC_QUIET of 0 and of the witnesses, ``slow``
         below GSC_MIN_SPEED or reversing (no sideslip promised), ``witnessed`` at least one witness
-        read the yaw rate."""
+        read the yaw rate, ``counted`` both rear wheels moving and read (:meth:`turn` follows):
+        a slow exercise they did not count is never forgiven (no witness of its rotation at all)."""
         if slow:
             if exercised:
                 self.slow = True
                 self.quiet_s = 0.0
+                if not counted:
+                    self.uncounted = True
             return
         if exercised:
             self.at_speed = True
         elif witnessed:
             self.quiet_s += self.sample_dt
-            if (self.slow and self.quiet_s >= SLOW_FORGET_S
+            if (self.slow and self.quiet_s >= SLOW_FORGET_S and not self.uncounted
                     and abs(self.disagree) <= SLOW_AGREE * self.wheels_turn + SLOW_TURN_TOL):
                 self.slow = False
