@@ -63,6 +63,7 @@ import math
 
 from .line_fit import LineFit
 from .rear_axle_yaw import rear_mean_speed, rear_speed_difference
+from .slow_exercise import SlowExercise
 
 GSC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds and IMU at 50-100 Hz, noise correlated
 GSC_MIN_SPEED = 3.0  # m/s: below, the wheels' quantisation and ay / vx's division by a small speed
@@ -133,6 +134,8 @@ class GyroScaleGate:
         self.confirmed = False
         self.contradicted = False
         self.exercised = False  # a sample beyond GSC_QUIET while not confirmed
+        # ... split by speed: below GSC_MIN_SPEED forgotten in time (slow_exercise.py, core.SLOW_TURN_FORGOTTEN)
+        self.by_speed = SlowExercise(sample_dt)
         self.implausible = False  # the last sample read a yaw rate no car makes at its speed
         self.logged = False
 
@@ -177,6 +180,10 @@ class GyroScaleGate:
             dev = min(dev, abs(g - w) - GSC_AGREE * abs(w))
         if dev > GSC_QUIET:
             self.exercised = True
+        # no sideslip is promised below GSC_MIN_SPEED nor reversing (core: vx > MIN_SPEED_SIDESLIP)
+        # (the rear wheels count the turn where both move: below, an exercised sample is never forgiven)
+        self.by_speed.sample(dev > GSC_QUIET, s < GSC_MIN_SPEED or vx < 0.0, len(witnesses) > 0,
+                             s >= GSC_STILL and abs(rl) > 0.0 and abs(rr) > 0.0)
         if s < GSC_MIN_SPEED:
             # below the fits' speed the wheels still count the rotation, one quantum at a time:
             # summed, their disagreement with the gyro is what its scale did to the heading (the
@@ -186,7 +193,13 @@ class GyroScaleGate:
             if s >= GSC_STILL and abs(rl) > 0.0 and abs(rr) > 0.0:
                 c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
                 self.slow_turn += (g - ww + c * vs / self.track) * self.sample_dt
+                self.by_speed.turn(g - ww + c * vs / self.track, ww)
             return False
+        if vx < 0.0 and ww == ww and abs(rl) > 0.0 and abs(rr) > 0.0:
+            # reversing at speed: the wheels count the turn for slow_exercise.py as below it (1209:
+            # a reverse curve at 3.0 m/s, where ay / vx with a bank exercised a right gyro)
+            c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
+            self.by_speed.turn(g - ww + c * vs / self.track, ww)
         if ww == ww and v >= GSC_MIN_SPEED and abs(ax) <= GSC_MAX_AX:  # either way (ww above)
             self.wheels.observe(g_raw * self.track, vs, ww * self.track)
         if ay == ay:
@@ -251,6 +264,11 @@ class GyroScaleGate:
     def sideslip_ok(self) -> bool:
         """A sideslip may rest on this gyro: its scale confirmed, or never exercised yet."""
         return self.confirmed or not (self.exercised or self.contradicted)
+
+    def sideslip_ok_forgetting(self) -> bool:
+        """:meth:`sideslip_ok` with a slow turn no witness could judge forgotten once its memory is
+        gone (slow_exercise.py)."""
+        return self.confirmed or not (self.by_speed.at_speed or self.by_speed.slow or self.contradicted)
 
     def message(self) -> str:
         """The log line: the key, what each witness reads."""
