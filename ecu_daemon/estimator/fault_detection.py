@@ -41,7 +41,9 @@ has agreed with the others for a while (hysteresis, ``_Latch``). Learned states 
 The gyro is isolated when the wheels' yaw rate and ay / vx both disagree with it (a vote in which
 ay / vx merely "sides with the wheels" was tried: in transients, with one rear wheel stuck or
 noisy, it isolated a good gyro and the repair below then put the wheels' error into the
-heading, 15 deg off while valid). At the step the gyro is isolated, the
+heading, 15 deg off while valid), and, with ``core.GYRO_WITNESSES_AGREE``, only when the two
+also agree with each other (gyro_vote.py: on all-wheel drive the slipping wheels and ay / vx, off by
+the sideslip's rate, each disagreed with a right gyro by its own error). At the step the gyro is isolated, the
 heading it integrated since the disagreement began (the integral of gyro minus wheels) is taken
 back out of the stored steps; while it is out, yaw rate comes from the wheels, the single-track
 model (on ay) holds vy, and sideslip is promised only while ay / vx vouches for the wheels. The

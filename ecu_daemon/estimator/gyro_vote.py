@@ -30,7 +30,9 @@ The rule, for the *onset* of an isolation only (a gyro already isolated returns 
   radius, roll gravity: a few %);
 * the level tests blame it only when the two residuals agree within ay / vx's tolerances (the
   detector's ``witnesses_agree``), unless a test no witness error explains already fired (a jump no
-  car makes, a stuck value, a scale both witnesses share).
+  car makes, a stuck value: :func:`onset_verdict`'s ``forced``). A scale failure with agreeing
+  slopes is not among those: at its onset the level residuals must agree too (the suite's
+  ``fault_yaw_rate_scaled``: first isolated at the same step as before, re-isolated 0.5 s later).
 
 Without ay / vx as a witness (below 6 m/s, ay itself isolated) nothing changes: the wheels judge
 alone, as before. ``core.GYRO_WITNESSES_AGREE`` False: main's vote bit for bit.
