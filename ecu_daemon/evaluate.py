@@ -108,13 +108,15 @@ def read_csv(path: str | Path, required: tuple[str, ...], what: str) -> dict[str
     if short is not None:
         raise EvaluationError(f"{what} {p}:{short + 2}: {len(rows[short])} fields, the header has {len(header)}")
     cols: dict[str, np.ndarray] = {}
-    for j, name in enumerate(header):
-        cells = [r[j].strip() for r in rows]
+    # one transpose, then Python's float() per cell: numpy's own parse of a list of str was 0.67 of
+    # 1.5 s on a 7500-row estimate (float() takes the padding a strip would remove)
+    for name, column in zip(header, zip(*rows)):
         try:
-            cols[name] = np.array(cells, dtype=float)
+            cols[name] = np.fromiter(map(float, column), dtype=float, count=len(column))
             continue
         except ValueError:
             pass
+        cells = [c.strip() for c in column]
         out = np.empty(len(rows))
         for i, cell in enumerate(cells):
             try:
@@ -134,6 +136,14 @@ def read_csv(path: str | Path, required: tuple[str, ...], what: str) -> dict[str
     if np.any(np.diff(t) < 0):
         raise EvaluationError(f"{what} {p}: column t is not in time order")
     return cols
+
+
+def same_time_rows(truth: dict, est: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Row indices (truth, estimate) where both files have a row at the same t: the offline tools'
+    row-by-row join (a replay of a simulated drive writes its estimate on the truth's grid), where
+    :func:`evaluate` interpolates the truth instead."""
+    _, ti, ei = np.intersect1d(truth["t"], est["t"], assume_unique=False, return_indices=True)
+    return ti, ei
 
 
 def _stats(err: np.ndarray) -> dict:
