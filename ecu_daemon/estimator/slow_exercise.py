@@ -52,6 +52,7 @@ class SlowExercise:
         self.disagree = 0.0  # rad: the gyro's rotation less the rear wheels', below the fits' speed
         self.wheels_turn = 0.0  # rad: the rear wheels' rotation there (absolute, summed)
         self.uncounted = False  # a slow exercise the rear wheels did not count (stale, isolated, at 0)
+        self.forgiven = False  # a slow exercise was forgotten (the wheels counted it alike): slow_turn_heading.py
 
     def turn(self, diff: float, ww: float) -> None:
         """A slow (or reversing) sample both rear wheels count: the gyro less the wheels' yaw rate (``diff``,
@@ -78,3 +79,4 @@ class SlowExercise:
             if (self.slow and self.quiet_s >= SLOW_FORGET_S and not self.uncounted
                     and abs(self.disagree) <= SLOW_AGREE * self.wheels_turn + SLOW_TURN_TOL):
                 self.slow = False
+                self.forgiven = True
