@@ -123,6 +123,16 @@ def test_a_forgiven_slow_turn_carries_the_scale_the_wheels_measured(s):
     assert scale_sd(ex, 1.0) < 0.3
 
 
+def test_an_s_bend_measures_the_scale_over_its_net_rotation():
+    """Left then right: the wheels' summed |rotation| is large, the net small; the std uses the net."""
+    ex = SlowExercise(0.06)
+    _slow_curve(ex, 1.05, n=150, r=0.05)
+    _slow_curve(ex, 1.05, n=140, r=-0.05)
+    _quiet_straight(ex, SLOW_FORGET_S + 0.1)
+    net = 10 * 0.06 * 0.05
+    assert scale_sd(ex, 1.0) == pytest.approx(min(1.0, (0.05 * net + SLOW_TURN_TOL) / net))
+
+
 @pytest.mark.parametrize("s", [-1.0, 1.0 / 57.3])
 def test_a_flipped_or_unit_error_slow_turn_keeps_a_flips_std(s):
     ex = SlowExercise(0.06)
