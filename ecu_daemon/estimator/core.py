@@ -344,6 +344,13 @@ GYRO_WITNESSES_AGREE = True
 # speed still withholds until confirmed, the heading keeps the gate's rule. False: main's
 # behaviour, bit for bit.
 SLOW_TURN_FORGOTTEN = True
+# The same slow reversing turn kept the heading withheld while right (random drives 1487, 1532, 1547,
+# 1584, 1653, 1667 on main 81ac01f: heading valid on 0.50 of the rows above 5 m/s, 0.0-0.5 deg off):
+# its std carried a flipped gyro's scale error times the slow rotation (24 deg on 1487) and the gate
+# required "never exercised". Once slow_exercise.py forgave the turn (the rear wheels counted the
+# rotation the gyro read), the std carries the scale error the wheels measured instead and the heading
+# takes the gate's forgetting rule (slow_turn_heading.py). False: main's behaviour, bit for bit.
+HEADING_SLOW_TURN_FORGOTTEN = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -1558,8 +1565,11 @@ class Estimator:
         # YawScaleCheck.heading_scale)
         # (while the gyro gate has not confirmed the gyro, its scale error may be a flipped sign's:
         # GyroScaleGate.heading_scale_sd, the larger of the two)
-        e = max(e, max(self.yaw_scale_heading, self.gyro_gate.heading_scale_sd())
-                * self.scale_sens.heading(self.hist.last))
+        if HEADING_SLOW_TURN_FORGOTTEN:  # a forgiven slow turn: the wheels' measured scale (slow_turn_heading.py)
+            gsd = self.gyro_gate.heading_scale_sd_counted()
+        else:
+            gsd = self.gyro_gate.heading_scale_sd()
+        e = max(e, max(self.yaw_scale_heading, gsd) * self.scale_sens.heading(self.hist.last))
         # and the slow turns an unconfirmed gyro and the rear wheels disagreed on (GyroScaleGate.heading_std)
         e = max(e, self.gyro_gate.heading_std())
         psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
@@ -1621,6 +1631,10 @@ class Estimator:
                 rx_ok = False
                 break
         gg = self.gyro_gate
+        if HEADING_SLOW_TURN_FORGOTTEN:  # the same forgetting for the heading (slow_turn_heading.py)
+            gyro_psi_ok = gg.heading_ok_forgetting()
+        else:
+            gyro_psi_ok = gg.heading_ok()
         if SLOW_TURN_FORGOTTEN:  # a slow turn the rear wheels counted alike, forgotten in time (slow_exercise.py)
             gyro_ss_ok = gg.sideslip_ok_forgetting()
         else:
@@ -1635,7 +1649,7 @@ class Estimator:
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             ss_valid,
             imu_ok and not spinning and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
-            and not self.axis_swap.swapped and self.gyro_gate.heading_ok()
+            and not self.axis_swap.swapped and gyro_psi_ok
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
             vel_valid and vx_std <= VX_STD_VALID,  # promised only what the frame can carry

@@ -64,6 +64,7 @@ import math
 from .line_fit import LineFit
 from .rear_axle_yaw import rear_mean_speed, rear_speed_difference
 from .slow_exercise import SlowExercise
+from . import slow_turn_heading
 
 GSC_EVERY = 10  # steps between samples (60 ms): CAN wheel speeds and IMU at 50-100 Hz, noise correlated
 GSC_MIN_SPEED = 3.0  # m/s: below, the wheels' quantisation and ay / vx's division by a small speed
@@ -244,6 +245,20 @@ class GyroScaleGate:
         and is withheld once a flip could be beyond ``HEADING_STD_VALID``'s 3 sigma. A gyro read
         1/57x integrates almost nothing, so this cannot bound it (:meth:`heading_ok`)."""
         return 0.0 if self.confirmed else GSC_UNCONFIRMED_SCALE_SD
+
+    def heading_scale_sd_counted(self) -> float:
+        """:meth:`heading_scale_sd` with a forgiven slow turn's scale as the rear wheels measured it
+        (slow_turn_heading.py, core.HEADING_SLOW_TURN_FORGOTTEN)."""
+        if self.confirmed:
+            return 0.0
+        if self.contradicted:
+            return GSC_UNCONFIRMED_SCALE_SD
+        return slow_turn_heading.scale_sd(self.by_speed, GSC_UNCONFIRMED_SCALE_SD)
+
+    def heading_ok_forgetting(self) -> bool:
+        """:meth:`heading_ok` with a slow turn the rear wheels counted alike forgotten, as for the
+        sideslip (:meth:`sideslip_ok_forgetting`; slow_turn_heading.py)."""
+        return self.motion_ok() and self.sideslip_ok_forgetting()
 
     def heading_std(self) -> float:
         """The heading std (rad) this gyro owes for the slow turns no fit could judge: the rotation

@@ -51,13 +51,16 @@ class SlowExercise:
         self.quiet_s = 0.0  # witnessed quiet samples at speed since the last slow exercise (s)
         self.disagree = 0.0  # rad: the gyro's rotation less the rear wheels', below the fits' speed
         self.wheels_turn = 0.0  # rad: the rear wheels' rotation there (absolute, summed)
+        self.wheels_net = 0.0  # rad: ... signed, the net rotation (slow_turn_heading.py)
         self.uncounted = False  # a slow exercise the rear wheels did not count (stale, isolated, at 0)
+        self.forgiven = False  # a slow exercise was forgotten (the wheels counted it alike): slow_turn_heading.py
 
     def turn(self, diff: float, ww: float) -> None:
         """A slow (or reversing) sample both rear wheels count: the gyro less the wheels' yaw rate (``diff``,
         the radius difference taken out) and the wheels' yaw rate ``ww`` (rad/s)."""
         self.disagree += diff * self.sample_dt
         self.wheels_turn += abs(ww) * self.sample_dt
+        self.wheels_net += ww * self.sample_dt
 
     def sample(self, exercised: bool, slow: bool, witnessed: bool, counted: bool = True) -> None:
         """One gate sample: ``exercised`` beyond GSC_QUIET of 0 and of the witnesses, ``slow``
@@ -78,3 +81,4 @@ class SlowExercise:
             if (self.slow and self.quiet_s >= SLOW_FORGET_S and not self.uncounted
                     and abs(self.disagree) <= SLOW_AGREE * self.wheels_turn + SLOW_TURN_TOL):
                 self.slow = False
+                self.forgiven = True
