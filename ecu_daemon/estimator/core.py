@@ -1195,6 +1195,7 @@ class Estimator:
                 # (no steering, no relaxation lag), so in a transient too: the speed falls, the yaw rate
                 # with it (drive 507: |rdot| beyond MODEL_STEADY_RDOT through the braking's second half)
                 law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, brake_ratio))
+            law_var_seen = law_var  # what the steering, drive and brake rules saw (the witness's at_limit)
             if SLIP_RATIO_LIMIT:
                 # the tyres near their limit longitudinally: the wheels' slip ratio (the witness's, as of
                 # the step before) over a linear tyre's is the factor the rear's angle exceeds its law
@@ -1207,6 +1208,7 @@ class Estimator:
             self.law_var_min = math.inf
             self.law_steady_t = t
             self.friction_var = 0.0
+            law_var_seen = law_var
         if (not imu_ok or iso & (YAW_RATE | ACCEL_Y) or abs(rdot) > MODEL_STEADY_RDOT or fdi.lat_excess > 0.0
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0 or law_var > 0.0
                 or (t - self.last_gnss_fused_t > GNSS_FRESH_S
@@ -1241,7 +1243,9 @@ class Estimator:
             ax_m, xl[BAX], P[BAX, BAX], r * xl[VY],
             # the tyres' force: the specific force less the sensor's offsets (road.py's split); and
             # whether the steering says a tyre has left its law (then a small force is no release)
-            ax_m - ax_off, ay_m - float(self.road.bank.x[1]), law_var > 0.0)
+            # (not this rule's own widening: it rests on the slip the witness holds, and holding it for
+            # that would latch both for good, SLIP_RATIO_LIMIT)
+            ax_m - ax_off, ay_m - float(self.road.bank.x[1]), law_var_seen > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
             sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
