@@ -49,10 +49,10 @@ BRAKING_ON_ICE_DOWNHILL = Scenario(name='random_v1_s1481', manoeuvre='straight',
     imu_in_config=True, relaxation_in_config=False)
 
 
-def _settled(s: SlipRatioLimit, vx: float, kappa: float, fx: float) -> float:
+def _settled(s: SlipRatioLimit, vx: float, kappa: float, fx: float, fy: float = 0.0) -> float:
     r = 1.0
     for _ in range(200):  # the force's low-pass (0.1 s) settled
-        r = s.step(vx, kappa, fx)
+        r = s.step(vx, kappa, fx, fy)
     return r
 
 
@@ -73,8 +73,18 @@ def test_slip_beyond_the_linear_tyre_is_the_slip_angle_factor():
     r = _settled(s, 22.0, 0.029, -0.94)
     assert math.isclose(r, 0.029 * G * CX_NORM / 0.94, rel_tol=1e-3)
     assert 4.0 < r < 5.0
-    # a held slip ratio over a vanishing force is capped by the force's floor
-    assert _settled(s, 22.0, 0.029, 0.0) <= 0.029 * G * CX_NORM / 0.3 + 1e-9
+    # the path's lateral wander at the limit keeps it (|f| within HOLD_SHARE of the force it was seen at)
+    assert _settled(s, 22.0, 0.029, -0.92, 0.4) > 4.0
+
+
+def test_a_held_slip_ratio_ends_with_the_force_that_made_it():
+    s = SlipRatioLimit(0.006)
+    # drive 1456: an ABS stop in a dry corner, 17 % at -4.6 m/s^2 (a tyre at its limit: counted) ...
+    assert _settled(s, 12.0, 0.17, -4.6, 4.7) > 3.0
+    # ... then the brake released in the corner that follows, the witness still holding 17 %
+    assert _settled(s, 8.0, 0.17, -0.6, 1.3) == 1.0
+    # no longitudinal force to speak of: kappa / F_x is no angle
+    assert _settled(SlipRatioLimit(0.006), 17.0, 0.06, -0.15, 6.0) == 1.0
 
 
 def test_braking_at_the_friction_limit_on_a_straight_keeps_the_promise(tmp_path):

@@ -1200,7 +1200,7 @@ class Estimator:
                 # the tyres near their limit longitudinally: the wheels' slip ratio (the witness's, as of
                 # the step before) over a linear tyre's is the factor the rear's angle exceeds its law
                 # by (slip_ratio_limit.py); from the wheels and ax, no steering: in a transient too
-                slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off)
+                slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off, ay_c)
                 if slip_ratio > 1.0:
                     law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, slip_ratio))
         else:

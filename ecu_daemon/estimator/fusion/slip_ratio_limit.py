@@ -38,11 +38,24 @@ pseudo-measurement (and the model's bound off), never a measurement of vy; with 
 filter's own vy, from the courses, carries the sideslip and its std grows for it.
 
 Not while the witness's slip is within KAPPA_TOL of the linear tyre's (wheel-radius differences
-between axles, the witness's margins), nor below MIN_SPEED_MPS; the force is floored at
-MIN_FX_MPS2 (the witness holds a slip ratio through a manoeuvre; over a vanishing force it would
-be an unbounded angle). The force is low-passed over SMOOTH_S (the accelerometer's noise).
+between axles, the witness's margins), nor below MIN_SPEED_MPS, nor while the tyres carry less than
+MIN_FX_MPS2 longitudinally (kappa / F_x is the ratio of two small numbers there: random drive 1456,
+a front-driven car in a dry 0.6 g corner, the witness read 5-6 % of slip on the free rear wheels
+at |fx| 0.15 m/s^2, where they slipped 0.1 %). And the witness holds the largest ratio it has seen
+for the manoeuvre (right for vx's std, an ABS keeps its slip), which is stale once the brake is
+released: 1456 again, after an ABS stop in a corner (17 % at -4.6 m/s^2) it held 17 % through the
+corner that followed (|f| 1.3 m/s^2, the wheels at 0.2 %), and the rule, taking it as current,
+withheld the sideslip for the rest of the drive. A tyre carrying well below the force it was seen
+slipping at is back inside its grip (the friction ellipse's radius is the most it can carry), so
+a held ratio counts only while the tyres' force |(fx, fy)| stays above HOLD_SHARE of the most
+they carried while the witness's ratio rose, and fx keeps the direction it had then (braking slip
+is not held by a drive force; 1503: the free rear wheels' braking slip held through the
+acceleration out of the corner). The force is low-passed over SMOOTH_S (the
+accelerometer's noise).
 """
 from __future__ import annotations
+
+import math
 
 G = 9.81
 #: the normalised longitudinal slip stiffness C_x / F_z a tyre inside its grip has at least (the soft
@@ -51,8 +64,12 @@ CX_NORM = 15.0
 #: slip ratio the linear tyre's is exceeded by before the tyre is taken as at its limit: axles' radii
 #: differing by up to ~1 % (wear, size) while one wheel scale is learned (drive_slip.KAPPA_TOL)
 KAPPA_TOL = 0.01
-#: m/s^2: the longitudinal force per mass the ratio is taken at at least
-MIN_FX_MPS2 = 0.3
+#: m/s^2: the longitudinal force per mass the ratio is taken at at least (brake_grip.BRAKE_MIN_MPS2)
+MIN_FX_MPS2 = 0.5
+#: share of the force the tyres carried when the witness's ratio last rose below which a held ratio
+#: no longer counts: the low-passed force's noise (~0.03 m/s^2) and a path's lateral wander at the
+#: limit (drive 1481: |f| 0.91-1.08 m/s^2 through its braking) stay above it, a released brake not
+HOLD_SHARE = 0.8
 #: s: the force is compared low-passed (the witness's wheels are, over the same time)
 SMOOTH_S = 0.1
 #: m/s: below this no ratio (the witness's own floor is 2 m/s; the model's is higher)
@@ -68,19 +85,32 @@ class SlipRatioLimit:
 
     def reset(self) -> None:
         self.fx = 0.0  # the tyres' longitudinal force per mass, low-passed
+        self.kappa = 0.0  # the witness's ratio at the last step
+        self.f_seen = 0.0  # the most force |(fx, fy)| the tyres carried when the witness's held ratio rose
+        self.fx_seen = 0.0  # the longitudinal force then (its sign: braking or driving slip)
         self.ratio = 1.0  # tan(alpha) / tan(alpha_law) at the last step (1: inside the grip)
 
-    def step(self, vx: float, kappa: float, fx: float) -> float:
+    def step(self, vx: float, kappa: float, fx: float, fy: float) -> float:
         """``kappa``: the slip ratio the wheels show beyond their errors (wheel_slip.SlipWitness.ratio,
-        magnitude), ``fx``: the tyres' longitudinal force per mass (m/s^2, the specific force less the
-        sensor's offset: grade in); returns the factor (>= 1) by which the rear slip angle exceeds the
-        linear law's, 1.0 inside the grip."""
+        magnitude, held by the witness), ``fx``, ``fy``: the tyres' force per mass (m/s^2, the
+        specific force less the sensor's offsets: grade and bank in; ``fy`` low-passed already);
+        returns the factor (>= 1) by which the rear slip angle exceeds the linear law's, 1.0 inside
+        the grip."""
         self.ratio = 1.0
         if fx == fx:
             self.fx += self.a * (fx - self.fx)
-        if not (abs(vx) >= MIN_SPEED_MPS and kappa > 0.0):
+        f = math.hypot(self.fx, fy) if fy == fy else abs(self.fx)
+        if kappa < self.kappa or kappa <= 0.0:  # the witness started over: a new hold
+            self.f_seen = 0.0
+            self.fx_seen = 0.0
+        elif kappa > self.kappa:  # slip seen now: the most force it was seen at, and its direction
+            self.f_seen = max(self.f_seen, f)
+            self.fx_seen = self.fx
+        self.kappa = kappa
+        if not (abs(vx) >= MIN_SPEED_MPS and kappa > 0.0 and abs(self.fx) >= MIN_FX_MPS2
+                and self.fx * self.fx_seen > 0.0 and f >= HOLD_SHARE * self.f_seen):
             return 1.0
-        lin = max(abs(self.fx), MIN_FX_MPS2) / (G * CX_NORM)
+        lin = abs(self.fx) / (G * CX_NORM)
         if kappa <= lin + KAPPA_TOL:
             return 1.0
         self.ratio = kappa / lin
