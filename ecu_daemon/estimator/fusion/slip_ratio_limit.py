@@ -14,7 +14,7 @@ where the law says 0.24; the model held vy at the law's value at a 0.2 deg std, 
 published valid 1.3 deg off: 1479 of 10381 valid rows beyond 3 sigma. Nothing else saw it: the
 steering's misfit (both axles leave their law alike), brake_grip.py (its grip shown starts at
 MU_FLOOR 0.15, above the road's 0.10, and only grows, so a friction drop leaves the rear's
-lateral capacity overstated: it found u 0.3, ratio 1.03), drive_slip.py (a rear-driven car's
+lateral capacity overstated: it found u 0.02-0.46, ratio 1.00-1.04), drive_slip.py (a rear-driven car's
 drive only) and the law excess's hold (nothing to hold: no misfit).
 
 The physics: a tyre's force points along its stiffness-weighted slip vector (C_x kappa, C_y
