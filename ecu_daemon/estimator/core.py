@@ -976,8 +976,12 @@ class Estimator:
             if not (imu_ok and math.isfinite(wheel_z)) or fdi.isolated & WHEELS:
                 return self._invalid(t)
             self._initialize(k, wheel_z, r_m, ay_m)
-            self.r_lp = r_m - h.Xr[k % h.n][BR]
-            xk = h.Xr[k % h.n]
+            # Python floats (one tolist()), not numpy scalars: r_lp and rdot are low-passes, so a
+            # numpy scalar here made every later value of both, and everything computed from them
+            # (the model's inputs, the fault detector's yaw checks, the tyre laws), numpy scalar
+            # arithmetic for the whole drive (issue 10: the same IEEE operations, the same bits)
+            xk = h.Xr[k % h.n].tolist()
+            self.r_lp = r_m - xk[BR]
             self.model_inputs.start(self.r_lp, ay_m - xk[BAY] - xk[GAY] * ay_m)
         n = h.n
         i = k % n
