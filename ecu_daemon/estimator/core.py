@@ -80,6 +80,7 @@ from .wheel_yaw_check import WYC_EVERY, WheelYawCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
 from .road import ANGLE_STD_VALID as ROLL_STD_VALID
+from .road import ANGLE_STD_VALID
 from .road import G, BaselineMount, RoadAttitude
 from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
 
@@ -998,8 +999,12 @@ class Estimator:
             if not (imu_ok and math.isfinite(wheel_z)) or fdi.isolated & WHEELS:
                 return self._invalid(t)
             self._initialize(k, wheel_z, r_m, ay_m)
-            self.r_lp = r_m - h.Xr[k % h.n][BR]
-            xk = h.Xr[k % h.n]
+            # Python floats (one tolist()), not numpy scalars: r_lp and rdot are low-passes, so a
+            # numpy scalar here made every later value of both, and everything computed from them
+            # (the model's inputs, the fault detector's yaw checks, the tyre laws), numpy scalar
+            # arithmetic for the whole drive (issue 10: the same IEEE operations, the same bits)
+            xk = h.Xr[k % h.n].tolist()
+            self.r_lp = r_m - xk[BR]
             self.model_inputs.start(self.r_lp, ay_m - xk[BAY] - xk[GAY] * ay_m)
         n = h.n
         i = k % n
@@ -1536,7 +1541,12 @@ class Estimator:
         if self._reset_flag:
             status |= STATUS_RESET
             self._reset_flag = False
-        sd = [sqrt(v) if v > 0.0 else 0.0 for v in pd]
+        # the five stds published (of the eight: issue 10), each as the list comprehension had it
+        sd_vx = sqrt(pd[VX]) if pd[VX] > 0.0 else 0.0
+        sd_psi = sqrt(pd[PSI]) if pd[PSI] > 0.0 else 0.0
+        sd_br = sqrt(pd[BR]) if pd[BR] > 0.0 else 0.0
+        sd_bax = sqrt(pd[BAX]) if pd[BAX] > 0.0 else 0.0
+        sd_bay = sqrt(pd[BAY]) if pd[BAY] > 0.0 else 0.0
         # A latency error dd turns every GNSS velocity by r * dd while turning: a bias, not noise,
         # so the filter averages it into the heading however many fixes it fuses. Its size is
         # published on top of the filter's own heading std (a 0.2 s error at 38 deg/s is 7.6 deg).
@@ -1599,13 +1609,13 @@ class Estimator:
         e = max(e, max(self.yaw_scale_heading, gsd) * self.scale_sens.heading(self.hist.last))
         # and the slow turns an unconfirmed gyro and the rear wheels disagreed on (GyroScaleGate.heading_std)
         e = max(e, self.gyro_gate.heading_std())
-        psi_std = math.sqrt(sd[PSI] ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
+        psi_std = math.sqrt(sd_psi ** 2 + turn_var + floor * floor + e * e)  # not floor ** 2: road.pxd
         # Wheel slip under braking: a bias over the whole manoeuvre that the wheel updates pass
         # into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         slip_std = self.slip_hold / math.sqrt(3.0)
         if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
-            psi_std = max(psi_std, slip_heading.heading_floor(slip_std, sd[VX], beta_std, sd[PSI]))
-        vx_std = math.hypot(sd[VX], slip_std)
+            psi_std = max(psi_std, slip_heading.heading_floor(slip_std, sd_vx, beta_std, sd_psi))
+        vx_std = math.hypot(sd_vx, slip_std)
         # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
         # speed that vx follows: nonzero while the state cannot (yet) learn it
         vx_std = math.hypot(vx_std, self.wheel_scale_seed.gap * vx / x[KW])
@@ -1672,7 +1682,7 @@ class Estimator:
         self.sideslip_vouched = ss_valid
         return _new_estimate(Estimate, (
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, vy_std,
-            r, x[BR], sd[BR], x[BAX], sd[BAX], x[BAY], sd[BAY], self._published_delay(), x[KW],
+            r, x[BR], sd_br, x[BAX], sd_bax, x[BAY], sd_bay, self._published_delay(), x[KW],
             self.steer_offset, st.cornering_stiffness_front, st.cornering_stiffness_rear,
             ss_valid,
             imu_ok and not spinning and not iso & YAW_RATE and self.aligned and psi_std < HEADING_STD_VALID
@@ -1680,7 +1690,7 @@ class Estimator:
             and rx_ok and self.heading.consecutive_rejects < 2
             and (mag is None or mag.consecutive_rejects < 2),
             vel_valid and vx_std <= VX_STD_VALID,  # promised only what the frame can carry
-            imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd[BR] < BIAS_STD_VALID,
+            imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and sd_br < BIAS_STD_VALID,
             status, *self.gnss_counts(), *self._road(imu_ok, iso)))
 
     def _model_bound(self, t: float, vx: float, vy: float, r: float, iso: int) -> float:
@@ -1703,8 +1713,12 @@ class Estimator:
         rd = self.road
         g, b = rd.grade, rd.bank
         lat_ok = imu_ok and not iso & ACCEL_Y
-        return (float(b.x[0]), b.std, float(g.x[0]), g.std, float(rd.roll), rd.roll_std,
-                lat_ok and rd.valid(b), imu_ok and not iso & ACCEL_X and rd.valid(g),
+        # each channel's std once (RoadAttitude.valid's test inline: it read the std again)
+        b_std = b.std
+        g_std = g.std
+        return (float(b.x[0]), b_std, float(g.x[0]), g_std, float(rd.roll), rd.roll_std,
+                lat_ok and b.updates > 0 and b_std < ANGLE_STD_VALID,
+                imu_ok and not iso & ACCEL_X and g.updates > 0 and g_std < ANGLE_STD_VALID,
                 # roll is ay through a gain: not promised while ay's yaw-rate witnesses disagree
                 lat_ok and not self.fdi.yaw_suspect and rd.roll_std < ROLL_STD_VALID)
 

@@ -414,7 +414,7 @@ class RoadAttitude:
         self.elevation_rejected += 1
         return False
 
-    def valid(self, ch: _Channel) -> bool:
+    def valid(self, ch: _Channel) -> bool:  # core.Estimator._road has this test inline (issue 10)
         return ch.updates > 0 and ch.std < ANGLE_STD_VALID
 
     def learned(self) -> dict:

@@ -96,6 +96,7 @@ class AxleRls:
         # an unlearned configuration: m / C as a user states it, 40 % (1 sigma), the saturation 80 %
         self.P0 = np.diag([(PRIOR_REL_STD * k1) ** 2, (PRIOR_REL_STD3 * k1) ** 2])
         self.P = self.P0.copy()
+        self.p00_prior = float(self.P0[0, 0])  # P0 is never changed: predict's every-step read, as a float
         self.updates = 0
         self.from_drive = False  # following the per-drive regression (SingleTrackFusion.take_drive_estimate)
         # what the two-term law still gets wrong, relative to its regressor (learned from residuals)
@@ -131,7 +132,10 @@ class AxleRls:
         pseudo-measurement: :meth:`SingleTrackFusion.pseudo_measurement`)."""
         h0 = phi
         h1 = phi * n2
-        P = self.P
+        # Python floats, not numpy scalar reads and numpy scalar arithmetic (issue 10: three calls a
+        # step): the same IEEE operations on the same doubles in the same order, so the same bits
+        (p00, p01), (_, p11) = self.P.tolist()
+        k1, k3 = self.k.tolist()
         if n2 <= LEARNED_MAX_N ** 2 and once:
             # No double counting: the configuration's prior P0 is the error of the stated m / C
             # against the car's axle, and a stated stiffness is a fit to measured slip (tyre data,
@@ -141,19 +145,19 @@ class AxleRls:
             # prior (rel_var above rel_var0). Stacked, an untaught axle had a 0.5 relative slip
             # error, 1.7x the usual +-30 % config error: low-speed circles (k1 unobservable there)
             # were invalid from ~0.4 g on while 0.1 deg right (issue 7 item 3).
-            var1 = min(P[0, 0] + self.rel_var, self.P0[0, 0] + max(self.rel_var - self.rel_var0, 0.0))
+            var1 = min(p00 + self.rel_var, self.p00_prior + max(self.rel_var - self.rel_var0, 0.0))
         elif n2 <= LEARNED_MAX_N ** 2:
             # The filter's pseudo-measurement keeps them stacked: its weight also sets the filter's vy
             # variance, which gates the live RLS (adapt_from); with the model counted once, a banked
             # circle's vy (the model's own, through a bank-biased ay) passed that gate and the RLS
             # learned C_r 93 % too stiff (sideslip RMS 0.29 -> 0.57 deg on the suite's bank_circle)
-            var1 = P[0, 0] + self.rel_var
+            var1 = p00 + self.rel_var
         else:
             # the law's error was learned below LEARNED_MAX_N at best: beyond, no better than the
             # prior's, and the law an extrapolation of the fitted range (kept on top of the prior)
-            var1 = P[0, 0] + max(self.rel_var, self.rel_var0)
-        return (h0 * self.k[0] + h1 * self.k[1],
-                h0 * h0 * var1 + 2.0 * h0 * h1 * P[0, 1] + h1 * h1 * P[1, 1])
+            var1 = p00 + max(self.rel_var, self.rel_var0)
+        return (h0 * k1 + h1 * k3,
+                h0 * h0 * var1 + 2.0 * h0 * h1 * p01 + h1 * h1 * p11)
 
     def update(self, phi: float, n2: float, y: float, rv: float, lam: float = 0.999) -> None:
         e = rls_update(self.k, self.P, self.P0, phi, n2, y, rv, lam)
