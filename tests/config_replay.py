@@ -50,6 +50,29 @@ def replay_edited(drive: Path, edit: Callable[[dict], None], name: str, **kw) ->
     return replay_with(drive, cfg, **kw)
 
 
+def replay_edited_here(drive: Path, edit: Callable[[dict], None], name: str) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`replay_edited` in this process (``run_replay``, no command line), so that an estimator flag
+    the test sets (monkeypatch) holds."""
+    from ecu_daemon import config as config_mod
+    from ecu_daemon.replay import run_replay
+    data = tomllib.loads((drive / "config.toml").read_text())
+    edit(data)
+    cfg = drive / f"{name}.toml"
+    cfg.write_text(tomli_w.dumps(data))
+    out = cfg.with_suffix(".csv")
+    run_replay(config_mod.load(str(cfg)), str(drive / "drive.log"), str(drive / "drive_gnss.log"), out_csv=str(out))
+    return (np.genfromtxt(out, delimiter=",", names=True),
+            np.genfromtxt(drive / "truth.csv", delimiter=",", names=True))
+
+
+def yaw_rate_scaled(k: float) -> Callable[[dict], None]:
+    """A config edit: the gyro's mapping scaled by ``k`` (-1: a flipped sign, 1/57: degrees read as rad)."""
+    def edit(data: dict) -> None:
+        y = data["inputs"]["yaw_rate"]
+        y["scale"] = y.get("scale", 1.0) * k
+    return edit
+
+
 def wrong_valid_rows(e: np.ndarray, t: np.ndarray) -> tuple[int, int, float]:
     """(vx rows valid beyond 3 std, sideslip rows valid beyond 3 std, vx valid share) of an
     estimate against its truth: the wrong-configuration tests' verdict on a promise."""

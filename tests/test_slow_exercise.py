@@ -16,22 +16,18 @@ With core.SLOW_TURN_FORGOTTEN False (main) the first end-to-end test fails (seen
 from __future__ import annotations
 
 import math
-import tomllib
 
 import numpy as np
 import pytest
-import tomli_w
 
-from ecu_daemon import config as config_mod
 from ecu_daemon.estimator import core
 from ecu_daemon.estimator.slow_exercise import SLOW_FORGET_S, SlowExercise
-from ecu_daemon.replay import run_replay
-from ecu_daemon.sim import simulate, vehicle_config
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.sensors import GnssParams, SensorParams
 from ecu_daemon.sim.tyre import TyreParams
 from ecu_daemon.sim.vehicle import VehicleParams
-from ecu_daemon.sim.writer import write_all
+
+from config_replay import replay_edited_here, simulated_drive, yaw_rate_scaled
 
 REVERSE_THEN_STRAIGHT = Scenario(name='random_v1_s1362', manoeuvre='reversing', mu=0.844, mu_change=None,
     bank_rad=0.04726, grade_rad=0.06673, vehicle=VehicleParams(mass_kg=1970.9, yaw_inertia_kgm2=3986.6,
@@ -61,23 +57,12 @@ REVERSE_END_S = 1244.0  # the reverse curve's end (standing again); straight for
 
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory):
-    d = tmp_path_factory.mktemp("reverse_then_straight")
-    paths = write_all(d, simulate(REVERSE_THEN_STRAIGHT, vehicle_config(REVERSE_THEN_STRAIGHT)))
-    return d, paths
+    return simulated_drive(tmp_path_factory, "reverse_then_straight", REVERSE_THEN_STRAIGHT)
 
 
 def _replay(drive, yaw_scale: float, name: str):
-    """(estimate, truth) of the drive replayed in this process with the gyro's mapping scaled."""
-    d, paths = drive
-    data = tomllib.loads(paths["config"].read_text())
-    y = data["inputs"]["yaw_rate"]
-    y["scale"] = y.get("scale", 1.0) * yaw_scale
-    cfg_path = d / f"{name}.toml"
-    cfg_path.write_text(tomli_w.dumps(data))
-    out = d / f"{name}.csv"
-    run_replay(config_mod.load(str(cfg_path)), str(paths["can"]), str(paths["gnss"]), out_csv=str(out))
-    return (np.genfromtxt(out, delimiter=",", names=True),
-            np.genfromtxt(paths["truth"], delimiter=",", names=True))
+    """(estimate, truth) of the drive replayed in this process (the flag holds) with the gyro's mapping scaled."""
+    return replay_edited_here(drive, yaw_rate_scaled(yaw_scale), name)
 
 
 def _sideslip(e, t):

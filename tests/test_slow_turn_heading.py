@@ -16,23 +16,19 @@ With core.HEADING_SLOW_TURN_FORGOTTEN False (main) the first end-to-end test fai
 from __future__ import annotations
 
 import math
-import tomllib
 
 import numpy as np
 import pytest
-import tomli_w
 
-from ecu_daemon import config as config_mod
 from ecu_daemon.estimator import core
 from ecu_daemon.estimator.slow_exercise import SLOW_FORGET_S, SLOW_TURN_TOL, SlowExercise
 from ecu_daemon.estimator.slow_turn_heading import scale_sd
-from ecu_daemon.replay import run_replay
-from ecu_daemon.sim import simulate, vehicle_config
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.sensors import GnssParams, SensorParams
 from ecu_daemon.sim.tyre import TyreParams
 from ecu_daemon.sim.vehicle import VehicleParams
-from ecu_daemon.sim.writer import write_all
+
+from config_replay import replay_edited_here, simulated_drive, yaw_rate_scaled
 
 REVERSE_THEN_STRAIGHT = Scenario(name='random_v1_s1487', manoeuvre='reversing', mu=0.662, mu_change=(14.8, 0.525), bank_rad=-0.02319, grade_rad=0.06562, vehicle=VehicleParams(mass_kg=1502.7, yaw_inertia_kgm2=2828.2, lf_m=1.314, lr_m=1.453, track_m=1.655, cg_height_m=0.684, wheel_radius_m=0.3409, wheel_inertia_kgm2=1.2, steering_ratio=14.42, ackermann=1.0, roll_stiffness_front_share=0.512, roll_gradient_rad_per_g=0.0979, suspension_lag_s=0.05, tyre_front=TyreParams(fz0_n=4000.0, ky1=16.75, ky2=2.0, kx1=18.0, shape_c=1.3, curv_e=-1.5, relaxation_length_m=0.0), tyre_rear=TyreParams(fz0_n=4000.0, ky1=20.03, ky2=2.0, kx1=18.0, shape_c=1.3, curv_e=-1.5, relaxation_length_m=0.0), driven_axle='front', max_drive_power_w=79000.0, max_drive_force_n=7000.0, brake_front_share=0.65, drag_area_m2=0.68, air_density=1.2, rolling_resistance=0.012), sensors=SensorParams(can_rate_hz=None, jitter_s=0.00029, usb_batch_s=0.0, yaw_rate_bias_radps=-0.009653, accel_x_bias_mps2=-0.064, accel_y_bias_mps2=-0.06, wheel_scale=1.0169, steering_offset_rad=0.04338, yaw_rate_noise_radps=0.001967, accel_noise_mps2=0.091, wheel_speed_noise_mps=0.046, steering_noise_rad=0.001607, wheel_speed_min_mps=0.15, wheel_lag_s=0.0, faults=(), magnetometer=None, roll_rate=False, roll_rate_bias_radps=0.005235987755982988, roll_rate_noise_radps=0.0013962634015954637, imu_position_m=(0.0, 0.0, 0.0), imu_mounting_rpy_deg=(0.0, 0.0, 0.0)), gnss=GnssParams(protocol='ubx', rate_hz=8.0, latency_s=0.368, latency_jitter_s=0.0034, vel_noise_mps=0.07, speed_acc_mps=0.097, lever_arm_m=(-0.33, 0.22), pos_noise_m=2.39, pos_tau_s=11.9, num_sv=17, nmea_stagger_s=0.004, lat0_deg=48.137, lon0_deg=11.575, height_m=520.0, faults=(), dual_antenna=False, baseline_m=1.2, baseline_offset_deg=0.0, heading_noise_deg_1m=0.2, down_noise_m=0.007, fuse_elevation=False, alt_noise_m=1.2, nmea_altitude=True), gnss2=None, seed=1487, duration_s=None, heading0_rad=6.20583, description='random drive seed 1487, generator v1', params=(('v_back', 2.42),), config_errors=(('inertia', 0.743), ('cr', 0.759)), latency_prior_s=0.451, imu_in_config=True, relaxation_in_config=False)
 
@@ -41,23 +37,12 @@ REVERSE_END_S = 1244.0  # the reverse curve's end (standing again); straight for
 
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory):
-    d = tmp_path_factory.mktemp("reverse_then_straight_1487")
-    paths = write_all(d, simulate(REVERSE_THEN_STRAIGHT, vehicle_config(REVERSE_THEN_STRAIGHT)))
-    return d, paths
+    return simulated_drive(tmp_path_factory, "reverse_then_straight_1487", REVERSE_THEN_STRAIGHT)
 
 
 def _replay(drive, yaw_scale: float, name: str):
-    """(estimate, truth) of the drive replayed in this process with the gyro's mapping scaled."""
-    d, paths = drive
-    data = tomllib.loads(paths["config"].read_text())
-    y = data["inputs"]["yaw_rate"]
-    y["scale"] = y.get("scale", 1.0) * yaw_scale
-    cfg_path = d / f"{name}.toml"
-    cfg_path.write_text(tomli_w.dumps(data))
-    out = d / f"{name}.csv"
-    run_replay(config_mod.load(str(cfg_path)), str(paths["can"]), str(paths["gnss"]), out_csv=str(out))
-    return (np.genfromtxt(out, delimiter=",", names=True),
-            np.genfromtxt(paths["truth"], delimiter=",", names=True))
+    """(estimate, truth) of the drive replayed in this process (the flag holds) with the gyro's mapping scaled."""
+    return replay_edited_here(drive, yaw_rate_scaled(yaw_scale), name)
 
 
 def _heading(e, t):

@@ -192,15 +192,14 @@ class GyroScaleGate:
             # an ABS reports 0 below its own minimum speed, and one wheel at 0 in a turn would
             # read the whole other wheel's speed as rotation
             if s >= GSC_STILL and abs(rl) > 0.0 and abs(rr) > 0.0:
-                c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
-                self.slow_turn += (g - ww + c * vs / self.track) * self.sample_dt
-                self.by_speed.turn(g - ww + c * vs / self.track, ww)
+                d = self._counted_disagreement(g, ww, vs)
+                self.slow_turn += d * self.sample_dt
+                self.by_speed.turn(d, ww)
             return False
         if vx < 0.0 and ww == ww and abs(rl) > 0.0 and abs(rr) > 0.0:
             # reversing at speed: the wheels count the turn for slow_exercise.py as below it (1209:
             # a reverse curve at 3.0 m/s, where ay / vx with a bank exercised a right gyro)
-            c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
-            self.by_speed.turn(g - ww + c * vs / self.track, ww)
+            self.by_speed.turn(self._counted_disagreement(g, ww, vs), ww)
         if ww == ww and v >= GSC_MIN_SPEED and abs(ax) <= GSC_MAX_AX:  # either way (ww above)
             self.wheels.observe(g_raw * self.track, vs, ww * self.track)
         if ay == ay:
@@ -219,6 +218,12 @@ class GyroScaleGate:
                 self.logged = True
                 return True
         return False
+
+    def _counted_disagreement(self, g: float, ww: float, vs: float) -> float:
+        """The gyro's yaw rate less the rear wheels' (rad/s), with the tyres' radius difference taken
+        out where the wheels' fit has seen it: what a slow (or reversing) sample counts."""
+        c = self.wheels.c if self.wheels.k_std < math.inf else 0.0
+        return g - ww + c * vs / self.track
 
     def motion_ok(self) -> bool:
         """Velocity and heading may rest on this gyro: not contradicted, and its last sample a yaw
