@@ -19,6 +19,21 @@ valid above 5 m/s 0.964 -> 0.645, 1834 0.639 -> 0.330): a 1-sigma test fires on 
 profile's draws by chance, and 1786's own disagreement is under 2.2 sigma. What separates the two is
 not in one clock's profile. When an estimator change keeps this drive's promise, this XPASSes: remove
 the xfail.
+
+lat42 measured the clocks one by one (a plain-Python replay printing each reference's profile; the
+driven axle swapped in the replay's config to read the other pair), and the hypothesis that the
+driven axle reads early is wrong twice over: the wheels that time this drive are already the
+undriven front pair (fusion/wheel_speed.py), and a driven pair reads *late*, as latency.py's slip
+model says (a wheel that leads the car puts the delay later): on this drive the rear pair's best
+was 0.16-0.20 s for a true 0.104. The undriven front pair's best sat at 0.012-0.048 s through the
+corners (0.072-0.078 on the straight at the end), the accelerometer's at 0.090 s (1-sigma set
+0.048-0.132, holding the truth). Not the wheels' lag alone: the same drive with wheel_lag_s 0 still
+put their best at 0.018-0.072 mid-drive. Not the antenna-to-wheel ratio's placement at the held
+delay either: taken at the true delay instead, their best did not move (0.012-0.048). What
+separates this drive from judge41's steady circles is where the truth sits, not a profile: on 1834
+the accelerometer was the biased clock (best 0.438 s, 1-sigma set 0.366-0.474, for a true 0.588,
+while the undriven rear pair said 0.50-0.63), on 1800 it was flat (1-sigma 0.006-0.264, 4-sigma the
+whole grid), here it was right and the undriven wheels were 0.03-0.09 s early.
 """
 from __future__ import annotations
 
@@ -56,7 +71,8 @@ DEMO_LATENCY_PRIOR_ZERO = Scenario(name='random_v1_s1786', manoeuvre='demo', mu=
 
 
 @pytest.mark.xfail(strict=True, reason="issue 7: a latency prior of 0.0 s held for a true 0.104 s while its std narrows "
-                                       "to 0.018 s on rear wheels driven at 219 kW (judge41's std floor cost steady circles)")
+                                       "to 0.018 s: the undriven front pair's clock 0.03-0.09 s early, the accelerometer's "
+                                       "right but broad (judge41's std floor cost steady circles)")
 def test_a_latency_held_at_a_wrong_prior_is_not_promised_narrow(tmp_path):
     sc = DEMO_LATENCY_PRIOR_ZERO
     row = run_case(SuiteCase(sc.name, "random", sc), tmp_path)
