@@ -171,8 +171,6 @@ def probe_drive(seed: int, out: str, max_duration_s: float | None = None) -> dic
     """Replay random drive ``seed`` with the decision's terms recorded; per first failing term:
     [withheld counted rows, of them right], the drives' rows, and the terms of each row."""
     import random_drives as rd
-    if not hasattr(core.Estimator, "__dict__") or "_estimate" not in vars(core.Estimator):
-        raise SystemExit("the probe needs plain Python: ECU_DAEMON_PURE_PYTHON=1")
     orig = core.Estimator._estimate
     log: dict[float, tuple] = {}
 
@@ -188,7 +186,10 @@ def probe_drive(seed: int, out: str, max_duration_s: float | None = None) -> dic
         log[round(t, 6)] = terms
         return e
 
-    core.Estimator._estimate = _estimate
+    try:
+        core.Estimator._estimate = _estimate
+    except TypeError:  # a compiled extension type: its methods cannot be replaced on the class
+        raise SystemExit("the probe needs plain Python: ECU_DAEMON_PURE_PYTHON=1") from None
     try:
         d = rd.run_drive(seed, out, max_duration_s)
     finally:
