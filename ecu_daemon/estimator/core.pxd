@@ -29,7 +29,7 @@ cdef class Estimator:
     cdef public object yaw_scale_checks, yaw_scale_std, yaw_scale_applied, yaw_scale_ring, yaw_scale_changes
     cdef public object yaw_scale_heading, yaw_scale_realigned, scale_sens, wheel_scale_check
     cdef public object axis_swap, gyro_gate, spin, drive_slip, law_var_held, law_steady_t, law_var_min
-    cdef public object brake_grip, speed_gap, gap_terms, slip_ratio_limit
+    cdef public object brake_grip, speed_gap, gap_terms, slip_ratio_limit, rear_fy
 
     # The published fields of every step: floating-point locals as C doubles (the same IEEE
     # operations as Python floats, -ffp-contract=off; an expression with an object operand is still
