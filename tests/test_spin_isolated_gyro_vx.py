@@ -58,3 +58,16 @@ def test_vx_after_a_spin_that_isolated_the_gyro_keeps_the_promise(tmp_path):
     # the sideslip's and heading's promise untouched (main: 0 rows beyond 3 sigma each)
     assert row["sideslip_coverage_3sigma"] >= 0.99, row["sideslip_coverage_3sigma"]
     assert row["heading_coverage_3sigma"] >= 0.99, row["heading_coverage_3sigma"]
+
+
+def test_a_ploughs_misfit_counts_once_the_gyro_is_isolated():
+    """The rule itself, at 1761's 1230.0 s (true vx 11.4 m/s, 0.31 rad of road-wheel angle, r 0.90 rad/s, the
+    misfit of the rear force's sign): exempt while the gyro holds vy, counted with the gyro isolated."""
+    from ecu_daemon.estimator import core, steered_wheel_vx as swv
+    assert core.ISOLATED_GYRO_PLOUGH
+    wheelbase = 1.083 + 1.324
+    assert swv.vx_error_bound(1.0, 11.4, 0.90, 0.31, wheelbase, 1.0) == 0.0
+    held = swv.vx_error_bound(1.0, 11.4, 0.90, 0.31, wheelbase, 1.0, vy_tied=False)
+    assert 0.4 < held < 0.5, held  # tan(0.31) x (11.4 x 0.31 - 2.407 x 0.90) = 0.44 m/s
+    # the other sign (the rear beyond its law) counted either way, the same bound
+    assert swv.vx_error_bound(1.0, 11.4, 0.90, 0.31, wheelbase, -1.0) == held
