@@ -325,6 +325,13 @@ FRICTION_MEMORY = True
 # is not valid (a valid one vouches for vy, and vx's std already carries its share). False: main's
 # behaviour, bit for bit.
 STEERED_WHEEL_VY = True
+# The plough's exemption above (the rear grips, its kinematics hold vy) needs the gyro: with it isolated
+# the filter's vy integrates a substitute yaw rate (the wheels', 0 with them out) and nothing holds it.
+# Random drive 1761 (rear-driven, 222 kW, mu 1.04): a spin isolated a right gyro, and in the plough after
+# it the filter's vy went 8 m/s off at 0.6 m/s; the front pair put that into vx, published valid
+# 0.79-0.92 m/s off at 0.19 m/s. With the gyro isolated every misfit counts (steered_wheel_vx.py,
+# ``vy_tied``). False: main's behaviour, bit for bit.
+ISOLATED_GYRO_PLOUGH = True
 # After a spin the filter re-initialises from the wheels with a gripping car's vy while the car may
 # still slide sideways (random drive 879: 13 m/s at -80 deg sideslip, vx published valid 2.6 m/s off;
 # 760 after its spin); the fault detector isolates GNSS, the one source that sees it. A fix's speed
@@ -1287,7 +1294,8 @@ class Estimator:
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
             sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
-                                                  self.mass_lf * ay - self.yaw_inertia * rdot)
+                                                  self.mass_lf * ay - self.yaw_inertia * rdot,
+                                                  not (ISOLATED_GYRO_PLOUGH and iso & YAW_RATE))
                   if wheels_ok and steer_ok and not iso & WHEELS and not self.sideslip_vouched else 0.0)
             self.steer_vy_hold = max(sv, self.steer_vy_hold * self._slip_decay)
         if GNSS_SPEED_GAP:  # the filter's antenna speed against the last fix's bound (gnss_speed_gap.py)

@@ -26,6 +26,20 @@ grips and its kinematics hold vy. Counted, a plough on ice cost vx validity wher
 0.1-0.4 m/s (random drives 770: 0.839 -> 0.752 above 5 m/s, 383: 0.734 -> 0.667, 683: 1.0 -> 0.98). Only
 the rear's slip beyond its law (the other sign) is a vy the model misses; below 5 m/s the sign does
 not tell (``PLOUGH_MIN_SPEED``).
+
+The plough's exemption rests on the rear's kinematics holding the filter's vy: ``vy = lr r - vx
+tan(alpha_r)`` with ``alpha_r`` a gripping tyre's few degrees, ``r`` the gyro's. With the gyro isolated
+(``vy_tied`` False, core.ISOLATED_GYRO_PLOUGH) nothing holds it: vy integrates ``ay - r vx`` with the
+substitute yaw rate (the wheels' pair, 0 while the wheels are out too), the model's vy rests on the same
+substitute, and an error in r of 0.9 rad/s at 11 m/s turns vy by 10 m/s per second. Random drive 1761
+(rear-driven, 222 kW, mu 1.04, spun out at 1224.2 s): the spin isolated a right gyro; after the spin
+check released (1227.4 s) the car ploughed out at the limit (front slip 12 deg, rear 5-9, true sideslip
+within 2 deg, r 0.9 rad/s, 18 deg of road-wheel angle) while the filter's vy went 3.5 -> 8.6 m/s off at a
+0.5-0.6 m/s std; the front pair's ``vx cos(delta) + (vy + lf r) sin(delta)`` put it into vx, published
+valid 0.79-0.92 m/s off at 0.19-0.23 m/s (66 rows beyond 3 sigma, 1230.0-1230.6 s). The wheels measured
+the speed along their plane correctly: it is the vy they are read with that was wrong. So with the gyro
+isolated every misfit counts, the plough's sign too (the misfit is read with the substitute r the
+filter's vy integrates, so it carries that r's error as well).
 """
 from __future__ import annotations
 
@@ -40,17 +54,18 @@ def vx_per_vy(frac: float, delta: float) -> float:
 
 
 def vx_error_bound(frac: float, vx: float, r: float, delta: float, wheelbase: float,
-                   rear_force: float = math.nan) -> float:
+                   rear_force: float = math.nan, vy_tied: bool = True) -> float:
     """m/s: the vx error a vy off by the steering's misfit puts through the steered wheels.
 
     ``rear_force``: the rear axle's lateral force up to a positive factor (``m ay lf - Iz rdot``, the
     moment balance about the front axle); NaN: unknown. A misfit of its sign is the front's slip beyond
-    its law (a plough): the rear grips, its kinematics hold vy, and nothing is added."""
+    its law (a plough): the rear grips, its kinematics hold vy, and nothing is added -- unless ``vy_tied``
+    is False (the gyro isolated: the filter's vy integrates a substitute yaw rate, nothing holds it)."""
     g = vx_per_vy(frac, delta)
     if g == 0.0:
         return 0.0
     m = vx * delta - wheelbase * r
-    if m * rear_force > 0.0 and abs(vx) >= PLOUGH_MIN_SPEED and PLOUGH_SIGN:
+    if m * rear_force > 0.0 and abs(vx) >= PLOUGH_MIN_SPEED and PLOUGH_SIGN and vy_tied:
         return 0.0
     return g * abs(m)
 
