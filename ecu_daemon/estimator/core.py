@@ -1111,12 +1111,16 @@ class Estimator:
                 P[PSI, PSI] = (math.sqrt(max(P[PSI, PSI], 0.0)) + e) ** 2
             if imu_ok:
                 # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
-                e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * x[VX])
+                # vx read once as a Python float (x.item): this term and the bank walk's low-pass do
+                # float arithmetic, not numpy scalar arithmetic (the same doubles; issue 10)
+                vx_p = x.item(VX)
+                e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * vx_p)
                 P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * self.dt) ** 2
-                self.bank_walk.step(P, BAY, x[VX], self.r_lp)  # the road's bank moves where it curves
+                self.bank_walk.step(P, BAY, vx_p, self.r_lp)  # the road's bank moves where it curves
                 # the gyro turns with the road's plane: the heading (about the vertical) at r / cos(bank)
                 sb = min(abs(math.sin(self.road.bank.x[0])), MAX_TILT_SIN)
-                x[PSI] = wrap_pi(x[PSI] - (r_m - x[BR]) * self.dt * (1.0 / math.sqrt(1.0 - sb * sb) - 1.0))
+                # (float % is numpy's scalar remainder operation for operation: the same bits)
+                x[PSI] = wrap_pi(x.item(PSI) - (r_m - x.item(BR)) * self.dt * (1.0 / math.sqrt(1.0 - sb * sb) - 1.0))
         if iso:
             self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
@@ -1248,11 +1252,14 @@ class Estimator:
                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and vx > -0.1
                 and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
+        # b_ax's variance as a Python float (P.item), read once for the slip witness and the
+        # standstill test (nothing between them changes P; issue 10: float arithmetic in both)
+        p_bax = P.item(BAX, BAX)
         # the slip the wheels show against the integrated ax (wheel_slip.py), beside the linear law's
         seen = self.slip_witness.step(
             wheels.as_vx(wheel_z, xl[KW], xl[VY], r, delta if steer_ok else 0.0)
             if wheels_ok and imu_ok and not iso & (WHEELS | ACCEL_X) else math.nan,
-            ax_m, xl[BAX], P[BAX, BAX], r * xl[VY],
+            ax_m, xl[BAX], p_bax, r * xl[VY],
             # the tyres' force: the specific force less the sensor's offsets (road.py's split); and
             # whether the steering says a tyre has left its law (then a small force is no release)
             # (not this rule's own widening: it rests on the slip the witness holds, and holding it for
@@ -1272,7 +1279,7 @@ class Estimator:
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
-        if (self.standstill.detect(wheels_max, ax, P[BAX, BAX]) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
+        if (self.standstill.detect(wheels_max, ax, p_bax) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
                 and fdi.standstill_plausible(vx, self._fresh_gnss_speed(t))):
             status |= STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
@@ -1320,13 +1327,16 @@ class Estimator:
         # every step: the road's grade and bank move on while the accelerometers cannot be heard (walks only)
         # the state from xl (clamped with x above: the same values, as Python floats instead of
         # numpy scalar reads; road.step only adds, multiplies and divides by nonzero constants)
-        self.road.step(k, xl[BAX], P[BAX, BAX], xl[BAY], P[BAY, BAY], xl[GAY], xl[VX], self.bank_walk.total,
-                       P[GAY, GAY], road_ok)
+        # and P's road variances as Python floats (P.item: float arithmetic in the road filters;
+        # issue 10), g_ay's read once for both calls
+        p_gay = P.item(GAY, GAY)
+        self.road.step(k, xl[BAX], P.item(BAX, BAX), xl[BAY], P.item(BAY, BAY), xl[GAY], xl[VX],
+                       self.bank_walk.total, p_gay, road_ok)
         if road_ok:
             if self.road.roll_gyro_params is None:
-                self.road.set_roll(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX])
+                self.road.set_roll(ay_m, xl[GAY], p_gay, abs(self.fdi.e_a) * xl[VX])
             else:
-                self.road.set_roll_gyro(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX],
+                self.road.set_roll_gyro(ay_m, xl[GAY], p_gay, abs(self.fdi.e_a) * xl[VX],
                                         held[I_ROLL] if t - held_t[I_ROLL] <= tmo[I_ROLL] else math.nan, r)
         aux = h.auxr[i]  # element by element: a slice assignment from a tuple builds an array first
         aux[0] = r

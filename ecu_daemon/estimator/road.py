@@ -131,8 +131,10 @@ class _Channel:
 
     def gravity_update(self, b: float, var_b: float, gain: float) -> bool:
         """The main filter's bias sum ``b = offset + gain * g * sin(angle)``."""
-        a = self.x[0]
-        h = self.x[1] + gain * G * math.sin(a)
+        # the state as Python floats (ndarray.item): float arithmetic, not numpy scalar arithmetic,
+        # the same IEEE operations on the same doubles (issue 10)
+        a = self.x.item(0)
+        h = self.x.item(1) + gain * G * math.sin(a)
         H = np.array([gain * G * math.cos(a), 1.0])
         return self.update(b - h, H, var_b)
 
@@ -322,7 +324,9 @@ class RoadAttitude:
         """Body roll from the measured lateral acceleration ``ay_m`` and the gain state;
         ``ay_doubt`` (m/s^2): how far ``ay_m`` disagrees with its witness (yaw rate x speed), a
         possible error of the force the roll is computed from (a sensor fault not yet isolated)."""
-        fy = (ay_m - self.bank._xm[1]) / (1.0 + g_ay)
+        # the offset as a Python float (plain Python: a numpy scalar read, which would keep the
+        # force's low-pass and the roll numpy scalars for the drive; compiled, a C double either way)
+        fy = (ay_m - float(self.bank._xm[1])) / (1.0 + g_ay)
         lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
         self.roll = g_ay / G * lp
         k2 = (g_ay * g_ay + var_gay) / (G * G)  # the roll gradient's square, its uncertainty included
