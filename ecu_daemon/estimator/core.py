@@ -915,7 +915,8 @@ class Estimator:
         # the heading will come from GNSS courses of the turn the car is in now: their latency error
         # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
         # mid-corner would otherwise publish a heading std without it for its first seconds)
-        self.turn_lp = abs(r_m - x[BR])
+        # (x.item: a Python float, so the every-step low-pass of |r| is float arithmetic from here on)
+        self.turn_lp = abs(r_m - x.item(BR))
         self.align_lat_var = 0.0
         self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
         self.law_var_held = 0.0  # no misfit measured on this state yet (LAW_EXCESS_HOLD)
@@ -1359,7 +1360,8 @@ class Estimator:
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
             return self._invalid(t)
-        return self._estimate(t, xl, pd, P[VX, VY], r, status | iso_fdi, imu_published, wheels_ok, iso)
+        # (P.item: the vx-vy covariance as a Python float; _estimate's sideslip variance in floats)
+        return self._estimate(t, xl, pd, P.item(VX, VY), r, status | iso_fdi, imu_published, wheels_ok, iso)
 
     def _on_mag(self, t: float, x, P, A, ay_m: float) -> None:
         """The magnetometer's sample (all three axes of one frame) at this step: tilt-compensated
