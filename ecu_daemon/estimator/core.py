@@ -1813,7 +1813,8 @@ class Estimator:
             self.speed_gap.fix(speed, gnss_speed_gap.spread_since(self.gap_terms, s, h.last, h.n))
         if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
             wsc = self.wheel_scale_check
-            if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed, h.aux[js, AUX_AX]):
+            # (ndarray.item: Python floats, so the check's ratio is float arithmetic; issue 10)
+            if wsc.observe(h.aux.item(js, AUX_WHEEL) * h.X.item(js, KW), speed, h.aux.item(js, AUX_AX)):
                 log.warning("%s", wsc.message())
             self._observe_wheel_scale(s, js, speed, fus)
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
@@ -1877,9 +1878,11 @@ class Estimator:
                 self.augmented = cons is not None
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
-                a = h.aux[i]
-                xs = h.X[i]
-                self.single_track.adapt_from(xs[VX], xs[VY], h.P[i][VY, VY], a[AUX_R], a[AUX_AY],
+                # the stored row and state as Python floats (tolist, item): the model's learning
+                # below in float arithmetic, not numpy scalar arithmetic (issue 10; the same doubles)
+                a = h.aux[i].tolist()
+                xs = h.X[i].tolist()
+                self.single_track.adapt_from(xs[VX], xs[VY], h.P.item(i, VY, VY), a[AUX_R], a[AUX_AY],
                                              a[AUX_RDOT], a[AUX_DELTA],
                                              self._vy_seen_by_data(k, xs[VX], a[AUX_AY], a[AUX_RDOT]))
                 # The first velocity receiver's samples only: the regression considers one latency (a
@@ -2147,9 +2150,8 @@ class Estimator:
         the speed is what latency.py identifies the latency from, as in latency_consider.py)."""
         h = self.hist
         i = h.slot(s)
-        a = h.aux[i]
-        x = h.X[i]
-        an, ae = antenna_acceleration_ned(x[PSI], a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
+        a = h.aux[i].tolist()  # Python floats: the acceleration below in float arithmetic (issue 10)
+        an, ae = antenna_acceleration_ned(h.X.item(i, PSI), a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
                                           fus.lever_x, fus.lever_y)
         vn, ve = g.vel_n_mps, g.vel_e_mps  # the track's direction: this fix's
         sp = math.hypot(vn, ve)
@@ -2171,14 +2173,16 @@ class Estimator:
         in :meth:`_align`) and its variance (the course's, the timing's, the sideslip's)."""
         h = self.hist
         i = h.slot(s)
-        x = h.X[i]
-        P = h.P[i]
-        r = h.aux[i, AUX_R]
-        vax = x[VX] - r * fus.lever_y
-        vay = x[VY] + r * fus.lever_x
+        # the stored state, covariance and yaw rate as Python floats (ndarray.item): float
+        # arithmetic, the same IEEE operations on the same doubles (issue 10)
+        X = h.X
+        P = h.P
+        r = h.aux.item(i, AUX_R)
+        vax = X.item(i, VX) - r * fus.lever_y
+        vay = X.item(i, VY) + r * fus.lever_x
         sp2 = max(vax * vax + vay * vay, 1.0)
         jx, jy = -vay / sp2, vax / sp2
-        var_beta = jx * jx * P[VX, VX] + 2.0 * jx * jy * P[VX, VY] + jy * jy * P[VY, VY]
+        var_beta = jx * jx * P.item(i, VX, VX) + 2.0 * jx * jy * P.item(i, VX, VY) + jy * jy * P.item(i, VY, VY)
         var = ((fus.sigma(g) / g.speed_mps) ** 2 + (r * lat.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
                + max(var_beta, 0.0))
         return (fus.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi), var
@@ -2255,8 +2259,10 @@ class Estimator:
         """
         h = self.hist
         i = h.slot(s)
-        x = h.X[i]
-        r = h.aux[i, AUX_R]
+        # the state at s and its yaw rate as Python floats (tolist, item): float arithmetic here, and
+        # the every-step turn low-pass and latency term set from them stay floats (issue 10)
+        x = h.X[i].tolist()
+        r = h.aux.item(i, AUX_R)
         lx, ly = fus.lever_x, fus.lever_y
         vax = x[VX] - r * ly
         vay = x[VY] + r * lx

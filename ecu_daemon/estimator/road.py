@@ -102,6 +102,12 @@ ROLL_GRADIENT_WALK = 1e-5  # rad per m/s^2 per sqrt(s): load and tyre change the
 ROLL_GRADIENT_RANGE = (0.0, math.radians(10.0) / G)
 
 
+#: the Jacobian of a direct measurement of a channel's angle (GNSS vertical velocity, altitude),
+#: built once instead of at every fix (issue 10); read-only, as the update only reads it
+ANGLE_H = np.array([1.0, 0.0])
+ANGLE_H.flags.writeable = False
+
+
 class _Channel:
     """One ``[angle, offset]`` Kalman filter; the measurement is linearised per update."""
 
@@ -300,7 +306,7 @@ class RoadAttitude:
             return False
         z = math.atan2(-vel_d, speed)
         R = (VERTICAL_ACC_FACTOR * speed_acc / speed) ** 2
-        if self.grade.update(z - self.grade.x[0], np.array([1.0, 0.0]), R):
+        if self.grade.update(z - self.grade.x.item(0), ANGLE_H, R):
             self.vertical_fused += 1
             return True
         return False
@@ -314,7 +320,7 @@ class RoadAttitude:
         if m is None:
             return False
         z, R = m
-        if self.grade.update(z - self.grade.x[0], np.array([1.0, 0.0]), R, ALT_GATE_SIGMA):
+        if self.grade.update(z - self.grade.x.item(0), ANGLE_H, R, ALT_GATE_SIGMA):
             self.altitude_fused += 1
             return True
         self.altitude_rejected += 1
