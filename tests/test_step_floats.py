@@ -50,3 +50,39 @@ def test_the_every_step_low_passes_are_python_floats_through_a_drive():
     bad = {k: v for types in seen for k, v in types.items() if v is not float}
     assert not bad, f"numpy scalars in the every-step state: {bad}"
     assert not any(v is np.float64 for types in seen for v in types.values())
+
+
+def _road_and_gnss_types(est: Estimator) -> dict:
+    road = est.road
+    out = {"bank_walk.kappa": type(est.bank_walk.kappa), "bank_walk.total": type(est.bank_walk.total),
+           "road.roll_doubt": type(road.roll_doubt), "road.var_gay_seen": type(road.var_gay_seen),
+           "road.fy_lp": type(road.fy_lp), "road.roll": type(road.roll), "turn_lp": type(est.turn_lp),
+           "align_lat_var": type(est.align_lat_var)}
+    if est.course_heading is not None:
+        out["course_heading var"] = type(est.course_heading[2])
+    return out
+
+
+def test_the_bank_walk_road_filters_and_gnss_alignment_state_are_python_floats():
+    """perf42 (issue 10): the bank walk's curvature low-pass and its total, the road filters'
+    roll doubt, force low-pass and roll (read every step), and what a GNSS alignment leaves in the
+    every-step heading terms (the |yaw rate| low-pass, the alignment's latency term, the course
+    heading's variance) stay Python floats through a drive with GNSS: each was a numpy scalar on
+    main b26daff (a vx, a variance or a yaw rate read out of an array), so every later step's
+    arithmetic on it was numpy scalar arithmetic. The same doubles either way (no output bit moves);
+    only the instruction count does (DEVELOPERS.md's performance paragraph)."""
+    sc = SCENARIOS["dlc_dry"]
+    cfg = vehicle_config(sc)
+    est = Estimator(cfg)
+    seen = []
+    n = 0
+    for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
+        (est.push_gnss if kind else est.push_input)(s)
+        for _ in est.advance_to(t - 1e-6):
+            n += 1
+            if est.initialized and n % 250 == 0:
+                seen.append(_road_and_gnss_types(est))
+    assert est.aligned and est.course_heading is not None  # the GNSS terms were set, not only initialised
+    assert len(seen) > 10
+    bad = {k: v.__name__ for types in seen for k, v in types.items() if v is not float}
+    assert not bad, f"numpy scalars in the every-step state: {bad}"

@@ -937,7 +937,8 @@ class Estimator:
         # the heading will come from GNSS courses of the turn the car is in now: their latency error
         # is r x (latency error) from the first fix, not after the low-pass has caught up (a restart
         # mid-corner would otherwise publish a heading std without it for its first seconds)
-        self.turn_lp = abs(r_m - x[BR])
+        # (x.item: a Python float, so the every-step low-pass of |r| is float arithmetic from here on)
+        self.turn_lp = abs(r_m - x.item(BR))
         self.align_lat_var = 0.0
         self.model_unsteady_t = math.inf  # the model's bound waits for a steady stretch (MODEL_STEADY_S)
         self.law_var_held = 0.0  # no misfit measured on this state yet (LAW_EXCESS_HOLD)
@@ -1135,12 +1136,16 @@ class Estimator:
                 P[PSI, PSI] = (math.sqrt(max(P[PSI, PSI], 0.0)) + e) ** 2
             if imu_ok:
                 # the coloured lateral errors the states do not hold (IMU_LEVER_STD_M, YAW_SCALE_STD)
-                e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * x[VX])
+                # vx read once as a Python float (x.item): this term and the bank walk's low-pass do
+                # float arithmetic, not numpy scalar arithmetic (the same doubles; issue 10)
+                vx_p = x.item(VX)
+                e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * vx_p)
                 P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * self.dt) ** 2
-                self.bank_walk.step(P, BAY, x[VX], self.r_lp)  # the road's bank moves where it curves
+                self.bank_walk.step(P, BAY, vx_p, self.r_lp)  # the road's bank moves where it curves
                 # the gyro turns with the road's plane: the heading (about the vertical) at r / cos(bank)
                 sb = min(abs(math.sin(self.road.bank.x[0])), MAX_TILT_SIN)
-                x[PSI] = wrap_pi(x[PSI] - (r_m - x[BR]) * self.dt * (1.0 / math.sqrt(1.0 - sb * sb) - 1.0))
+                # (float % is numpy's scalar remainder operation for operation: the same bits)
+                x[PSI] = wrap_pi(x.item(PSI) - (r_m - x.item(BR)) * self.dt * (1.0 / math.sqrt(1.0 - sb * sb) - 1.0))
         if iso:
             self._widen(iso, P, x[VX])
         if fdi.yaw_disagreement > 0.0 and not iso & YAW_RATE:
@@ -1281,11 +1286,14 @@ class Estimator:
                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and vx > -0.1
                 and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
+        # b_ax's variance as a Python float (P.item), read once for the slip witness and the
+        # standstill test (nothing between them changes P; issue 10: float arithmetic in both)
+        p_bax = P.item(BAX, BAX)
         # the slip the wheels show against the integrated ax (wheel_slip.py), beside the linear law's
         seen = self.slip_witness.step(
             wheels.as_vx(wheel_z, xl[KW], xl[VY], r, delta if steer_ok else 0.0)
             if wheels_ok and imu_ok and not iso & (WHEELS | ACCEL_X) else math.nan,
-            ax_m, xl[BAX], P[BAX, BAX], r * xl[VY],
+            ax_m, xl[BAX], p_bax, r * xl[VY],
             # the tyres' force: the specific force less the sensor's offsets (road.py's split); and
             # whether the steering says a tyre has left its law (then a small force is no release)
             # (not this rule's own widening: it rests on the slip the witness holds, and holding it for
@@ -1306,7 +1314,7 @@ class Estimator:
         # --- aiding sources at this step -------------------------------------------------
         status = 0
         wheels_max = max(abs(fl), abs(fr), abs(rl), abs(rr)) if wheels_ok else math.inf
-        if (self.standstill.detect(wheels_max, ax, P[BAX, BAX]) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
+        if (self.standstill.detect(wheels_max, ax, p_bax) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
                 and fdi.standstill_plausible(vx, self._fresh_gnss_speed(t))):
             status |= STATUS_STANDSTILL
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
@@ -1354,13 +1362,16 @@ class Estimator:
         # every step: the road's grade and bank move on while the accelerometers cannot be heard (walks only)
         # the state from xl (clamped with x above: the same values, as Python floats instead of
         # numpy scalar reads; road.step only adds, multiplies and divides by nonzero constants)
-        self.road.step(k, xl[BAX], P[BAX, BAX], xl[BAY], P[BAY, BAY], xl[GAY], xl[VX], self.bank_walk.total,
-                       P[GAY, GAY], road_ok)
+        # and P's road variances as Python floats (P.item: float arithmetic in the road filters;
+        # issue 10), g_ay's read once for both calls
+        p_gay = P.item(GAY, GAY)
+        self.road.step(k, xl[BAX], P.item(BAX, BAX), xl[BAY], P.item(BAY, BAY), xl[GAY], xl[VX],
+                       self.bank_walk.total, p_gay, road_ok)
         if road_ok:
             if self.road.roll_gyro_params is None:
-                self.road.set_roll(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX])
+                self.road.set_roll(ay_m, xl[GAY], p_gay, abs(self.fdi.e_a) * xl[VX])
             else:
-                self.road.set_roll_gyro(ay_m, xl[GAY], P[GAY, GAY], abs(self.fdi.e_a) * xl[VX],
+                self.road.set_roll_gyro(ay_m, xl[GAY], p_gay, abs(self.fdi.e_a) * xl[VX],
                                         held[I_ROLL] if t - held_t[I_ROLL] <= tmo[I_ROLL] else math.nan, r)
         aux = h.auxr[i]  # element by element: a slice assignment from a tuple builds an array first
         aux[0] = r
@@ -1383,7 +1394,8 @@ class Estimator:
         if not (math.isfinite(sum(xl)) and pd[VX] < 1e4 and pd[VY] < 1e4 and pd[PSI] >= 0):
             self._reset(k)
             return self._invalid(t)
-        return self._estimate(t, xl, pd, P[VX, VY], r, status | iso_fdi, imu_published, wheels_ok, iso)
+        # (P.item: the vx-vy covariance as a Python float; _estimate's sideslip variance in floats)
+        return self._estimate(t, xl, pd, P.item(VX, VY), r, status | iso_fdi, imu_published, wheels_ok, iso)
 
     def _on_mag(self, t: float, x, P, A, ay_m: float) -> None:
         """The magnetometer's sample (all three axes of one frame) at this step: tilt-compensated
@@ -1835,7 +1847,8 @@ class Estimator:
             self.speed_gap.fix(speed, gnss_speed_gap.spread_since(self.gap_terms, s, h.last, h.n))
         if not self.fdi.isolated & WHEELS:  # a wheel-speed unit error (input_consistency.WheelScaleCheck)
             wsc = self.wheel_scale_check
-            if wsc.observe(h.aux[js, AUX_WHEEL] * h.X[js][KW], speed, h.aux[js, AUX_AX]):
+            # (ndarray.item: Python floats, so the check's ratio is float arithmetic; issue 10)
+            if wsc.observe(h.aux.item(js, AUX_WHEEL) * h.X.item(js, KW), speed, h.aux.item(js, AUX_AX)):
                 log.warning("%s", wsc.message())
             self._observe_wheel_scale(s, js, speed, fus)
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
@@ -1899,9 +1912,11 @@ class Estimator:
                 self.augmented = cons is not None
             if ok and not self.fdi.isolated:
                 i = h.slot(s)
-                a = h.aux[i]
-                xs = h.X[i]
-                self.single_track.adapt_from(xs[VX], xs[VY], h.P[i][VY, VY], a[AUX_R], a[AUX_AY],
+                # the stored row and state as Python floats (tolist, item): the model's learning
+                # below in float arithmetic, not numpy scalar arithmetic (issue 10; the same doubles)
+                a = h.aux[i].tolist()
+                xs = h.X[i].tolist()
+                self.single_track.adapt_from(xs[VX], xs[VY], h.P.item(i, VY, VY), a[AUX_R], a[AUX_AY],
                                              a[AUX_RDOT], a[AUX_DELTA],
                                              self._vy_seen_by_data(k, xs[VX], a[AUX_AY], a[AUX_RDOT]))
                 # The first velocity receiver's samples only: the regression considers one latency (a
@@ -2169,9 +2184,8 @@ class Estimator:
         the speed is what latency.py identifies the latency from, as in latency_consider.py)."""
         h = self.hist
         i = h.slot(s)
-        a = h.aux[i]
-        x = h.X[i]
-        an, ae = antenna_acceleration_ned(x[PSI], a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
+        a = h.aux[i].tolist()  # Python floats: the acceleration below in float arithmetic (issue 10)
+        an, ae = antenna_acceleration_ned(h.X.item(i, PSI), a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
                                           fus.lever_x, fus.lever_y)
         vn, ve = g.vel_n_mps, g.vel_e_mps  # the track's direction: this fix's
         sp = math.hypot(vn, ve)
@@ -2193,14 +2207,16 @@ class Estimator:
         in :meth:`_align`) and its variance (the course's, the timing's, the sideslip's)."""
         h = self.hist
         i = h.slot(s)
-        x = h.X[i]
-        P = h.P[i]
-        r = h.aux[i, AUX_R]
-        vax = x[VX] - r * fus.lever_y
-        vay = x[VY] + r * fus.lever_x
+        # the stored state, covariance and yaw rate as Python floats (ndarray.item): float
+        # arithmetic, the same IEEE operations on the same doubles (issue 10)
+        X = h.X
+        P = h.P
+        r = h.aux.item(i, AUX_R)
+        vax = X.item(i, VX) - r * fus.lever_y
+        vay = X.item(i, VY) + r * fus.lever_x
         sp2 = max(vax * vax + vay * vay, 1.0)
         jx, jy = -vay / sp2, vax / sp2
-        var_beta = jx * jx * P[VX, VX] + 2.0 * jx * jy * P[VX, VY] + jy * jy * P[VY, VY]
+        var_beta = jx * jx * P.item(i, VX, VX) + 2.0 * jx * jy * P.item(i, VX, VY) + jy * jy * P.item(i, VY, VY)
         var = ((fus.sigma(g) / g.speed_mps) ** 2 + (r * lat.std_s) ** 2 + COURSE_FLOOR_RAD ** 2
                + max(var_beta, 0.0))
         return (fus.course(g) + math.atan2(vay, vax)) % (2.0 * math.pi), var
@@ -2277,8 +2293,10 @@ class Estimator:
         """
         h = self.hist
         i = h.slot(s)
-        x = h.X[i]
-        r = h.aux[i, AUX_R]
+        # the state at s and its yaw rate as Python floats (tolist, item): float arithmetic here, and
+        # the every-step turn low-pass and latency term set from them stay floats (issue 10)
+        x = h.X[i].tolist()
+        r = h.aux.item(i, AUX_R)
         lx, ly = fus.lever_x, fus.lever_y
         vax = x[VX] - r * ly
         vay = x[VY] + r * lx

@@ -102,6 +102,12 @@ ROLL_GRADIENT_WALK = 1e-5  # rad per m/s^2 per sqrt(s): load and tyre change the
 ROLL_GRADIENT_RANGE = (0.0, math.radians(10.0) / G)
 
 
+#: the Jacobian of a direct measurement of a channel's angle (GNSS vertical velocity, altitude),
+#: built once instead of at every fix (issue 10); read-only, as the update only reads it
+ANGLE_H = np.array([1.0, 0.0])
+ANGLE_H.flags.writeable = False
+
+
 class _Channel:
     """One ``[angle, offset]`` Kalman filter; the measurement is linearised per update."""
 
@@ -131,8 +137,10 @@ class _Channel:
 
     def gravity_update(self, b: float, var_b: float, gain: float) -> bool:
         """The main filter's bias sum ``b = offset + gain * g * sin(angle)``."""
-        a = self.x[0]
-        h = self.x[1] + gain * G * math.sin(a)
+        # the state as Python floats (ndarray.item): float arithmetic, not numpy scalar arithmetic,
+        # the same IEEE operations on the same doubles (issue 10)
+        a = self.x.item(0)
+        h = self.x.item(1) + gain * G * math.sin(a)
         H = np.array([gain * G * math.cos(a), 1.0])
         return self.update(b - h, H, var_b)
 
@@ -298,7 +306,7 @@ class RoadAttitude:
             return False
         z = math.atan2(-vel_d, speed)
         R = (VERTICAL_ACC_FACTOR * speed_acc / speed) ** 2
-        if self.grade.update(z - self.grade.x[0], np.array([1.0, 0.0]), R):
+        if self.grade.update(z - self.grade.x.item(0), ANGLE_H, R):
             self.vertical_fused += 1
             return True
         return False
@@ -312,7 +320,7 @@ class RoadAttitude:
         if m is None:
             return False
         z, R = m
-        if self.grade.update(z - self.grade.x[0], np.array([1.0, 0.0]), R, ALT_GATE_SIGMA):
+        if self.grade.update(z - self.grade.x.item(0), ANGLE_H, R, ALT_GATE_SIGMA):
             self.altitude_fused += 1
             return True
         self.altitude_rejected += 1
@@ -322,7 +330,9 @@ class RoadAttitude:
         """Body roll from the measured lateral acceleration ``ay_m`` and the gain state;
         ``ay_doubt`` (m/s^2): how far ``ay_m`` disagrees with its witness (yaw rate x speed), a
         possible error of the force the roll is computed from (a sensor fault not yet isolated)."""
-        fy = (ay_m - self.bank._xm[1]) / (1.0 + g_ay)
+        # the offset as a Python float (plain Python: a numpy scalar read, which would keep the
+        # force's low-pass and the roll numpy scalars for the drive; compiled, a C double either way)
+        fy = (ay_m - float(self.bank._xm[1])) / (1.0 + g_ay)
         lp = self.fy_lp = fy if self.fy_lp != self.fy_lp else self.fy_lp + self._lp * (fy - self.fy_lp)
         self.roll = g_ay / G * lp
         k2 = (g_ay * g_ay + var_gay) / (G * G)  # the roll gradient's square, its uncertainty included

@@ -174,9 +174,12 @@ class GnssVelocityFusion:
         if along_std_s is None:
             along_std_s = delay_std_s
         i = hist.slot(s)
-        a = hist.aux[i]
+        # the stored row and state as Python floats (tolist): the velocity, noise and timing terms
+        # below in float arithmetic, not numpy scalar arithmetic (issue 10; the same doubles)
+        a = hist.aux[i].tolist()
+        xs = hist.X[i].tolist()
         ax = a[AUX_AX] if along_accel is None else along_accel
-        args = (*hist.X[i].tolist(), a[AUX_R], self.lever_x, self.lever_y)
+        args = (*xs, a[AUX_R], self.lever_x, self.lever_y)
         vn, ve = gen.gnss_velocity(*args)
         H = self._H2
         H.put(VELOCITY_H_FLAT, gen.gnss_velocity_H(*args))
@@ -197,7 +200,7 @@ class GnssVelocityFusion:
         if consider is None:
             nis = kalman.late_update(hist.P[i], H, R, self._y2, self._dx, self._M)
         else:
-            an, ae = antenna_acceleration_ned(hist.X[i, PSI], a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
+            an, ae = antenna_acceleration_ned(xs[PSI], a[AUX_AX], a[AUX_AY], a[AUX_R], a[AUX_RDOT],
                                               self.lever_x, self.lever_y)
             across = u1 * an - u0 * ae  # the acceleration's part normal to the track (v(t_s - d) = v - a d)
             nis, c = consider.late_update(hist.P[i], consider.Cr[i], H, np.array((-across * u1, across * u0)),
@@ -207,7 +210,8 @@ class GnssVelocityFusion:
             self.rejected += 1
             self.last_reason = f"innovation gate (NIS {nis:.1f})"
             return False
-        self.noise.observe(u0 * self._y2[0] + u1 * self._y2[1])
+        y0, y1 = self._y2.tolist()
+        self.noise.observe(u0 * y0 + u1 * y1)
         if not self._correct(hist, s, self._dx, self._M):
             return False
         if consider is not None:

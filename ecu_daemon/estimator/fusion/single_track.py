@@ -362,7 +362,7 @@ class SingleTrackFusion:
         """Fuse the pseudo-measurement; ``every``: it is fused every n-th step (noise scaled);
         ``var_scale``: its variance widened (an input is a coarse substitute); ``shift``: what vy
         did since the instant the inputs describe (inputs lagged alike, :class:`LaggedModelInputs`)."""
-        vx = x[VX]
+        vx = x.item(VX)  # a Python float: the model's arithmetic below in floats, not numpy scalars (issue 10)
         if vx < MIN_SPEED:
             return False
         vy_m, var = self.pseudo_measurement(vx, r, ay, rdot)
