@@ -18,7 +18,10 @@ test's low-pass window (``YAW_SLOW_TAU_S``) at speed vx the bank may change by
 ``min(BANK_RATE_M vx tau, BANK_CHANGE_MAX)``, so gravity may move ay by g times that, and the slow
 test's residual (ay divided by vx) by ``g min(BANK_RATE_M vx tau, BANK_CHANGE_MAX) / vx``. An ay
 offset that changes no faster is followed by ``b_ay`` exactly as such a bank is; it need not be
-isolated. A step fault (offset, zero, stuck: the suite's ``fault_accel_y_*``, 2 m/s^2 at 22 m/s
+isolated. Only ay's isolation verdict widens (``fault_detection.AY_BANK_RATE_ALLOWANCE``): while the
+residual is beyond the flat road's tolerance b_ay is lagging the bank and the yaw witnesses stay
+suspect (sideslip not promised), as on main; and not while ay is isolated (b_ay frozen follows
+nothing). A step fault (offset, zero, stuck: the suite's ``fault_accel_y_*``, 2 m/s^2 at 22 m/s
 where the allowance is 1.0 m/s^2) still exceeds it, and the fast test (``YAW_TAU_S``) and the
 stuck test are unchanged.
 """
