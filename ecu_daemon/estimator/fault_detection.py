@@ -667,8 +667,8 @@ class FaultDetector:
         # ay's own isolation: a bank changing no faster than a road's is followed by b_ay
         # (bank_rate.py), so its slow residual is not ay's fault. Only the verdict on ay widens: the
         # residual beyond the flat road's tolerance still makes the yaw witnesses suspect (sideslip
-        # not promised while b_ay lags the bank: 1796 t+118 s, 0.9 deg off at a 0.29 deg std when it
-        # did not), and the gyro's vote is main's. Not while ay is isolated: b_ay is frozen then and
+        # not promised while it is), and the gyro's vote is main's (widening it cost the suite's
+        # fault_yaw_rate_offset its availability target). Not while ay is isolated: b_ay is frozen then and
         # follows nothing (a 2 m/s^2 offset at 22 m/s returned within the allowance 0.7 s before it
         # ended, suite fault_accel_y_offset).
         a_fail_ay = a_fail
