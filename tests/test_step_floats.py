@@ -24,6 +24,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from drive_samples import decoded_events  # noqa: E402
 
 
+def _sampled_through_dlc_dry(types_of) -> tuple:
+    """The dlc_dry drive through a real Estimator, ``types_of(est)`` every 250th step once
+    initialised: the estimator at the end and those samples."""
+    sc = SCENARIOS["dlc_dry"]
+    cfg = vehicle_config(sc)
+    est = Estimator(cfg)
+    seen = []
+    n = 0
+    for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
+        (est.push_gnss if kind else est.push_input)(s)
+        for _ in est.advance_to(t - 1e-6):
+            n += 1
+            if est.initialized and n % 250 == 0:
+                seen.append(types_of(est))
+    return est, seen
+
+
 def _state_types(est: Estimator) -> dict:
     st = est.single_track
     phi = st.regressor_rear(20.0, 3.0, est.rdot)
@@ -35,17 +52,7 @@ def _state_types(est: Estimator) -> dict:
 
 
 def test_the_every_step_low_passes_are_python_floats_through_a_drive():
-    sc = SCENARIOS["dlc_dry"]
-    cfg = vehicle_config(sc)
-    est = Estimator(cfg)
-    seen = []
-    n = 0
-    for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
-        (est.push_gnss if kind else est.push_input)(s)
-        for _ in est.advance_to(t - 1e-6):
-            n += 1
-            if est.initialized and n % 250 == 0:
-                seen.append(_state_types(est))
+    est, seen = _sampled_through_dlc_dry(_state_types)
     assert len(seen) > 10
     bad = {k: v for types in seen for k, v in types.items() if v is not float}
     assert not bad, f"numpy scalars in the every-step state: {bad}"
@@ -71,17 +78,7 @@ def test_the_bank_walk_road_filters_and_gnss_alignment_state_are_python_floats()
     main b26daff (a vx, a variance or a yaw rate read out of an array), so every later step's
     arithmetic on it was numpy scalar arithmetic. The same doubles either way (no output bit moves);
     only the instruction count does (DEVELOPERS.md's performance paragraph)."""
-    sc = SCENARIOS["dlc_dry"]
-    cfg = vehicle_config(sc)
-    est = Estimator(cfg)
-    seen = []
-    n = 0
-    for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
-        (est.push_gnss if kind else est.push_input)(s)
-        for _ in est.advance_to(t - 1e-6):
-            n += 1
-            if est.initialized and n % 250 == 0:
-                seen.append(_road_and_gnss_types(est))
+    est, seen = _sampled_through_dlc_dry(_road_and_gnss_types)
     assert est.aligned and est.course_heading is not None  # the GNSS terms were set, not only initialised
     assert len(seen) > 10
     bad = {k: v.__name__ for types in seen for k, v in types.items() if v is not float}

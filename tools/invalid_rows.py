@@ -27,8 +27,9 @@ from ecu_daemon.evaluate import CONVERGE_S, VALID_SPEED_MPS, first_good_fix, rea
 DEG = 180.0 / math.pi
 
 
-def lines(folder: Path) -> list[str]:
-    """One line per quantity (sideslip, heading) of the drive in ``folder``."""
+def counted_rows(folder: Path) -> tuple:
+    """The estimate's columns, the truth's, and the rows the suite counts (above 5 m/s, from
+    ``CONVERGE_S`` after the first good fix: ``evaluate.validity_metrics``'s rule; withheld.py too)."""
     e = np.genfromtxt(folder / "estimate.csv", delimiter=",", names=True)
     tr = read_csv(folder / "truth.csv", ("t",), "truth CSV")
     t = e["t"]
@@ -37,6 +38,13 @@ def lines(folder: Path) -> list[str]:
     t_fix = first_good_fix(tr)
     if math.isfinite(t_fix):
         counted &= t >= t_fix + CONVERGE_S
+    return e, tr, counted
+
+
+def lines(folder: Path) -> list[str]:
+    """One line per quantity (sideslip, heading) of the drive in ``folder``."""
+    e, tr, counted = counted_rows(folder)
+    t = e["t"]
     out = []
     for q, limit in (("sideslip", SIDESLIP_STD_VALID), ("heading", HEADING_STD_VALID)):
         truth = np.interp(t, tr["t"], np.unwrap(tr[q + "_rad"]))

@@ -43,22 +43,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ecu_daemon.estimator import core  # noqa: E402
 from ecu_daemon.estimator.estimate import (STATUS_ACCEL_Y_ISOLATED, STATUS_GNSS_FRESH,  # noqa: E402
                                            STATUS_YAW_RATE_ISOLATED)
-from ecu_daemon.evaluate import CONVERGE_S, VALID_SPEED_MPS, first_good_fix, read_csv  # noqa: E402
+from invalid_rows import counted_rows as suite_counted_rows  # noqa: E402
 
 DEG = 180.0 / math.pi
 RIGHT_DEG = 0.5  # "right": also within this, whatever the std
 
 
 def counted_rows(folder: Path):
-    """estimate columns, truth sideslip and the rows the suite counts (speed > 5 m/s after convergence)."""
-    e = np.genfromtxt(folder / "estimate.csv", delimiter=",", names=True)
-    tr = read_csv(folder / "truth.csv", ("t",), "truth CSV")
+    """estimate columns, the rows the suite counts (invalid_rows.py's rule) and which were right."""
+    e, tr, counted = suite_counted_rows(folder)
     t = e["t"]
-    speed = np.interp(t, tr["t"], tr["speed_mps"])
-    counted = (speed > VALID_SPEED_MPS) & (t <= tr["t"][-1])
-    t_fix = first_good_fix(tr)
-    if math.isfinite(t_fix):
-        counted &= t >= t_fix + CONVERGE_S
     truth = np.interp(t, tr["t"], np.unwrap(tr["sideslip_rad"]))
     err = np.abs((e["sideslip_rad"] - truth + math.pi) % (2.0 * math.pi) - math.pi)
     right = (err < 3.0 * e["sideslip_std_rad"]) & (err * DEG < RIGHT_DEG)
