@@ -28,7 +28,7 @@ from collections import deque
 
 import numpy as np
 
-G = 9.80665
+from .gravity import G
 
 #: Window of the causal yaw-acceleration fit (s). A least-squares line through the gyro samples
 #: of the last 40 ms: its slope is the yaw acceleration W/2 = 20 ms ago (a lag: 20 ms x the 5

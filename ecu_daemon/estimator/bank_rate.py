@@ -31,7 +31,8 @@ from __future__ import annotations
 
 import math
 
-G = 9.80665
+from ..gravity import G
+
 #: rad per metre travelled: the fastest a road's bank changes (a handling course's superelevation reversal)
 BANK_RATE_M = 0.01
 #: rad: the most a road's bank changes from one curve to the next (road.py BANK_SWING is its 1-sigma, 3 deg)

@@ -80,9 +80,9 @@ from .wheel_launch_check import WLC_PRECISION, WheelLaunchCheck
 from .wheel_yaw_check import WYC_EVERY, WheelYawCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
-from .road import ANGLE_STD_VALID as ROLL_STD_VALID
 from .road import ANGLE_STD_VALID
-from .road import G, BaselineMount, RoadAttitude
+from ..gravity import G
+from .road import BaselineMount, RoadAttitude
 from .steering_offset import MAX_YAW_RATE_RADPS as STEER_LEARN_MAX_R, SteeringOffset
 
 I_FL, I_FR, I_RL, I_RR = (INPUT_INDEX[n] for n in ("wheel_speed_fl", "wheel_speed_fr",
@@ -1410,7 +1410,7 @@ class Estimator:
         if not mag.undisturbed(tm):
             mag.rejected += 1
             return
-        filter_tilt = math.sqrt(max(P[BAY, BAY], 0.0)) / 9.80665
+        filter_tilt = math.sqrt(max(P[BAY, BAY], 0.0)) / G
         slow = mag.slow_var(filter_tilt)
         if (self.aligned and t - self.last_gnss_fused_t <= GNSS_FRESH_S and x[VX] > MAG_LEARN_SPEED
                 and P[PSI, PSI] < MAG_LEARN_STD ** 2):
@@ -1766,7 +1766,7 @@ class Estimator:
                 lat_ok and b.updates > 0 and b_std < ANGLE_STD_VALID,
                 imu_ok and not iso & ACCEL_X and g.updates > 0 and g_std < ANGLE_STD_VALID,
                 # roll is ay through a gain: not promised while ay's yaw-rate witnesses disagree
-                lat_ok and not self.fdi.yaw_suspect and rd.roll_std < ROLL_STD_VALID)
+                lat_ok and not self.fdi.yaw_suspect and rd.roll_std < ANGLE_STD_VALID)
 
     def gnss_counts(self) -> tuple[int, int, int]:
         """GNSS velocity samples fused, rejected and late, over every receiver."""

@@ -662,8 +662,8 @@ class FaultDetector:
         tol_w = YAW_TOL_WHEELS + YAW_TOL_WHEELS_REL * ref
         slow = YAW_SLOW_TOL + YAW_SLOW_TOL_REL * ref
         w_fail = have_w and (abs(e_w) > tol_w or abs(e_ws) > slow)
-        a_fail = have_a and (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
-                             or abs(e_as) > slow + wide)
+        fast_a = have_a and abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
+        a_fail = fast_a or (have_a and abs(e_as) > slow + wide)
         # ay's own isolation: a bank changing no faster than a road's is followed by b_ay
         # (bank_rate.py), so its slow residual is not ay's fault. Only the verdict on ay widens: the
         # residual beyond the flat road's tolerance still makes the yaw witnesses suspect (sideslip
@@ -673,8 +673,7 @@ class FaultDetector:
         # ended, suite fault_accel_y_offset).
         a_fail_ay = a_fail
         if AY_BANK_RATE_ALLOWANCE and a_fail and not self.ay.active:
-            a_fail_ay = (abs(e_a) > YAW_TOL_AY + YAW_TOL_AY_REL * ref + wide
-                         or abs(e_as) > slow + wide + bank_rate.slow_ay_allowance(vx, YAW_SLOW_TAU_S))
+            a_fail_ay = fast_a or abs(e_as) > slow + wide + bank_rate.slow_ay_allowance(vx, YAW_SLOW_TAU_S)
         if scale_fail:  # both witnesses: the gyro's disagreement grows with its own rate
             w_fail = a_fail = True
         jump = (have_w and abs(r_m - self._r_prev) > GYRO_JUMP_RADPS

@@ -55,13 +55,13 @@ import math
 
 import numpy as np
 
+from ..gravity import G
 from . import kalman
 from .altitude_grade import ALT_GATE_SIGMA, AltitudeGrade
 from .roll_gyro_check import RollGyroCheck
 
 log = logging.getLogger(__name__)
 
-G = 9.80665
 UPDATE_EVERY = 17  # main-filter steps between updates from its bias states (~0.1 s)
 CORRELATION_S = 5.0  # the main filter's bias estimates are correlated over about this long
 ANGLE_WALK = math.radians(0.3)  # rad/sqrt(s): how fast road grade and bank wander

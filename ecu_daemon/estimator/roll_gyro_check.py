@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import math
 
-G = 9.80665
+from ..gravity import G
+
 RG_EVERY = 5  # steps between samples (30 ms): the check is slow by design
 RG_WINDOW_S = 0.3  # a slalom's force changes by its amplitude in a quarter period (0.5 Hz: 0.5 s)
 RG_TAU_S = 3.0  # weighting of the windows: a couple of turns

@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import math
 
+from ..gravity import G
 from .rear_axle_yaw import rear_speed_difference
 
-G = 9.80665
 #: rad: sideslip change over the last ~TAU_S, from ``(ay - r vx) / vx`` (= d beta / dt), beyond
 #: which the car is leaving its grip range. A gripping car's sideslip swings by a few degrees (a dry
 #: lane change +-3 deg, on snow +-5 deg, over a second); a car that spins out turns it by tens of

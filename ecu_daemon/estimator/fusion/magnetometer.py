@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 
+from ...gravity import G
 from .. import kalman
 from ..kinematic import PSI, wrap_pi
 
@@ -48,7 +49,6 @@ STATE_GATE = 4  # disagreed with the filter
 STATE_LEARNING = 5  # nominal field or offset not learned yet (no GNSS heading so far)
 STATE_STALE = 6  # none received for longer than its timeout (set by whoever knows the time)
 
-G = 9.80665
 NOMINAL_N = 50  # samples averaged for the first nominal field norm / inclination
 NOMINAL_TAU_S = 60.0  # then followed this slowly, from undisturbed samples only
 HOLD_S = 1.0  # rejection outlasts a detected disturbance by this much (its fading edges)
