@@ -59,6 +59,6 @@ def test_an_awd_at_its_limit_may_slip_three_times_the_linear_law():
     the front's lateral force tilted by the steering and the rolling resistance 1.2 m/s^2 beside it."""
     from ecu_daemon.estimator import awd_limit_slip as als
     b = als.slip_bound(19.7, 0.9, 1.2)
-    assert 0.8 < b < 0.9, b  # 3 x 2.1 / (9.81 x 15) x 19.7 = 0.84 m/s (the wheels ran 0.8 m/s ahead)
+    assert 0.8 < b < 0.9, b  # 3 x 2.1 / (9.81 x 15) x 19.7 = 0.84 m/s (the fused wheels read 0.75-0.8 m/s above vx)
     assert als.slip_bound(19.7, -3.0, 1.2) == 0.0  # braking: the linear law and the slip witness
     assert als.slip_bound(3.0, 0.9, 1.2) == 0.0  # below MIN_SPEED_MPS
