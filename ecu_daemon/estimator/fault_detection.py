@@ -101,8 +101,12 @@ YAW_SLOW_TAU_S = 1.0  # slow test: offsets and stuck values, narrow tolerance
 YAW_SLOW_TOL = 0.02  # rad/s, + YAW_SLOW_TOL_REL * |r|, slow test (both witnesses)
 YAW_SLOW_TOL_REL = 0.12
 #: the ay test's slow tolerance widens by what a road's bank may change within its window (bank_rate.py);
-#: False: main's flat-road tolerance, bit for bit
-AY_BANK_RATE_ALLOWANCE = True
+#: False: the flat-road tolerance. Off since stop 43: on the never-seen drives 2161-2400 the allowance (1.0
+#: m/s^2 at 12 m/s) also passed a car SLIDING on ice, whose ay - r vx is the sideslip's own rate (2254, flat
+#: road, mu 0.10: sideslip published valid 17.5 deg off; 2175 heading 884 rows beyond 3 sigma; 2275 and
+#: 2356 sideslip), where the isolated ay had kept the sideslip withheld. It needs a test that tells a bank
+#: from a slide before it is on again (tests/test_ice_slide_ay_allowance.py, test_banked_ay_isolation.py).
+AY_BANK_RATE_ALLOWANCE = False
 SCALE_TOL = 0.15  # slope of (gyro - witness) against the yaw rate: a scale error (x1.3: 0.3)
 SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to tell scale from offset
 # the wheels' yaw rate may lag (or lead) the gyro by this much: the ABS ECU's filter and pulse-window
