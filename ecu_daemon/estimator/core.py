@@ -1405,7 +1405,8 @@ class Estimator:
             return self._invalid(t)
         # (P.item: the vx-vy covariance as a Python float; _estimate's sideslip variance in floats)
         if BANK_LAG_STD:  # b_ay's lag behind a changing bank, in vy (bank_lag.py); not while ay is out
-            self.bank_lag_var = (0.0 if iso & ACCEL_Y else
+            # (b_ay frozen, ay not integrated) nor the gyro (the residual then measures its fault)
+            self.bank_lag_var = (0.0 if iso & (ACCEL_Y | YAW_RATE) else
                                  bank_lag.vy_var(self.fdi.e_as, xl[VX], P.item(VY, BAY), pd[BAY]))
         return self._estimate(t, xl, pd, P.item(VX, VY), r, status | iso_fdi, imu_published, wheels_ok, iso)
 
