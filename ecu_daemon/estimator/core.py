@@ -1407,7 +1407,8 @@ class Estimator:
         if BANK_LAG_STD:  # b_ay's lag behind a changing bank, in vy (bank_lag.py); not while ay is out
             # (b_ay frozen, ay not integrated) nor the gyro (the residual then measures its fault)
             self.bank_lag_var = (0.0 if iso & (ACCEL_Y | YAW_RATE) else
-                                 bank_lag.vy_var(self.fdi.e_as, xl[VX], P.item(VY, BAY), pd[BAY]))
+                                 bank_lag.vy_var(self.fdi.e_as, self.fdi.rdot_abs, xl[VX],
+                                                 P.item(VY, BAY), pd[BAY]))
         return self._estimate(t, xl, pd, P.item(VX, VY), r, status | iso_fdi, imu_published, wheels_ok, iso)
 
     def _on_mag(self, t: float, x, P, A, ay_m: float) -> None:
