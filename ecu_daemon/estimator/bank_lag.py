@@ -26,6 +26,10 @@ follow (``bank_rate.BANK_RATE_M`` x vx x ``road.CORRELATION_S``): a larger resid
 (a sensor fault: the ay test's own business), and the lag counted is capped there. A constant
 bank, once b_ay has it, leaves no residual and costs nothing; nor does a residual inside b_ay's
 own std (the usual noise and transients): the term is zero, bit for bit, there.
+
+Measured (bankss43, 46 random drives of 241-2160): valid sideslip rows beyond 3 sigma 98 -> 0
+(1796's 31, and main's 51 on 527 and 16 on 2052); the cost is 5516 valid rows on road courses, the
+ramps' transients, 91 % of them 0.5 deg or more off; the 23 non-road drives, banked and flat, unchanged.
 """
 from __future__ import annotations
 
