@@ -82,6 +82,7 @@ from .wheel_launch_check import WLC_PRECISION, WheelLaunchCheck
 from .wheel_yaw_check import WYC_EVERY, WheelYawCheck
 from .yaw_scale_check import YawScaleCheck
 from .bank_walk import BankWalk
+from . import bank_lag
 from .road import ANGLE_STD_VALID
 from ..gravity import G
 from .road import BaselineMount, RoadAttitude
@@ -349,6 +350,13 @@ ISOLATED_GYRO_PLOUGH = True
 # force (3x the linear law's; awd_limit_slip.py), held with the wheel-slip memory. False: main's
 # behaviour, bit for bit.
 AWD_LIMIT_SLIP = True
+# While the road's bank ramps, b_ay (which holds g sin(bank)) lags it by seconds and the filter
+# integrates the lag into vy, which its P[b_ay] (grown by the bank walk, which a ramp outruns) does
+# not carry (random drive 1796, t+118 s: b_ay 0.65 m/s^2 behind, sideslip valid 0.9 deg off at a 0.29
+# deg std, 31 rows beyond 3 sigma). The lag the ay-vs-gyro test's slow residual shows beyond P[b_ay],
+# carried into vy by the filter's own P[vy, b_ay] / P[b_ay], is added to the published vy and
+# sideslip variance (bank_lag.py). False: main's behaviour, bit for bit.
+BANK_LAG_STD = True
 # After a spin the filter re-initialises from the wheels with a gripping car's vy while the car may
 # still slide sideways (random drive 879: 13 m/s at -80 deg sideslip, vx published valid 2.6 m/s off;
 # 760 after its spin); the fault detector isolates GNSS, the one source that sees it. A fix's speed
@@ -706,6 +714,7 @@ class Estimator:
         # written with it (the same floats, the same bits): a fix sums a Python list, not numpy rows
         self.gap_terms = [0.0] * self.hist.n
         self.sideslip_vouched = False  # the last estimate's sideslip valid (GNSS_SPEED_GAP)
+        self.bank_lag_var = 0.0  # (m/s)^2: vy's variance of b_ay's lag behind a changing bank (BANK_LAG_STD)
         self.steer_vy_hold = 0.0  # held vx error a missed vy puts through steered wheels (STEERED_WHEEL_VY)
         self.awd_slip_hold = 0.0  # held drive slip an AWD's wheels may carry at the limit (AWD_LIMIT_SLIP)
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
@@ -1425,6 +1434,11 @@ class Estimator:
             self._reset(k)
             return self._invalid(t)
         # (P.item: the vx-vy covariance as a Python float; _estimate's sideslip variance in floats)
+        if BANK_LAG_STD:  # b_ay's lag behind a changing bank, in vy (bank_lag.py); not while ay is out
+            # (b_ay frozen, ay not integrated) nor the gyro (the residual then measures its fault)
+            self.bank_lag_var = (0.0 if iso & (ACCEL_Y | YAW_RATE) else
+                                 bank_lag.vy_var(self.fdi.e_as, self.fdi.rdot_abs, xl[VX],
+                                                 P.item(VY, BAY), pd[BAY]))
         return self._estimate(t, xl, pd, P.item(VX, VY), r, status | iso_fdi, imu_published, wheels_ok, iso)
 
     def _on_mag(self, t: float, x, P, A, ay_m: float) -> None:
@@ -1592,6 +1606,11 @@ class Estimator:
             beta = 0.0
             beta_std = math.pi
         vy_std = math.sqrt(pd[VY]) if pd[VY] > 0.0 else 0.0
+        if BANK_LAG_STD and self.bank_lag_var > 0.0 and sp2 > 0.25:  # (bank_lag.py): vy's share only
+            lag_var = self.bank_lag_var
+            var_b += vx * vx * lag_var / (sp2 * sp2)
+            beta_std = math.sqrt(var_b) if var_b > 0 else 0.0
+            vy_std = math.sqrt(pd[VY] + lag_var)
         if beta_std >= SIDESLIP_STD_VALID and sp2 > 0.25 and MODEL_BOUND:
             b = self._model_bound(t, vx, vy, r, iso)
             if b < vy_std:
