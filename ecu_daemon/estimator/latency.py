@@ -92,8 +92,8 @@ _FLOAT_MAX = float(np.finfo(np.float64).max)
 
 def nan_to_num(d: np.ndarray) -> np.ndarray:
     """``np.nan_to_num(d)`` of a float64 array (NaN 0.0, +-inf the largest finite float), the same
-    bits by three ufuncs. Why: numpy's is ~50 lines of Python around them (its type checks and
-    finfo), which on the one- and two-row windows :func:`_antenna_to_wheel` reads at every
+    bits by four ufuncs. Why: numpy's wraps them in Python (type checks, finfo, copies), which on
+    the one- and two-row windows :func:`_antenna_to_wheel` reads at every
     GNSS fix cost more than the rest of that function (random drive 1442, 10 Hz GNSS: 191 calls,
     0.061 of the function's 0.096 s in cProfile). tests/test_latency_shift.py compares the two."""
     return np.minimum(np.maximum(np.where(np.isnan(d), 0.0, d), -_FLOAT_MAX), _FLOAT_MAX)
@@ -551,9 +551,9 @@ def shift_statistics_reference(zz: np.ndarray, zy: np.ndarray, offsets: tuple[fl
     without this one's broadcast temporaries).
 
     Why: the accelerometer's statistics (3 regressors) are re-anchored at every fix, and the two
-    einsums cost more than the rest of a fix's latency identification (callgrind, random drive 1442
-    with 10 Hz GNSS, plain Python: 95.8 M of the measured steps' 1607.8 M instructions, 6.0 %, in
-    its 260 einsums). ``M`` is the identity but for one column, so each of the p x p entries of
+    einsums were the largest single numpy cost of a fix (callgrind, random drive 1442 with 10 Hz
+    GNSS, its first 21 s, plain Python: 95.8 M of the measured steps' 1607.8 M instructions, 6.0 %,
+    in 260 einsums; with nan_to_num and profile_sum, -7.2 % plain and -9.0 % compiled in all). ``M`` is the identity but for one column, so each of the p x p entries of
     ``M zz_k M'`` is at most four products: zz_im, zz_ip (-o_m), (-o_i) zz_pm and
     ((-o_i) zz_pp) (-o_m) (p the constant's index); the rest are M's zeros. numpy's einsum adds
     each entry's products, zeros included, to a +0.0 with M's column j outer and l inner, each
