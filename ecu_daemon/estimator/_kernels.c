@@ -1950,6 +1950,73 @@ l_x:
     return ret;
 }
 
+/* shift_statistics(zz, zy, offsets) -> done: LatencyEstimator.shift's re-anchoring of the
+ * statistics, zz_k <- M zz_k M' and zy_k <- M zy_k for every candidate k (M the identity less the
+ * offsets in its last column), in place, with the bits of the two einsums it replaces: each entry
+ * is 0.0 plus its nonzero products in einsum's order (M's column j outer, l inner), each product
+ * multiplied left to right (shift_statistics_reference, latency.py: why that is einsum's sum).
+ * False (nothing written) unless every statistic and offset is finite, as the reference.
+ * zz (n, p, p), zy (n, p): C-contiguous float64; offsets: a tuple of p - 1 floats. */
+static PyObject *k_shift_statistics(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 3 || !PyTuple_Check(args[2])) {
+        PyErr_SetString(PyExc_TypeError, "shift_statistics(zz, zy, offsets: tuple)");
+        return NULL;
+    }
+    Py_ssize_t p = PyTuple_GET_SIZE(args[2]) + 1;
+    if (p < 2 || p > LAT_MAX) {
+        PyErr_SetString(PyExc_ValueError, "shift_statistics: 2 to 8 regressors");
+        return NULL;
+    }
+    double no[LAT_MAX];
+    int finite = 1;
+    for (Py_ssize_t i = 0; i < p - 1; i++) {
+        double o = PyFloat_AsDouble(PyTuple_GET_ITEM(args[2], i));
+        if (o == -1.0 && PyErr_Occurred())
+            return NULL;
+        finite = finite && isfinite(o);
+        no[i] = -o;
+    }
+    no[p - 1] = -0.0;
+    Py_buffer bzz, bzy;
+    PyObject *ret = NULL;
+    double *zz = get_doubles(args[0], &bzz, -(p * p), "zz");
+    if (!zz)
+        return NULL;
+    Py_ssize_t n = bzz.len / (Py_ssize_t)sizeof(double) / (p * p);
+    double *zy = get_doubles(args[1], &bzy, n * p, "zy");
+    if (!zy)
+        goto l_zz;
+    for (Py_ssize_t k = 0; finite && k < n * p * p; k++)
+        finite = isfinite(zz[k]);
+    for (Py_ssize_t k = 0; finite && k < n * p; k++)
+        finite = isfinite(zy[k]);
+    if (finite) {
+        const Py_ssize_t q = p - 1;
+        double t[LAT_MAX * LAT_MAX];
+        for (Py_ssize_t k = 0; k < n; k++) {
+            double *a = zz + k * p * p, *b = zy + k * p;
+            for (Py_ssize_t i = 0; i < p; i++)
+                for (Py_ssize_t m = 0; m < p; m++) {
+                    double v = 0.0 + a[i * p + m];
+                    v = v + a[i * p + q] * no[m];
+                    v = v + no[i] * a[q * p + m];
+                    v = v + (no[i] * a[q * p + q]) * no[m];
+                    t[i * p + m] = v;
+                }
+            memcpy(a, t, (size_t)(p * p) * sizeof(double));
+            double bq = b[q];
+            for (Py_ssize_t i = 0; i < p; i++)
+                b[i] = (0.0 + b[i]) + no[i] * bq;
+        }
+    }
+    ret = PyBool_FromLong(finite);
+    PyBuffer_Release(&bzy);
+l_zz:
+    PyBuffer_Release(&bzz);
+    return ret;
+}
+
 /* median(c) -> numpy.median of a 1-D float64 array (NaN if it holds one), as a float: the
  * latency profile's "very clear minimum" test at every profile. numpy's is ~10 us of Python
  * (partition, mean, NaN check) for ~170 values; the result is a selection, or for an even count
@@ -2062,6 +2129,8 @@ static PyMethodDef methods[] = {
     {"accumulate", (PyCFunction)(void (*)(void))k_accumulate, METH_FASTCALL,
      "accumulate(zz, zy, x, extra, y, lam): one fix into the latency identification's statistics, in place"},
     {"median", k_median, METH_O, "median(c) -> numpy.median of a 1-D float64 array, as a float"},
+    {"shift_statistics", (PyCFunction)(void (*)(void))k_shift_statistics, METH_FASTCALL,
+     "shift_statistics(zz, zy, offsets) -> done: the latency statistics re-anchored in place, einsum's bits"},
     {NULL, NULL, 0, NULL},
 };
 

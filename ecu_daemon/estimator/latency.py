@@ -87,13 +87,25 @@ FIXED_WARN_RUN = 100  # consecutive refinements refuting a fixed delay before th
 AX_SMOOTH_S = 0.1  # s: the braking test averages the accelerometer over this (its noise)
 
 
+_FLOAT_MAX = float(np.finfo(np.float64).max)
+
+
+def nan_to_num(d: np.ndarray) -> np.ndarray:
+    """``np.nan_to_num(d)`` of a float64 array (NaN 0.0, +-inf the largest finite float), the same
+    bits by four ufuncs. Why: numpy's wraps them in Python (type checks, finfo, copies), which on
+    the one- and two-row windows :func:`_antenna_to_wheel` reads at every
+    GNSS fix cost more than the rest of that function (random drive 1442, 10 Hz GNSS: 191 calls,
+    0.061 of the function's 0.096 s in cProfile). tests/test_latency_shift.py compares the two."""
+    return np.minimum(np.maximum(np.where(np.isnan(d), 0.0, d), -_FLOAT_MAX), _FLOAT_MAX)
+
+
 def _antenna_to_wheel(X: np.ndarray, aux: np.ndarray, lever: tuple[float, float], wheels) -> np.ndarray:
     """Per history row: the antenna's speed over the speed the fused wheels read (at the true
     radius), from the filter's velocity, the yaw rate and the steering angle."""
     vx, vy, r = X[:, VX], X[:, VY], aux[:, AUX_R]
     ant = np.hypot(vx - r * lever[1], vy + r * lever[0])
     if wheels is not None and wheels.frac:
-        d = np.nan_to_num(aux[:, AUX_DELTA])
+        d = nan_to_num(aux[:, AUX_DELTA])
         f = wheels.frac
         read = vx * (1.0 - f) + f * (vx * np.cos(d) + (vy + wheels.lf * r) * np.sin(d))
     else:
@@ -170,8 +182,7 @@ class LatencyEstimator:
             return
         m = np.arange(self.max_steps + 1)
         cand = k_rx - 1 - m  # candidate validity steps: a delay of (m + 1) steps
-        ok = cand >= hist.oldest()
-        if not ok.all():
+        if k_rx - 1 - self.max_steps < hist.oldest():  # the oldest candidate (cand[-1]): cand falls with m
             return  # not enough history yet (start-up / after a reset)
         slot = cand % hist.n
         aux = hist.aux[slot]
@@ -256,6 +267,8 @@ class LatencyEstimator:
     def shift(self, offsets: tuple[float, ...]) -> None:
         """Re-anchor the regressors: x and the extras from now on are read less ``offsets`` (an
         integral and a time that would otherwise grow without bound); the fit is unchanged."""
+        if self.p in (3, 4) and shift_bits_match() and shift_statistics(self.zz, self.zy, offsets):
+            return  # the einsums' bits, in place (shift_statistics_reference: why)
         m = np.eye(self.p)
         m[:-1, -1] = -np.asarray(offsets, dtype=float)
         # C order, as accumulate() updates them in place (the same values, copied if einsum chose another layout)
@@ -343,7 +356,7 @@ class LatencyEstimator:
             c = c + past
             n, p = n + self.past_n, p + self.past_p
         self.cost = c
-        i = int(np.argmin(c))
+        i = int(c.argmin())
         # RSS excess over the residual variance per fix
         s2 = max(c[i], 1e-12) / max(n - p, 1.0)
         return (c - c[i]) / s2, bool(c[i] < 0.2 * median(c)), s2
@@ -358,14 +371,14 @@ class LatencyEstimator:
             # no accelerometer to judge the wheels: their fixes without braking judge them all
             # instead (braking slip shows as a timing bias), as the accelerometer would
             sf = self.slip_free._profile()
-            if sf is not None and sf[0][int(np.argmin(profiles[0][0]))] > LR_REJECT:
+            if sf is not None and sf[0][int(profiles[0][0].argmin())] > LR_REJECT:
                 profiles[0] = sf
         if judge is not None:
             # The last reference attached (the accelerometer's) has no lag and no slip; the
             # others (the wheels) have both, and they show as a timing bias. A reference whose
             # best delay it rejects is biased and left out.
             wheels = [p for p in profiles[:-1] if p is not None]
-            profiles = [p for p in wheels if judge[0][int(np.argmin(p[0]))] <= LR_REJECT] + [judge]
+            profiles = [p for p in wheels if judge[0][int(p[0].argmin())] <= LR_REJECT] + [judge]
             # two clocks that agree: the data's best is where the delay goes, not only the edge of
             # what they reject; that disagree (on Revs the accelerometer reads the car's pitch under
             # hard braking: 0.37 s for 0.40), only as far as the data reject the delay. Agreeing is
@@ -373,7 +386,7 @@ class LatencyEstimator:
             # of the wheel signals is a delay of its time constant in their clock; sharp wheels a
             # lag away from a broad accelerometer passed its 4-sigma test and pulled the delay to
             # theirs (wheel_lag_0.06_grade: -0.046 s)
-            ja = int(np.argmin(judge[0]))
+            ja = int(judge[0].argmin())
             agree = (bool(wheels) and len(profiles) == len(wheels) + 1
                      and all(p[0][ja] <= LR_REJECT for p in wheels))
         else:
@@ -388,9 +401,9 @@ class LatencyEstimator:
         # instead slowed the identification on the simulator's drives by half the information
         # (their residuals are the GNSS noise), and the stiffness regression learned from
         # courses placed with the prior for longer (slalom_dry: k_r 30 % off; lat34)
-        lr = np.sum([p[0] for p in profiles], axis=0)
+        lr = profile_sum(profiles)
         share = information_share(profiles, self.gnss_var)
-        i = int(np.argmin(lr))
+        i = int(lr.argmin())
         if i == 0 or i == len(lr) - 1:
             return
         lr = lr - lr[i]
@@ -417,7 +430,7 @@ class LatencyEstimator:
             sf = self.slip_free._profile() if self.slip_free is not None else None
             sharp = np.count_nonzero(judge[0] < LR_REJECT) * self.dt <= JUDGE_SPAN_S
             refuted = judge[0][cur] > LR_REJECT or (agree and sharp) or (
-                sf is not None and sf[0][cur] > LR_REJECT and judge[0][int(np.argmin(sf[0]))] <= LR_REJECT)
+                sf is not None and sf[0][cur] > LR_REJECT and judge[0][int(sf[0].argmin())] <= LR_REJECT)
         if self.fixed:
             # The user fixed the delay: it stays. But a delay the data refute is not good to a few
             # ms: its std widens at once to the distance to the data's best (plus their width), so
@@ -491,7 +504,18 @@ def combined_profile(profiles: list, gnss_var: float = math.nan) -> np.ndarray:
     one slow ramp) wheels and accelerometer both put the delay at ~0.80 s, the sum made its std
     0.05 s, and the circle's courses, fused 0.2 s off, were promised to 0.6 deg of heading while
     3 deg off."""
-    return np.sum([p[0] for p in profiles], axis=0) * information_share(profiles, gnss_var)
+    return profile_sum(profiles) * information_share(profiles, gnss_var)
+
+
+def profile_sum(profiles: list) -> np.ndarray:
+    """``np.sum([p[0] for p in profiles], axis=0)``, the same bits without stacking the profiles
+    into a new array first: numpy's sum over the stacked axis is a +0.0 plus each row in turn
+    (measured: 20 000 random stacks of 1 to 4 rows with zeros of both signs, tests/test_latency_shift.py).
+    Why: at every refinement (twice a fix), a few percent of a fix's latency work in plain Python."""
+    lr = 0.0 + profiles[0][0]
+    for p in profiles[1:]:
+        lr = lr + p[0]
+    return lr
 
 
 def information_share(profiles: list, gnss_var: float = math.nan) -> float:
@@ -517,6 +541,71 @@ def latency_costs_reference(zz: np.ndarray, zy: np.ndarray, syy: float, floor: f
 
 
 latency_costs = latency_costs_reference
+
+
+def shift_statistics_reference(zz: np.ndarray, zy: np.ndarray, offsets: tuple[float, ...]) -> bool:
+    """:meth:`LatencyEstimator.shift`'s two einsums (``M zz_k M'`` and ``M zy_k`` for every candidate
+    k, ``M`` the identity less ``offsets`` in its last column), in place and with their bits; False
+    (nothing written: the caller keeps its einsums) unless every statistic and offset is finite.
+    ``backend.select`` swaps in the compiled one (``_kernels.c``: the same operations per entry,
+    without this one's broadcast temporaries).
+
+    Why: the accelerometer's statistics (3 regressors) are re-anchored at every fix, and the two
+    einsums were the largest single numpy cost of a fix (callgrind, random drive 1442 with 10 Hz
+    GNSS, its first 21 s, plain Python: 95.8 M of the measured steps' 1607.8 M instructions, 6.0 %,
+    in 260 einsums; with nan_to_num and profile_sum, -7.2 % plain and -9.0 % compiled in all). ``M`` is the identity but for one column, so each of the p x p entries of
+    ``M zz_k M'`` is at most four products: zz_im, zz_ip (-o_m), (-o_i) zz_pm and
+    ((-o_i) zz_pp) (-o_m) (p the constant's index); the rest are M's zeros. numpy's einsum adds
+    each entry's products, zeros included, to a +0.0 with M's column j outer and l inner, each
+    product multiplied left to right; a finite product with a zero is +-0.0, which leaves such a
+    sum as it was; so these four in that order after a +0.0 are its bits (``zy``: two products,
+    either order the same sum). Measured against the einsums for 3 and 4 regressors
+    (tests/test_latency_shift.py; numpy 2.4's einsum sums 2 regressors in another order, so the
+    caller keeps the einsums there) and probed once per process (:func:`shift_bits_match`). With an
+    inf or NaN the einsums' 0 * inf terms are NaN, which this does not reproduce: then False."""
+    for o in offsets:
+        if not math.isfinite(o):
+            return False
+    if not (np.isfinite(zz).all() and np.isfinite(zy).all()):
+        return False
+    no = np.zeros(zz.shape[1])
+    no[:-1] = offsets
+    # M's last column less its diagonal 1 (zz_im covers that product): -0.0 there, whose products
+    # are +-0.0 terms that leave a sum as it was
+    no = -no
+    s = (0.0 + zz) + zz[:, :, -1:] * no
+    s = s + no[:, None] * zz[:, -1:, :]
+    zz[...] = s + (no[:, None] * zz[:, -1:, -1:]) * no
+    zy[...] = (0.0 + zy) + no * zy[:, -1:]
+    return True
+
+
+shift_statistics = shift_statistics_reference
+
+_shift_checked: tuple | None = None  # (the shift_statistics probed, whether it matched)
+
+
+def shift_bits_match() -> bool:
+    """Does :func:`shift_statistics` (whichever is installed) give this numpy's einsum bits on fixed
+    probes (3 regressors, as the estimator's, with zeros of both signs)? Once per process; where an
+    einsum sums in another order (another numpy), :meth:`LatencyEstimator.shift` keeps the einsums."""
+    global _shift_checked
+    if _shift_checked is None or _shift_checked[0] is not shift_statistics:
+        rng = np.random.default_rng(43)
+        ok = True
+        for t in range(8):
+            zz = rng.standard_normal((170, 3, 3)) * 10.0 ** rng.uniform(-3, 6, (170, 3, 3))
+            zz = zz + zz.transpose(0, 2, 1)
+            zz[rng.random(zz.shape) < 0.1] = 0.0 if t % 2 else -0.0
+            zy = rng.standard_normal((170, 3)) * 10.0 ** rng.uniform(-3, 6, (170, 3))
+            off = (float(rng.standard_normal() * 50.0), float(rng.uniform(0.0, 2.0)))
+            m = np.eye(3)
+            m[:-1, -1] = -np.asarray(off)
+            want = (np.einsum("ij,kjl,ml->kim", m, zz, m), np.einsum("ij,kj->ki", m, zy))
+            ok = ok and shift_statistics(zz, zy, off) and zz.tobytes() == want[0].tobytes() \
+                and zy.tobytes() == want[1].tobytes()
+        _shift_checked = (shift_statistics, bool(ok))
+    return _shift_checked[1]
 
 
 def accumulate_reference(zz: np.ndarray, zy: np.ndarray, x: np.ndarray, extra: tuple[float, ...], y: float,
