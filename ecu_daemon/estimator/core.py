@@ -391,8 +391,11 @@ HEADING_SLOW_TURN_FORGOTTEN = True
 # 17.5 deg off at 0.6 deg. The kinematics see the slide: vy changes at ay - r vx (0.87 - 1.68 m/s^2
 # there) while the model's vy, from a steady r and ay, stays put; the mismatch integrated over the
 # model's correlation time, beyond the residual offsets' share, is what the model's vy is off by and
-# joins the law excess (fusion/slide_rate.py; with fresh GNSS, the law excess's gate). False: main's
-# behaviour, bit for bit.
+# joins the law excess (fusion/slide_rate.py; with fresh GNSS, the law excess's gate), while the car is
+# at the friction the steering has shown (FRICTION_MEMORY's hold): a bank stepping faster than b_ay
+# follows puts the same mismatch into ay - r vx on a gripping car (suite road_handling: -0.6 m/s^2 for
+# 4 s at a bank step of 2.9 deg; ungated, sideslip RMS 0.40 -> 0.67 deg). False: main's behaviour, bit
+# for bit.
 SLIDE_RATE = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
@@ -1268,7 +1271,10 @@ class Estimator:
                 # with it (drive 507: |rdot| beyond MODEL_STEADY_RDOT through the braking's second half)
                 law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, brake_ratio))
             law_var_seen = law_var  # what the steering, drive and brake rules saw (the witness's at_limit)
-            if slide_var > law_var:  # the kinematics against the model (SLIDE_RATE), in a transient too
+            # the kinematics against the model (SLIDE_RATE), in a transient too, while the steering has shown
+            # the road's friction at this |ay| (friction_limit.py): off the limit a mismatch is the bank's
+            # step the accelerometer states have not followed yet (road_handling), not a slide
+            if slide_var > law_var and FRICTION_MEMORY and self.friction.a_lim < math.inf:
                 law_var = slide_var
             if SLIP_RATIO_LIMIT:
                 # the tyres near their limit longitudinally: the wheels' slip ratio (the witness's, as of
