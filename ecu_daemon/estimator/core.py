@@ -62,6 +62,7 @@ from .fusion.slip_ratio_limit import SlipRatioLimit
 from .fusion.law_excess_bound import LawExcessBound
 from .fusion.tyre_lateral_force import RearLateralForce
 from .fusion.friction_limit import FrictionLimit
+from .fusion.slide_rate import SlideRate
 from .fusion.wheel_speed import WheelSpeedFusion
 from .history import AUX_AX, AUX_AY, AUX_DELTA, AUX_R, AUX_RDOT, AUX_WHEEL, StepHistory
 from .input_age import InputAge
@@ -408,6 +409,19 @@ SLOW_TURN_FORGOTTEN = True
 # rotation the gyro read), the std carries the scale error the wheels measured instead and the heading
 # takes the gate's forgetting rule (slow_turn_heading.py). False: main's behaviour, bit for bit.
 HEADING_SLOW_TURN_FORGOTTEN = True
+# The steering's misfit is blind to a car sliding with both axles at their limit alike: never-seen
+# random drive 2254 (all-wheel drive, double lane change on mu 0.099, front and rear slip ~15 deg) had
+# the misfit pass through 0 as the steering crossed L r / vx, the pseudo-measurement back at full
+# weight moved vy from -2.1 to -0.6 m/s in 36 ms (true -2.9), and the sideslip was published valid
+# 17.5 deg off at 0.6 deg. The kinematics see the slide: vy changes at ay - r vx (0.87 - 1.68 m/s^2
+# there) while the model's vy, from a steady r and ay, stays put; the mismatch integrated over the
+# model's correlation time, beyond the residual offsets' share, is what the model's vy is off by and
+# joins the law excess (fusion/slide_rate.py; with fresh GNSS, the law excess's gate), while the car is
+# at the friction the steering has shown (FRICTION_MEMORY's hold): a bank stepping faster than b_ay
+# follows puts the same mismatch into ay - r vx on a gripping car (suite road_handling: -0.6 m/s^2 for
+# 4 s at a bank step of 2.9 deg; ungated, sideslip RMS 0.40 -> 0.67 deg). False: main's behaviour, bit
+# for bit.
+SLIDE_RATE = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -575,6 +589,7 @@ class Estimator:
         # a driven rear axle on its limit, from its wheels against the free front (drive_slip.py)
         self.drive_slip = DriveSlip(dt, veh.driven_axle, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m)
         self.friction = FrictionLimit()  # FRICTION_MEMORY
+        self.slide_rate = SlideRate(dt)  # SLIDE_RATE
         self.friction_var = 0.0  # its held law excess at the last step ((m/s)^2)
         # the rear axle's friction ellipse at its braking load against the road's grip shown (brake_grip.py)
         self.brake_grip = BrakeGrip(dt, veh.driven_axle, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
@@ -972,6 +987,8 @@ class Estimator:
         self.law_var_held = 0.0  # no misfit measured on this state yet (LAW_EXCESS_HOLD)
         self.law_steady_t = math.inf
         self.law_var_min = math.inf
+        if SLIDE_RATE:
+            self.slide_rate.reset()  # the model's mismatch is measured on this state from here
         # the drive-slip low-pass (0.1 s) holds the wheels before the re-initialisation: after a spin
         # the slide's slip ratio, after a gap or a divergence wheels no longer of this car state
         self.drive_slip.reset()
@@ -1238,6 +1255,14 @@ class Estimator:
         brake_ratio = 1.0
         if BRAKE_GRIP and imu_ok:
             brake_ratio = self.brake_grip.step(vx, ax_m - ax_off, reg_f, reg_r)
+        # the car's vy rate against the model's: a slide the steering's misfit cannot see (slide_rate.py)
+        slide_var = 0.0
+        if SLIDE_RATE:
+            if imu_ok and not iso & (YAW_RATE | ACCEL_Y):
+                vy_mod, std_mod = self.single_track.model_error(vx, r_c, ay_c, rdot)
+                slide_var = self.slide_rate.step(vx, r, ay, vy_mod + vy_shift, std_mod)
+            else:
+                self.slide_rate.reset()
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
         if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S):
@@ -1274,6 +1299,11 @@ class Estimator:
                 # with it (drive 507: |rdot| beyond MODEL_STEADY_RDOT through the braking's second half)
                 law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, brake_ratio))
             law_var_seen = law_var  # what the steering, drive and brake rules saw (the witness's at_limit)
+            # the kinematics against the model (SLIDE_RATE), in a transient too, while the steering has shown
+            # the road's friction at this |ay| (friction_limit.py): off the limit a mismatch is the bank's
+            # step the accelerometer states have not followed yet (road_handling), not a slide
+            if slide_var > law_var and FRICTION_MEMORY and self.friction.a_lim < math.inf:
+                law_var = slide_var
             if SLIP_RATIO_LIMIT:
                 # the tyres near their limit longitudinally: the wheels' slip ratio (the witness's, as of
                 # the step before) over a linear tyre's is the factor the rear's angle exceeds its law
