@@ -14,8 +14,8 @@ tolerance widens by what the bank may change within its window (``fault_detectio
 bank_rate.py). With the flag off this test fails (``ay isolated from t+22.9 s``); with it on it passes.
 The suite's ay step faults (``fault_accel_y_*``) stay isolated as on main.
 
-The allowance is off by default since stop 43 (it also passed a car sliding on ice, never-seen drive 2254:
-tests/test_ice_slide_ay_allowance.py); this test keeps its mechanism checked with it on.
+The allowance is off by default since stop 43 (it also passed cars sliding on ice as a bank: never-seen
+drives 2254, 2175, 2275, 2356; README); this test keeps its mechanism checked with it on.
 """
 from __future__ import annotations
 

@@ -104,8 +104,9 @@ YAW_SLOW_TOL_REL = 0.12
 #: False: the flat-road tolerance. Off since stop 43: on the never-seen drives 2161-2400 the allowance (1.0
 #: m/s^2 at 12 m/s) also passed a car SLIDING on ice, whose ay - r vx is the sideslip's own rate (2254, flat
 #: road, mu 0.10: sideslip published valid 17.5 deg off; 2175 heading 884 rows beyond 3 sigma; 2275 and
-#: 2356 sideslip), where the isolated ay had kept the sideslip withheld. It needs a test that tells a bank
-#: from a slide before it is on again (tests/test_ice_slide_ay_allowance.py, test_banked_ay_isolation.py).
+#: 2356 sideslip), where the isolated ay had kept the sideslip withheld (2254's own mechanism, the model
+#: back at full weight in the slide, is fusion/slide_rate.py's now). It needs a test that tells a bank from
+#: a slide before it is on again: 2175, 2275, 2356 clean with it on, and test_banked_ay_isolation.py.
 AY_BANK_RATE_ALLOWANCE = False
 SCALE_TOL = 0.15  # slope of (gyro - witness) against the yaw rate: a scale error (x1.3: 0.3)
 SCALE_MIN_SPREAD = 0.05  # rad/s: the gyro's rate must move this much (std) to tell scale from offset
