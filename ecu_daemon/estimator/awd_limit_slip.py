@@ -31,12 +31,10 @@ slips every wheel on any layout: the linear law and the slip witness), above MIN
 """
 from __future__ import annotations
 
-import math
+# SLIP_PER_MPS2: slip ratio per m/s^2 of drive force per mass of a tyre inside its grip, 1 / (g C_x),
+# C_x = 15 (the soft end of passenger-car tyres): the fused wheels' own linear law
+from .fusion.wheel_speed import SLIP_PER_MPS2
 
-G = 9.81
-#: slip ratio per m/s^2 of drive force per mass of a tyre inside its grip: 1 / (g C_x), C_x = 15 (the
-#: soft end of passenger-car tyres, as wheel_speed.SLIP_PER_MPS2)
-SLIP_PER_MPS2 = 1.0 / (G * 15.0)
 #: a brush tyre's slip at the onset of full sliding over the linear slip for the same force (3 mu F_z / C
 #: against mu F_z / C)
 LIMIT_FACTOR = 3.0

@@ -33,7 +33,7 @@ ramps' transients, 91 % of them 0.5 deg or more off; the 23 non-road drives, ban
 """
 from __future__ import annotations
 
-from .bank_rate import BANK_CHANGE_MAX, BANK_RATE_M, G
+from .bank_rate import ay_change_bound
 from .fault_detection import YAW_TOL_RDOT
 from .road import CORRELATION_S
 
@@ -49,7 +49,7 @@ def vy_var(e_as: float, rdot_abs: float, vx: float, p_vy_bay: float, p_bay: floa
     seen = abs(e_as) - YAW_TOL_RDOT * rdot_abs
     if seen <= 0.0:
         return 0.0
-    lag = min(seen * vx, G * min(BANK_RATE_M * vx * CORRELATION_S, BANK_CHANGE_MAX))
+    lag = min(seen * vx, ay_change_bound(vx, CORRELATION_S))
     excess = lag * lag - p_bay
     if excess <= 0.0:
         return 0.0

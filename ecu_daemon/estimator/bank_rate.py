@@ -39,7 +39,13 @@ BANK_RATE_M = 0.01
 BANK_CHANGE_MAX = 2.0 * math.radians(3.0)
 
 
+def ay_change_bound(vx: float, window_s: float) -> float:
+    """m/s^2: the most gravity's share of ay moves while a bank changes at the road's bound for
+    ``window_s`` at ``vx`` (and by no more than BANK_CHANGE_MAX in all)."""
+    return G * min(BANK_RATE_M * vx * window_s, BANK_CHANGE_MAX)
+
+
 def slow_ay_allowance(vx: float, window_s: float) -> float:
     """rad/s: what a bank changing at the road's bound within ``window_s`` at ``vx`` puts into the
     ay test's residual ``(ay - b_ay) / vx`` (vx > 0)."""
-    return G * min(BANK_RATE_M * vx * window_s, BANK_CHANGE_MAX) / vx
+    return ay_change_bound(vx, window_s) / vx
