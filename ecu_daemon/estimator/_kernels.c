@@ -2017,6 +2017,150 @@ l_zz:
     return ret;
 }
 
+/* latency_window(X, aux, P, last, lever_x, slip, min_speed, x_out, rate_out) -> vy error or None:
+ * LatencyEstimator.observe's per-fix window over its candidate delays m = 0..count-1 (count =
+ * len(x_out)), history slot (last - m) mod n, as latency_window_reference computes it with numpy:
+ * None (outputs unspecified) if a wheel speed is not finite or below min_speed; else the wheel
+ * speeds into x_out (divided by 1 + slip rate unless slip is None), the speed's rate
+ * (vx ax + vy ay) / max(|v|, 1) into rate_out, and max over the window of |vy + r lever_x| sqrt(max(P_vy,vy, 0))
+ * (NaN if any is). Elementwise, each operation numpy's (hypot is libm's in both), so the same bits;
+ * what goes is the gathers of whole history rows and ~15 numpy calls of ~160 values per fix.
+ * Columns: X's VX 0, VY 1 (kinematic.py); aux's AUX_R 0, AUX_AY 1, AUX_WHEEL 3, AUX_AX 5 (history.py). */
+static PyObject *k_latency_window(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError,
+                        "latency_window(X, aux, P, last, lever_x, slip, min_speed, x_out, rate_out)");
+        return NULL;
+    }
+    long long last = PyLong_AsLongLong(args[3]);
+    double lever_x = PyFloat_AsDouble(args[4]);
+    int use_slip = args[5] != Py_None;
+    double slip = use_slip ? PyFloat_AsDouble(args[5]) : 0.0;
+    double min_speed = PyFloat_AsDouble(args[6]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bX, ba, bP, bx, br;
+    PyObject *ret = NULL;
+    double *X = get_doubles(args[0], &bX, -N, "X");
+    if (!X)
+        return NULL;
+    Py_ssize_t n = bX.len / (Py_ssize_t)sizeof(double) / N;
+    double *aux = get_doubles(args[1], &ba, -n, "aux");
+    if (!aux)
+        goto l_X;
+    Py_ssize_t na = ba.len / (Py_ssize_t)sizeof(double) / n;
+    if (na < 6) {
+        PyErr_SetString(PyExc_ValueError, "latency_window: aux needs 6 columns");
+        goto l_a;
+    }
+    double *P = get_doubles(args[2], &bP, n * N * N, "P");
+    if (!P)
+        goto l_a;
+    double *x = get_doubles(args[7], &bx, -1, "x_out");
+    if (!x)
+        goto l_P;
+    Py_ssize_t count = bx.len / (Py_ssize_t)sizeof(double);
+    double *rate = get_doubles(args[8], &br, count, "rate_out");
+    if (!rate)
+        goto l_x;
+    int ok = 1;
+    for (Py_ssize_t m = 0; m < count; m++) {
+        long long s = (last - m) % n;
+        const double w = aux[(s < 0 ? s + n : s) * na + 3];
+        if (!isfinite(w) || w < min_speed) {
+            ok = 0;
+            break;
+        }
+        x[m] = w;
+    }
+    if (!ok) {
+        Py_INCREF(Py_None);
+        ret = Py_None;
+        goto l_r;
+    }
+    double worst = -INFINITY;
+    int nan = 0;
+    for (Py_ssize_t m = 0; m < count; m++) {
+        long long s = (last - m) % n;
+        if (s < 0)
+            s += n;
+        const double *a = aux + s * na, *xs = X + s * N;
+        const double vx = xs[0], vy = xs[1];
+        double h = hypot(vx, vy);
+        h = (h != h || h >= 1.0) ? h : 1.0;  /* np.maximum(h, 1.0): NaN propagates */
+        const double r = (vx * a[5] + vy * a[1]) / h;
+        rate[m] = r;
+        if (use_slip)
+            x[m] = x[m] / (1.0 + slip * r);
+        double pv = P[s * N * N + 1 * N + 1];
+        pv = (pv != pv || pv >= 0.0) ? pv : 0.0;
+        const double e = fabs(vy + a[0] * lever_x) * sqrt(pv);
+        if (e != e)
+            nan = 1;
+        else if (e > worst)
+            worst = e;
+    }
+    ret = PyFloat_FromDouble(nan ? NAN : worst);
+l_r:
+    PyBuffer_Release(&br);
+l_x:
+    PyBuffer_Release(&bx);
+l_P:
+    PyBuffer_Release(&bP);
+l_a:
+    PyBuffer_Release(&ba);
+l_X:
+    PyBuffer_Release(&bX);
+    return ret;
+}
+
+/* speed_window(v, vel, last, total, lever_x, lever_y, out): SpeedIntegral.observe's regressor at
+ * every candidate m = 0..len(out)-1 (ring slot (last - m) mod n): the integral less its anchor,
+ * (v_s - total), plus the antenna's lever-arm speed hypot(vx - r ly, vy + r lx) - hypot(vx, vy),
+ * as speed_window_reference's numpy: elementwise, the same operations (hypot libm's in both), the
+ * same bits; without its gathers and ~10 numpy calls a fix. v (n,), vel (n, 3): C-contiguous. */
+static PyObject *k_speed_window(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "speed_window(v, vel, last, total, lever_x, lever_y, out)");
+        return NULL;
+    }
+    long long last = PyLong_AsLongLong(args[2]);
+    double total = PyFloat_AsDouble(args[3]), lx = PyFloat_AsDouble(args[4]), ly = PyFloat_AsDouble(args[5]);
+    if (PyErr_Occurred())
+        return NULL;
+    Py_buffer bv, bvel, bo;
+    PyObject *ret = NULL;
+    double *v = get_doubles(args[0], &bv, -1, "v");
+    if (!v)
+        return NULL;
+    Py_ssize_t n = bv.len / (Py_ssize_t)sizeof(double);
+    double *vel = get_doubles(args[1], &bvel, n * 3, "vel");
+    if (!vel)
+        goto l_v;
+    double *out = get_doubles(args[6], &bo, -1, "out");
+    if (!out)
+        goto l_vel;
+    Py_ssize_t count = bo.len / (Py_ssize_t)sizeof(double);
+    for (Py_ssize_t m = 0; m < count; m++) {
+        long long s = (last - m) % n;
+        if (s < 0)
+            s += n;
+        const double vx = vel[s * 3], vy = vel[s * 3 + 1], r = vel[s * 3 + 2];
+        const double lp = hypot(vx - r * ly, vy + r * lx) - hypot(vx, vy);
+        out[m] = (v[s] - total) + lp;
+    }
+    Py_INCREF(Py_None);
+    ret = Py_None;
+    PyBuffer_Release(&bo);
+l_vel:
+    PyBuffer_Release(&bvel);
+l_v:
+    PyBuffer_Release(&bv);
+    return ret;
+}
+
 /* median(c) -> numpy.median of a 1-D float64 array (NaN if it holds one), as a float: the
  * latency profile's "very clear minimum" test at every profile. numpy's is ~10 us of Python
  * (partition, mean, NaN check) for ~170 values; the result is a selection, or for an even count
@@ -2131,6 +2275,10 @@ static PyMethodDef methods[] = {
     {"median", k_median, METH_O, "median(c) -> numpy.median of a 1-D float64 array, as a float"},
     {"shift_statistics", (PyCFunction)(void (*)(void))k_shift_statistics, METH_FASTCALL,
      "shift_statistics(zz, zy, offsets) -> done: the latency statistics re-anchored in place, einsum's bits"},
+    {"latency_window", (PyCFunction)(void (*)(void))k_latency_window, METH_FASTCALL,
+     "latency_window(X, aux, P, last, lever_x, slip, min_speed, x_out, rate_out) -> vy error or None: observe's window"},
+    {"speed_window", (PyCFunction)(void (*)(void))k_speed_window, METH_FASTCALL,
+     "speed_window(v, vel, last, total, lever_x, lever_y, out): SpeedIntegral.observe's regressors"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -135,6 +135,8 @@ class LatencyEstimator:
         w = max(1, min(self.max_steps, round(AX_SMOOTH_S / dt)))
         self._box = np.full(w, 1.0 / w)
         n = self.max_steps + 1
+        self._window_x = np.empty(n)  # observe's per-fix window (latency_window), consumed within the fix
+        self._window_rate = np.empty(n)
         self.forgetting = forgetting
         # sufficient statistics of y = [x, e..., 1] . theta per candidate (x: delayed wheel speed,
         # e: ``extra`` regressors common to all candidates, y: GNSS speed): Z'Z, Z'y and y'y
@@ -180,23 +182,21 @@ class LatencyEstimator:
         while it has none (mid-corner, after an outage), the unbraked fixes judge them."""
         if not self.enabled or speed < MIN_SPEED:
             return
-        m = np.arange(self.max_steps + 1)
-        cand = k_rx - 1 - m  # candidate validity steps: a delay of (m + 1) steps
-        if k_rx - 1 - self.max_steps < hist.oldest():  # the oldest candidate (cand[-1]): cand falls with m
+        # candidate validity steps k_rx - 1 - m: a delay of (m + 1) steps
+        if k_rx - 1 - self.max_steps < hist.oldest():  # the oldest candidate: they fall with m
             return  # not enough history yet (start-up / after a reset)
-        slot = cand % hist.n
-        aux = hist.aux[slot]
-        x = aux[:, AUX_WHEEL]
-        if not np.isfinite(x).all() or x.min() < MIN_SPEED:
-            return
-        # the speed's rate (vx ax + vy ay) / |v| over the window (not ax alone: in a sideslipping
-        # circle ax reads a share of the centripetal acceleration), averaged over a tenth of a
-        # second (sensor noise)
-        X = hist.X[slot]
-        vx, vy = X[:, VX], X[:, VY]
-        rate = (vx * aux[:, AUX_AX] + vy * aux[:, AUX_AY]) / np.maximum(np.hypot(vx, vy), 1.0)
-        ax = np.convolve(rate, self._box, mode="valid")
         use_all = wheels is not None and wheels.use_all
+        # the wheels' speed x at every candidate (all finite and above MIN_SPEED, or no fix), the
+        # speed's rate (vx ax + vy ay) / |v| over the window (not ax alone: in a sideslipping
+        # circle ax reads a share of the centripetal acceleration) and the ratio's vy error (below),
+        # in one pass over the history (latency_window_reference: what it computes)
+        x, rate = self._window_x, self._window_rate
+        vy_err = latency_window(hist.X, hist.aux, hist.P, k_rx - 1, lever[0], SLIP_PER_MPS2 if use_all else None,
+                                MIN_SPEED, x, rate)
+        if vy_err is None:
+            return
+        # the rate averaged over a tenth of a second (sensor noise)
+        ax = np.convolve(rate, self._box, mode="valid")
         # Fused wheels that are all driven (all-wheel drive) slip on every speed change: they read
         # v (1 + kappa), kappa = a / (C_x g) for the specific force a, so their speed leads the car
         # by v / (C_x g), 0.1 s at 20 m/s: a late bias of the timing in traction and braking alike,
@@ -207,15 +207,13 @@ class LatencyEstimator:
         # car's speed: 0.622; with the slip taken out: 0.616), and the identification left its
         # 0.80 s prior only to 0.78. Undriven wheels slip only when braked, which the braking test
         # below and the accelerometer already keep out of the timing: they are left as they read.
-        if use_all:
-            x = x / (1.0 + SLIP_PER_MPS2 * rate)
+        # (latency_window divides x by 1 + SLIP_PER_MPS2 rate when use_all)
         slip_free = (np.abs(ax) if use_all else -ax).max() <= SLIP_FREE_ACCEL
         # the ratio carries the filter's vy error, |vy_ant| / |v|^2 of it (relative): on
         # a flying start mid-corner the sideslip is not known yet, and its convergence is a ramp
-        # in the ratio that reads as timing; those fixes wait
-        vy_ant = np.abs(vy + aux[:, AUX_R] * lever[0])
-        vy_std = np.sqrt(np.maximum(hist.P[slot, VY, VY], 0.0))
-        if not (vy_ant * vy_std).max() <= RATIO_ERROR * max(speed, MIN_SPEED) ** 2:
+        # in the ratio that reads as timing; those fixes wait (vy_err: the window's largest
+        # |vy + r lever_x| times vy's std)
+        if not vy_err <= RATIO_ERROR * max(speed, MIN_SPEED) ** 2:
             self._refine()  # no new data; the std's fall (a time constant) goes on
             return
         # the GNSS speed as the wheels would read it, through the ratio at the current delay: one
@@ -223,12 +221,14 @@ class LatencyEstimator:
         # not from the filter's ratio (which a slalom at constant speed modulates, and whose
         # errors would then read as timing)
         c = min(max(int(round(self.delay_s / self.dt)) - 1, 0), self.max_steps)
-        ratio = _antenna_to_wheel(X[c:c + 1], aux[c:c + 1], lever, wheels)[0]
+        s = (k_rx - 1 - c) % hist.n
+        ratio = _antenna_to_wheel(hist.X[s:s + 1], hist.aux[s:s + 1], lever, wheels)[0]
         if slip_free:
             # ... and where the antenna and the wheels read the same speed over the window: in a
             # corner the filter's error in their ratio drifts with the speed and steps at the exit
             # (lowspeed_r10: 0.558 s for 0.4; dual_circle: 0.48)
-            ends = _antenna_to_wheel(X[::self.max_steps], aux[::self.max_steps], lever, wheels)
+            ends = [(k_rx - 1) % hist.n, (k_rx - 1 - self.max_steps) % hist.n]  # the newest and oldest candidate
+            ends = _antenna_to_wheel(hist.X[ends], hist.aux[ends], lever, wheels)
             slip_free = abs(ends[0] - 1.0) <= RATIO_ERROR and abs(ends[-1] - 1.0) <= RATIO_ERROR
         if slip_free:
             if self.slip_free is None:
@@ -526,6 +526,52 @@ def information_share(profiles: list, gnss_var: float = math.nan) -> float:
     return 1.0 / (1.0 + (len(profiles) - 1) * shared_correlation([p[2] for p in profiles], gnss_var))
 
 
+def latency_window_reference(X: np.ndarray, aux: np.ndarray, P: np.ndarray, last: int, lever_x: float,
+                             slip: float | None, min_speed: float, x_out: np.ndarray, rate_out: np.ndarray):
+    """:meth:`LatencyEstimator.observe`'s window over its candidate delays m = 0..len(x_out)-1 (history
+    slot ``(last - m) % n``): None if a wheel speed is not finite or below ``min_speed`` (the
+    outputs then unspecified); else the wheel speeds into ``x_out`` (divided by 1 + slip rate unless
+    ``slip`` is None: an all-wheel drive's expected slip), the speed's rate (vx ax + vy ay) / max(|v|, 1)
+    into ``rate_out``, and the largest |vy + r lever_x| times vy's std (NaN if any is NaN), a float.
+    ``backend.select`` swaps in the compiled one (``_kernels.c``: the same elementwise operations
+    per row, without the gathers of whole history rows and ~15 numpy calls of ~160 values a fix:
+    the same bits, tests/test_latency_window.py)."""
+    slot = (last - np.arange(len(x_out))) % len(X)
+    a = aux[slot]
+    x = a[:, AUX_WHEEL]
+    if not np.isfinite(x).all() or x.min() < min_speed:
+        return None
+    Xs = X[slot]
+    vx, vy = Xs[:, VX], Xs[:, VY]
+    rate = (vx * a[:, AUX_AX] + vy * a[:, AUX_AY]) / np.maximum(np.hypot(vx, vy), 1.0)
+    if slip is not None:
+        x = x / (1.0 + slip * rate)
+    x_out[:] = x
+    rate_out[:] = rate
+    vy_ant = np.abs(vy + a[:, AUX_R] * lever_x)
+    vy_std = np.sqrt(np.maximum(P[slot, VY, VY], 0.0))
+    return float((vy_ant * vy_std).max())
+
+
+latency_window = latency_window_reference
+
+
+def speed_window_reference(v: np.ndarray, vel: np.ndarray, last: int, total: float, lever_x: float,
+                           lever_y: float, out: np.ndarray) -> None:
+    """:meth:`SpeedIntegral.observe`'s regressor at every candidate m = 0..len(out)-1 (ring slot
+    ``(last - m) % n``), into ``out``: the integral less its anchor ``total``, plus the antenna's
+    speed over the CG's from the stored vx, vy and yaw rate (``vel``) and the lever arm.
+    ``backend.select`` swaps in the compiled one (``_kernels.c``: the same elementwise operations,
+    without this one's gathers and ~10 numpy calls a fix: the same bits, tests/test_latency_window.py)."""
+    slot = (last - np.arange(len(out))) % len(v)
+    vx, vy, r = vel[slot].T
+    lever_part = np.hypot(vx - r * lever_y, vy + r * lever_x) - np.hypot(vx, vy)
+    out[:] = v[slot] - total + lever_part
+
+
+speed_window = speed_window_reference
+
+
 def latency_costs_reference(zz: np.ndarray, zy: np.ndarray, syy: float, floor: float, c: np.ndarray) -> bool:
     """Each candidate's residual sum of squares into c (``zz``, ``zy``, ``syy``: the sufficient
     statistics per candidate); False (c untouched) unless the regressor's variation that the offset
@@ -740,9 +786,8 @@ class SpeedIntegral:
         would read as timing, so it is added to the integral from the filter's state."""
         if not lat.enabled or not math.isfinite(speed) or speed < MIN_SPEED:
             return
-        m = np.arange(lat.max_steps + 1)
-        c = k_rx - 1 - m
-        if not (c[-1] >= max(self.first, self.last - self.n + 1) and c[0] <= self.last):
+        # candidate validity steps k_rx - 1 - m, m = 0..lat.max_steps: all in the stored run
+        if not (k_rx - 1 - lat.max_steps >= max(self.first, self.last - self.n + 1) and k_rx - 1 <= self.last):
             return
         prev = self.anchor.get(receiver)
         if prev is None:
@@ -752,6 +797,6 @@ class SpeedIntegral:
         else:
             lat.shift((self.total - prev[1], (self.last - prev[0]) * self.dt))
         self.anchor[receiver] = (self.last, self.total)
-        vx, vy, r = self.vel[c % self.n].T
-        lever_part = np.hypot(vx - r * lever[1], vy + r * lever[0]) - np.hypot(vx, vy)
-        lat.observe_series(self.v[c % self.n] - self.total + lever_part, speed, (0.0,))
+        x = np.empty(lat.max_steps + 1)
+        speed_window(self.v, self.vel, k_rx - 1, self.total, lever[0], lever[1], x)
+        lat.observe_series(x, speed, (0.0,))
