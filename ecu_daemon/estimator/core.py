@@ -238,6 +238,16 @@ MODEL_BOUND = True
 # from any limit (relax_jturn_12: 75 deg at 400 deg/s, sideslip within 0.35 deg made invalid).
 LAW_EXCESS = True
 LAW_EXCESS_IN_OUTAGE = False
+# GNSS isolated is no outage (issue 7, reinit44; random drive 2360: braking in a 93 m turn on mu 0.31,
+# AWD, rear slip 4 deg). The fault detector isolates a receiver whose speed disagrees with the wheels
+# (or the filter); on a braked low-friction road that is the slipping wheels' doing, and exactly then
+# the tyres are beyond their law. With the check above keyed on "a fix fused within GNSS_FRESH_S", the
+# isolation read as an outage 1 s after the last fused fix: every excess rule (steering misfit, brake
+# grip, slip ratio; the held excess too) dropped to 0 at once and the model's pseudo-measurement came
+# back at full weight: vy moved 0.8 m/s in 0.1 s, its std 0.62 -> 0.11 m/s, sideslip valid 4.2 deg off
+# at 0.65 deg (1247.1-1249.5 s). While GNSS is isolated the rules keep running (fixes arrive; it is
+# the filter / wheels they contradict); a true outage (no fixes) stays as LAW_EXCESS_IN_OUTAGE says.
+LAW_EXCESS_GNSS_ISOLATED = True
 # A transient is no sign that a tyre has come back inside its law: a car sliding (random drive 279:
 # a rear-driven car spun out on ice, rear slip 60 deg at 1.3 m/s, the steering's misfit ~1.5 m/s)
 # swings its yaw rate as it slides, and with the excess dropped at |rdot| > MODEL_STEADY_RDOT the
@@ -1265,7 +1275,8 @@ class Estimator:
                 self.slide_rate.reset()
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
-        if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S):
+        if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S
+                                      or (LAW_EXCESS_GNSS_ISOLATED and fdi.gnss_isolated)):
             if abs(rdot) <= MODEL_STEADY_RDOT:
                 law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
                 if drive_alpha > 0.0:  # the driven rear on its limit: the law's slip angle, not its noise
