@@ -433,6 +433,12 @@ SLIDE_RATE = True
 # A bank enters ay, not the gyro or the course: it cannot open this rule. False: main's behaviour, bit
 # for bit.
 COURSE_SLIDE = True
+# ... and while they do, a single antenna's heading (course + sideslip) took the sideslip's error: the
+# courses moved it by what the model withheld from vy (2271: heading 2-2.8 deg off at a 0.6 deg std,
+# 709 rows beyond 3 sigma, the sideslip's own std 0.7-2.6 deg). The published heading std is at least
+# the largest sideslip std seen while the rule is open, held TURN_MEMORY_S after it closes (the courses
+# take the heading back). False: COURSE_SLIDE alone.
+COURSE_SLIDE_HEADING = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -603,6 +609,8 @@ class Estimator:
         self.slide_rate = SlideRate(dt)  # SLIDE_RATE
         self.course_slide = CourseSlide()  # COURSE_SLIDE
         self.course_slide_k = -1  # the step of its last fix
+        self.course_slide_psi = 0.0  # the heading's std floor while the courses show the model off
+        self.course_slide_psi_t = -math.inf
         self.friction_var = 0.0  # its held law excess at the last step ((m/s)^2)
         # the rear axle's friction ellipse at its braking load against the road's grip shown (brake_grip.py)
         self.brake_grip = BrakeGrip(dt, veh.driven_axle, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m,
@@ -1760,6 +1768,13 @@ class Estimator:
         slip_std = self.slip_hold / math.sqrt(3.0)
         if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
             psi_std = max(psi_std, slip_heading.heading_floor(slip_std, sd_vx, beta_std, sd_psi))
+        if COURSE_SLIDE_HEADING and COURSE_SLIDE:  # the model shown off by the courses (course_slide.py)
+            if self.course_slide.excess_var(t) > 0.0:
+                self.course_slide_psi = max(self.course_slide_psi, beta_std)
+                self.course_slide_psi_t = t
+            elif t - self.course_slide_psi_t > TURN_MEMORY_S:
+                self.course_slide_psi = 0.0
+            psi_std = max(psi_std, self.course_slide_psi)
         vx_std = math.hypot(sd_vx, slip_std)
         # the scale error GNSS shows the wheels' to have (WheelScaleSeed.gap), times the raw wheel
         # speed that vx follows: nonzero while the state cannot (yet) learn it
