@@ -1,0 +1,86 @@
+"""The sideslip's change that the GNSS course shows against the gyro: a slow slide no accelerometer rule sees.
+
+Why (issue 7, never-seen random drives 2271 and 2318: mu 0.22, a steady circle on a 2.9 deg bank and a
+j-turn, both spun): the car slid slowly into its limit on ice, its sideslip growing at ~1 deg/s, and the
+single-track model's vy, which reads the tyres as gripping, kept the sideslip's std small. The steering's
+misfit did not see it (both axles let go alike) and ``slide_rate.py`` cannot: a slide of 0.25 m/s^2 in
+ay - r vx stays below the accelerometer's residual offset's 3 sigma (0.3 m/s^2) over any memory, and a
+bank change puts the same into ay (why slide_rate is gated on the friction memory).
+
+The physics that tells a slide from a bank: the course over ground is heading + sideslip, and the gyro
+measures the heading's change alone. Between two fixes W seconds apart
+``d_course + int(r) dt + d_beta_model`` (the heading clockwise, course + sideslip; r counter-clockwise) is the model's sideslip error's change: a bank enters ay, not the
+gyro nor the course, so it cannot open this rule. What else moves it: each course's noise (the fix's
+velocity noise over the speed), the gyro's bias error times W and its scale error times the turn, the
+receiver's latency error times the yaw rate's change, and the change of the model's own error (a bias
+for the corner: the change of its std, and a floor for unmodelled dynamics). Beyond 3
+sigma of those, the excess angle times vx is what the model's vy may be off by: it joins the law excess
+(``core.COURSE_SLIDE``), which widens the pseudo-measurement, so the filter's sideslip std grows with it.
+The gyro's bias is taken as the filter knew it at the older fix: a slide the filter has begun to take into
+b_r (a steady circle: a sideslip rate is a gyro bias to the filter) is still counted against it.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+WINDOW_S = 4.0  # s between the two fixes compared: a 1 deg/s slide is 4 deg, beyond 3 sigma of ~1 deg
+SIGMA = 3.0
+MIN_SPEED = 5.0  # m/s: the course's noise grows as 1 / speed
+HOLD_S = 1.5  # s a measured excess stands without a newer fix (GNSS at 1 Hz)
+# rad: the model's sideslip error is a bias for the whole corner (its parameters and tyre law,
+# SingleTrackFusion.model_error): what its change over the window may be is the change of that std,
+# plus this much of unmodelled dynamics (a relaxation lag's 0.3 deg, core.MODEL_STEADY_RDOT)
+MODEL_FLOOR_RAD = math.radians(0.3)
+
+
+class CourseSlide:
+    """Course change less the gyro's turn less the model's sideslip change, over WINDOW_S."""
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self) -> None:
+        self.fixes: deque = deque()  # (t, course, course_var, turn, bias, beta_model, model_var, r, span)
+        self.turn = 0.0  # the gyro's raw turn since the first fix (rad)
+        self.span = 0.0  # the time it spans (s)
+        self.var = 0.0  # the excess of the last fix ((m/s)^2)
+        self.t_var = -math.inf
+        self.angle = 0.0  # the last mismatch (rad, signed) and its 3 sigma, for the log / tests
+        self.lim = 0.0
+
+    def observe(self, t: float, course: float, course_std: float, yaw_sum: float | None, dt_sum: float,
+                bias: float, bias_std: float, beta_model: float, model_std: float, r: float, vx: float,
+                speed: float, latency_std: float, scale_std: float, now: float) -> None:
+        """One fix at its time of validity ``t``: ``yaw_sum`` the stored bias-corrected yaw rates' sum
+        since the previous fix (None: no continuous history, start over), ``dt_sum`` the time it spans,
+        ``bias`` the filter's gyro bias there; ``now`` the step it arrives at (the hold runs from it)."""
+        if yaw_sum is None or not speed >= MIN_SPEED or not vx >= MIN_SPEED:
+            self.reset()
+            return
+        fx = self.fixes
+        if fx:
+            # the gyro's raw turn (the corrected sum plus the bias it was corrected by) and its time
+            self.turn += yaw_sum + bias * dt_sum
+            self.span += dt_sum
+        fx.append((t, course, course_std * course_std, self.turn, bias, beta_model, model_std * model_std, r,
+                   self.span))
+        while len(fx) > 1 and t - fx[1][0] >= WINDOW_S:
+            fx.popleft()
+        t0, c0, cv0, turn0, b0, beta0, mv0, r0, span0 = fx[0]
+        if t - t0 < WINDOW_S or len(fx) < 2:
+            return
+        dturn = self.turn - turn0 - b0 * (self.span - span0)  # less the bias known at the older fix
+        # the heading is clockwise (course + sideslip), the gyro's turn counter-clockwise (ISO 8855)
+        m = math.remainder(course - c0 + dturn + (beta_model - beta0), 2.0 * math.pi)
+        var = (cv0 + course_std * course_std + (bias_std * (t - t0)) ** 2 + (scale_std * dturn) ** 2
+               + (latency_std * (r - r0)) ** 2 + (model_std - math.sqrt(mv0)) ** 2 + MODEL_FLOOR_RAD ** 2)
+        lim = SIGMA * math.sqrt(var)
+        self.angle, self.lim = m, lim
+        e = abs(m) - lim
+        self.var = (e * vx) ** 2 if e > 0.0 else 0.0
+        self.t_var = now
+
+    def excess_var(self, t: float) -> float:
+        """(m/s)^2 the model's vy may be off by, as of the last fix (0 once it is HOLD_S old)."""
+        return self.var if t - self.t_var <= HOLD_S else 0.0
