@@ -248,7 +248,14 @@ LAW_EXCESS_IN_OUTAGE = False
 # back at full weight: vy moved 0.8 m/s in 0.1 s, its std 0.62 -> 0.11 m/s, sideslip valid 4.2 deg off
 # at 0.65 deg (1247.1-1249.5 s). While GNSS is isolated the rules keep running (fixes arrive; it is
 # the filter / wheels they contradict); a true outage (no fixes) stays as LAW_EXCESS_IN_OUTAGE says.
-LAW_EXCESS_GNSS_ISOLATED = True
+# Off (stop 44): on the never-seen drives 2401-2640 it broke 2446 (an AWD steady circle, mu 0.88 -> 0.37,
+# that spins and drives off again): the excess kept running through the spin with GNSS isolated, the
+# sideslip's std grew to 11-14 deg, GNSS was re-admitted at 1258.3 s and the wheels at 1259.3 s as the car
+# rolled forwards, and the sideslip was published valid at 1259.6 s 2.7 deg off at a 0.64 deg std (main:
+# GNSS still isolated there, the sideslip invalid, 0 rows beyond 3 sigma). A sideslip promised 0.3 s
+# after the wheels' return, from a state just pulled in from a 14 deg std, is the defect it exposes;
+# until that is fixed this stays off (tests/test_gnss_isolated_law_excess.py checks both drives).
+LAW_EXCESS_GNSS_ISOLATED = False
 # A transient is no sign that a tyre has come back inside its law: a car sliding (random drive 279:
 # a rear-driven car spun out on ice, rear slip 60 deg at 1.3 m/s, the steering's misfit ~1.5 m/s)
 # swings its yaw rate as it slides, and with the excess dropped at |rdot| > MODEL_STEADY_RDOT the
