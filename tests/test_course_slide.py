@@ -13,6 +13,10 @@ drive test fails (709 heading rows beyond 3 sigma, sideslip 5.5 deg off); with t
 promise (44 rows, 0.9 %) and the sideslip's worst valid error is 2.4 deg. The rule fires 0.3-0.8 s after the
 error has passed 3 sigma (a 3-sigma test on two courses cannot be quicker than the error it measures), so
 122 sideslip rows beyond remain: the strict xfail.
+
+Off by default since stop 44: with a GNSS latency configured fixed and far off (tests/test_latency_prior_wrong.py,
+0.1 s for 0.8) the rule opened on the misaligned courses, and the widened model let those courses move the
+sideslip: 86 rows valid beyond 3 sigma. The drive tests here run with both flags on.
 """
 from __future__ import annotations
 
@@ -26,15 +30,17 @@ SEED = 2271
 
 @pytest.fixture(scope="module")
 def drive_2271(tmp_path_factory):
+    from ecu_daemon.estimator import core
     rd = load_tool("random_drives")
-    d = rd.run_drive(SEED, str(tmp_path_factory.mktemp("rd")))  # the whole 60 s drive (~30 s idle)
+    with pytest.MonkeyPatch.context() as mp:  # off by default since stop 44 (core.py: a wrong fixed latency)
+        mp.setattr(core, "COURSE_SLIDE", True)
+        mp.setattr(core, "COURSE_SLIDE_HEADING", True)
+        d = rd.run_drive(SEED, str(tmp_path_factory.mktemp("rd")))  # the whole 60 s drive (~30 s idle)
     assert d["error"] is None, d["error"]
     return d["figures"]
 
 
 def test_a_slow_slide_on_ice_leaves_the_heading_honest(drive_2271):
-    from ecu_daemon.estimator import core
-    assert core.COURSE_SLIDE and core.COURSE_SLIDE_HEADING
     he, ss = drive_2271["heading"], drive_2271["sideslip"]
     assert he["valid_rows"] > 4000 and ss["valid_rows"] > 4000  # the promise is still made on this drive
     assert he["coverage_3sigma"] >= 0.99, he  # main: 709 rows beyond 3 sigma (0.872)

@@ -449,7 +449,13 @@ SLIDE_RATE = True
 # the gyro's bias and scale errors, is the model's error; it joins the law excess (fusion/course_slide.py).
 # A bank enters ay, not the gyro or the course: it cannot open this rule. False: main's behaviour, bit
 # for bit.
-COURSE_SLIDE = True
+# Off (stop 44): with the GNSS latency configured fixed and far off (tests/test_latency_prior_wrong.py:
+# dlc_lat08 replayed with delay_s = 0.1 for a true 0.8, estimate_delay false) the sideslip was published
+# valid beyond 3 sigma on 86 rows with it on, 0 with it off. Not traced; the likely path: courses 0.7 s
+# misaligned with the gyro open the rule, whose 3 sigma counts the latency's std times the yaw rate's
+# change with a fixed latency's 0.01 s (latency.FIXED_STD_S) however wrong it is, and the widened model
+# lets those courses move vy. Off until that is traced (tests/test_course_slide.py runs it on).
+COURSE_SLIDE = False
 # ... and while they do, a single antenna's heading (course + sideslip) took the sideslip's error: the
 # courses moved it by what the model withheld from vy (2271: heading 2-2.8 deg off at a 0.6 deg std,
 # 709 rows beyond 3 sigma, the sideslip's own std 0.7-2.6 deg). The published heading std is at least
