@@ -17,13 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator import Estimator
 from ecu_daemon.estimator import backend, latency
 from ecu_daemon.estimator.latency import LatencyEstimator, nan_to_num, profile_sum, shift_statistics_reference
-from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from drive_samples import decoded_events  # noqa: E402
+from drive_samples import scenario_estimates  # noqa: E402
 
 
 def einsum_shift(zz: np.ndarray, zy: np.ndarray, offsets) -> tuple[np.ndarray, np.ndarray]:
@@ -126,17 +124,7 @@ def _estimates_of_dlc_dry(seconds: float) -> tuple[list, int]:
 
     latency.shift_statistics = counted
     try:
-        sc = SCENARIOS["dlc_dry"]
-        cfg = vehicle_config(sc)
-        est = Estimator(cfg)
-        out = []
-        t0 = None
-        for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
-            t0 = t if t0 is None else t0
-            if t - t0 > seconds:
-                break
-            (est.push_gnss if kind else est.push_input)(s)
-            out.extend(repr(tuple(e)) for e in est.advance_to(t - 1e-6))
+        out = scenario_estimates("dlc_dry", seconds)
     finally:
         latency.shift_statistics = fast
     return out, taken[0]

@@ -15,12 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ecu_daemon.estimator import Estimator, backend, latency
+from ecu_daemon.estimator import backend, latency
 from ecu_daemon.estimator.fusion.wheel_speed import SLIP_PER_MPS2
-from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from drive_samples import decoded_events  # noqa: E402
+from drive_samples import scenario_estimates  # noqa: E402
 
 needs_compiled = pytest.mark.skipif(backend.compiled is None, reason="compiled kernels not built")
 
@@ -87,20 +86,6 @@ def test_speed_window_is_the_references_bits():
         assert want.tobytes() == got.tobytes(), t
 
 
-def _estimates(scenario: str, seconds: float) -> list:
-    sc = SCENARIOS[scenario]
-    cfg = vehicle_config(sc)
-    est = Estimator(cfg)
-    out, t0 = [], None
-    for t, kind, s in decoded_events(cfg, simulate(sc, cfg)):
-        t0 = t if t0 is None else t0
-        if t - t0 > seconds:
-            break
-        (est.push_gnss if kind else est.push_input)(s)
-        out.extend(repr(tuple(e)) for e in est.advance_to(t - 1e-6))
-    return out
-
-
 @needs_compiled
 def test_a_drive_gives_the_same_estimates_with_the_numpy_windows(monkeypatch):
     with backend.selected(True):
@@ -114,10 +99,10 @@ def test_a_drive_gives_the_same_estimates_with_the_numpy_windows(monkeypatch):
             return out
 
         monkeypatch.setattr(latency, "latency_window", counted)
-        fast = _estimates("dlc_dry", 20.0)
+        fast = scenario_estimates("dlc_dry", 20.0)
         assert sum(calls) > 50  # the fixes' windows were read (and the accelerometer's with them)
         monkeypatch.setattr(latency, "latency_window", latency.latency_window_reference)
         monkeypatch.setattr(latency, "speed_window", latency.speed_window_reference)
-        slow = _estimates("dlc_dry", 20.0)
+        slow = scenario_estimates("dlc_dry", 20.0)
     assert len(fast) == len(slow) > 1000
     assert fast == slow

@@ -8,7 +8,7 @@ single-track learner's ``rls_update`` (``fusion/single_track.py``) and the laten
 ``sens_step`` / ``sens_fused`` (``latency_sensitivity.py``) and the lever-arm checks'
 ``fit_update`` / ``fit_predict`` / ``yaw_sum`` (``lever_arm_check.py``; ``yaw_sum`` numpy's own bits, its pairwise sum) and the latency identification's
 ``latency_costs`` / ``accumulate`` / ``median`` / ``shift_statistics`` / ``latency_window`` /
-``speed_window`` (``latency.py``) and the prefix products
+``speed_window`` / ``refine_scan`` (``latency.py``) and the prefix products
 doubling (``latency_sensitivity.prefix_doubling``) and the scale sensitivity's ``scale_step`` /
 ``carry_change`` (``scale_sensitivity.py``): unlike the others these three reproduce numpy's
 bits, and are installed only where a probe shows they do (:func:`blas_bits_match`); and the scale
@@ -34,7 +34,7 @@ SINGLE_TRACK_KERNELS = ("rls_update",)
 SENSITIVITY_KERNELS = ("sens_step", "sens_fused", "across_secant")
 LEVER_KERNELS = ("fit_update", "fit_predict", "yaw_sum")
 LATENCY_KERNELS = ("latency_costs", "accumulate", "median", "shift_statistics", "latency_window",
-                   "speed_window")
+                   "speed_window", "refine_scan")
 SCALE_KERNELS = ("scale_step", "carry_change")
 SCALE_FIT_KERNELS = ("scale_fused",)
 

@@ -135,7 +135,9 @@ class LatencyEstimator:
         w = max(1, min(self.max_steps, round(AX_SMOOTH_S / dt)))
         self._box = np.full(w, 1.0 / w)
         n = self.max_steps + 1
-        self._window_x = np.empty(n)  # observe's per-fix window (latency_window), consumed within the fix
+        # the per-fix window (observe's latency_window, SpeedIntegral.observe's speed_window), consumed
+        # within the fix (observe_series reads it into the statistics; nothing keeps it)
+        self._window_x = np.empty(n)
         self._window_rate = np.empty(n)
         self.forgetting = forgetting
         # sufficient statistics of y = [x, e..., 1] . theta per candidate (x: delayed wheel speed,
@@ -403,21 +405,20 @@ class LatencyEstimator:
         # courses placed with the prior for longer (slalom_dry: k_r 30 % off; lat34)
         lr = profile_sum(profiles)
         share = information_share(profiles, self.gnss_var)
-        i = int(lr.argmin())
-        if i == 0 or i == len(lr) - 1:
-            return
-        lr = lr - lr[i]
-        # Likelihood-ratio statistic of every candidate against the best. Its profile gives both
-        # the decision (move only when the data reject the current delay) and an honest std (the
-        # width of the set of delays the data cannot reject; several near-equal minima, as a
-        # weakly excited drive has, make it wide instead of picking one by noise).
-        y0, y1, y2 = lr[i - 1], lr[i], lr[i + 1]
+        cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
+        # Likelihood-ratio statistic of every candidate against the best (lr - lr[i], i its
+        # argmin). Its profile gives both the decision (move only when the data reject the
+        # current delay) and an honest std (the width of the set of delays the data cannot reject;
+        # several near-equal minima, as a weakly excited drive has, make it wide instead of
+        # picking one by noise). refine_scan_reference: what is read of it.
+        scan = refine_scan(lr, share, LR_REJECT, cur)
+        if scan is None:
+            return  # the best at either end of the candidates
+        i, y0, y1, y2, first, last, at_cur = scan
         den = y0 - 2 * y1 + y2
         off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
         est = (i + 1 + max(-0.5, min(0.5, off))) * self.dt  # candidate i is a delay of (i+1) steps
-        inside = np.flatnonzero(share * lr < LR_REJECT)
-        width_std = 0.5 * (inside[-1] - inside[0] + 1) * self.dt / math.sqrt(LR_REJECT)
-        cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
+        width_std = 0.5 * (last - first + 1) * self.dt / math.sqrt(LR_REJECT)
         prior_std = self.prior_std_s
         # The wheels are a biased clock (braking slip, the antenna-to-wheel ratio's errors in a
         # corner, filtered sensors). While the accelerometer (no slip) has a profile, they refute
@@ -425,7 +426,7 @@ class LatencyEstimator:
         # JUDGE_SPAN_S) and agrees with them, or clean unbraked wheel fixes refute it and it does
         # not contradict them. A broad or stale accelerometer profile passing braked wheels took
         # flying_50_straight 0.032 s off, and wheels in a circle dual_circle 0.036 s.
-        refuted = lr[cur] > LR_REJECT
+        refuted = at_cur > LR_REJECT
         if refuted and judge is not None:
             sf = self.slip_free._profile() if self.slip_free is not None else None
             sharp = np.count_nonzero(judge[0] < LR_REJECT) * self.dt <= JUDGE_SPAN_S
@@ -450,7 +451,7 @@ class LatencyEstimator:
             return
         if refuted and agree:
             self._chasing = True
-        elif self._chasing and (not agree or lr[cur] <= LR_ARRIVE):
+        elif self._chasing and (not agree or at_cur <= LR_ARRIVE):
             self._chasing = False
         if refuted or self._chasing:
             # Slew-limited: a wrong step in the delay costs more than a slow convergence; a
@@ -524,6 +525,26 @@ def information_share(profiles: list, gnss_var: float = math.nan) -> float:
     if len(profiles) < 2:
         return 1.0
     return 1.0 / (1.0 + (len(profiles) - 1) * shared_correlation([p[2] for p in profiles], gnss_var))
+
+
+def refine_scan_reference(lr: np.ndarray, share: float, reject: float, cur: int):
+    """:meth:`LatencyEstimator._refine`'s reading of its summed profile ``lr``: None when its best
+    candidate i (numpy's argmin: the first minimum, the first NaN if any) is at either end; else
+    ``(i, y0, y1, y2, first, last, at_cur)`` of ``d = lr - lr[i]``: d at i - 1, i, i + 1 (the parabola
+    through the minimum), the first and last candidate with ``share * d < reject`` (the set the
+    data cannot reject; IndexError if empty) and d at ``cur`` (the current delay's).
+    ``backend.select`` swaps in the compiled one (``_kernels.c``: the same elementwise operations,
+    without the profile's temporaries and ~12 numpy calls a refinement, three a fix: the same
+    bits, tests/test_refine_scan.py)."""
+    i = int(lr.argmin())
+    if i == 0 or i == len(lr) - 1:
+        return None
+    d = lr - lr[i]
+    inside = np.flatnonzero(share * d < reject)
+    return (i, float(d[i - 1]), float(d[i]), float(d[i + 1]), int(inside[0]), int(inside[-1]), float(d[cur]))
+
+
+refine_scan = refine_scan_reference
 
 
 def latency_window_reference(X: np.ndarray, aux: np.ndarray, P: np.ndarray, last: int, lever_x: float,
@@ -797,6 +818,6 @@ class SpeedIntegral:
         else:
             lat.shift((self.total - prev[1], (self.last - prev[0]) * self.dt))
         self.anchor[receiver] = (self.last, self.total)
-        x = np.empty(lat.max_steps + 1)
+        x = lat._window_x  # the estimator's per-fix buffer, consumed within observe_series
         speed_window(self.v, self.vel, k_rx - 1, self.total, lever[0], lever[1], x)
         lat.observe_series(x, speed, (0.0,))
