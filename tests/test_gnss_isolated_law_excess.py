@@ -12,10 +12,14 @@ of 4907 valid rows beyond 3 sigma, 1247.36-1249.45 s). With ``core.LAW_EXCESS_GN
 keep running while GNSS is isolated: 0 rows beyond 3 sigma, worst valid 0.41 deg. With the flag off this
 test fails.
 
-The flag is off by default since stop 44: on the never-seen drive 2446 (a spin on mu 0.37, then driving
-off) it let GNSS back in after the spin and the sideslip was published valid 2.7 deg off at 0.64 deg
-(core.py says how); the second test keeps that drive clean with the default, the first keeps the
-mechanism checked with the flag on.
+The flag was off by default in stop 44: on drive 2446 (a spin on mu 0.37, then driving off) GNSS was
+let back in after the spin through a check that checked nothing (the filter's vx within 5 of a
+several-m/s sigma), the wheels returned, vy's std collapsed 2.1 -> 0.04 m/s around an untested state
+and the sideslip was published valid 2.7 deg off at 0.64 deg. ``core.GNSS_READMIT_CHECK`` (readmit45,
+gnss_readmit.py) holds the sideslip after such a re-admission until a fix is fused while the velocity
+is vouched for; with both on (the defaults) both drives are clean. The second test fails with
+GNSS_READMIT_CHECK off (16 rows beyond 3 sigma, worst 2.72 deg), the first with
+LAW_EXCESS_GNSS_ISOLATED off (149 rows).
 """
 from __future__ import annotations
 
@@ -29,9 +33,9 @@ from ecu_daemon.estimator.estimate import STATUS_GNSS_ISOLATED
 SEED = 2360
 
 
-def test_sideslip_not_promised_from_the_bare_law_while_gnss_is_isolated(tmp_path, monkeypatch):
+def test_sideslip_not_promised_from_the_bare_law_while_gnss_is_isolated(tmp_path):
     from ecu_daemon.estimator import core
-    monkeypatch.setattr(core, "LAW_EXCESS_GNSS_ISOLATED", True)
+    assert core.LAW_EXCESS_GNSS_ISOLATED  # the default since readmit45
     rd = load_tool("random_drives")
     sc = rd.draw(SEED)
     assert not sc.sensors.faults and not sc.gnss.faults
@@ -48,15 +52,32 @@ def test_sideslip_not_promised_from_the_bare_law_while_gnss_is_isolated(tmp_path
     assert ss["worst_error_valid"] < math.radians(2.0), math.degrees(ss["worst_error_valid"])
 
 
-def test_sideslip_not_promised_after_a_spin_with_the_default(tmp_path):
-    """2446 (an AWD steady circle on mu 0.88 -> 0.37 that spins at ~1252 s and drives off): with
-    LAW_EXCESS_GNSS_ISOLATED on, 16 valid sideslip rows beyond 3 sigma at 1259.6-1259.7 s, worst 2.72 deg;
-    with the default (off), none: as on main d1a0953."""
+def test_sideslip_not_promised_after_a_spin_until_gnss_is_checked(tmp_path):
+    """2446 (an AWD steady circle on mu 0.88 -> 0.37 that spins at ~1252 s, slides backwards and
+    drives off): GNSS re-admitted at 1258.3 s while wheels and velocity were unvouched, the wheels back
+    at 1259.34 s. With LAW_EXCESS_GNSS_ISOLATED on and GNSS_READMIT_CHECK off: 16 valid sideslip rows
+    beyond 3 sigma at 1259.62-1259.72 s, worst 2.72 deg; with both on (the defaults): none."""
+    from ecu_daemon.estimator import core
+    assert core.LAW_EXCESS_GNSS_ISOLATED and core.GNSS_READMIT_CHECK
     rd = load_tool("random_drives")
-    d = rd.run_drive(2446, str(tmp_path), None)  # the whole drive: 70 s
+    d = rd.run_drive(2446, str(tmp_path), None)  # the whole drive: 70 s (a shorter one draws another drive)
     assert d["error"] is None, d["error"]
     assert d["spun_out"]
     ss = d["figures"]["sideslip"]
     assert ss["valid_rows"] > 4000
     assert ss["beyond_3sigma"] == 0, f"{ss['beyond_3sigma']} valid sideslip rows beyond 3 sigma"
     assert ss["worst_error_valid"] < math.radians(2.0), math.degrees(ss["worst_error_valid"])
+
+
+def test_readmit_check_waits_for_a_vouched_fix():
+    """The bookkeeping alone: a return made without a vouched velocity holds the sideslip until a fix
+    is fused while the velocity is vouched for; a return with one costs nothing."""
+    from ecu_daemon.estimator.gnss_readmit import GnssReadmitCheck
+    c = GnssReadmitCheck()
+    c.released(vel_vouched=True)
+    assert not c.pending
+    c.released(vel_vouched=False)
+    c.fused(vel_vouched=False)  # the re-admitting fix itself, and any before a witness vouches
+    assert c.pending
+    c.fused(vel_vouched=True)
+    assert not c.pending

@@ -43,6 +43,7 @@ from . import slip_heading
 from . import steered_wheel_vx
 from . import gnss_speed_gap
 from .gnss_speed_gap import GnssSpeedGap
+from .gnss_readmit import GnssReadmitCheck
 from . import awd_limit_slip
 from .gyro_scale_gate import GSC_EVERY, GyroScaleGate
 from .estimate import (STATUS_GNSS_FRESH, STATUS_GNSS_HEADING, STATUS_GNSS_REJECTED, STATUS_HEADING_ALIGNED,
@@ -254,8 +255,16 @@ LAW_EXCESS_IN_OUTAGE = False
 # rolled forwards, and the sideslip was published valid at 1259.6 s 2.7 deg off at a 0.64 deg std (main:
 # GNSS still isolated there, the sideslip invalid, 0 rows beyond 3 sigma). A sideslip promised 0.3 s
 # after the wheels' return, from a state just pulled in from a 14 deg std, is the defect it exposes;
-# until that is fixed this stays off (tests/test_gnss_isolated_law_excess.py checks both drives).
-LAW_EXCESS_GNSS_ISOLATED = False
+# on again since readmit45, with GNSS_READMIT_CHECK below (2446: 0 rows beyond 3 sigma, worst 0.24 deg;
+# tests/test_gnss_isolated_law_excess.py checks both drives with the defaults).
+LAW_EXCESS_GNSS_ISOLATED = True
+# GNSS let back in without a witness is no check of the state (issue 7, readmit45; random drive 2446:
+# an AWD spin on mu 0.37, the car sliding backwards, wheels and GNSS isolated): the fixes re-admit
+# GNSS through the filter's vx within 5 of its sigma, which after a spin is 15-30 m/s wide, then
+# pull vx in; the wheels return and vy's std collapses 2.1 -> 0.04 m/s around a state no residual has
+# tested: sideslip valid 2.7 deg off at 0.64 deg (1259.6 s). After a re-admission made while the
+# velocity was not vouched for, the sideslip waits for a fix fused while it is (gnss_readmit.py).
+GNSS_READMIT_CHECK = True
 # A transient is no sign that a tyre has come back inside its law: a car sliding (random drive 279:
 # a rear-driven car spun out on ice, rear slip 60 deg at 1.3 m/s, the steering's misfit ~1.5 m/s)
 # swings its yaw rate as it slides, and with the excess dropped at |rdot| > MODEL_STEADY_RDOT the
@@ -773,6 +782,8 @@ class Estimator:
         # written with it (the same floats, the same bits): a fix sums a Python list, not numpy rows
         self.gap_terms = [0.0] * self.hist.n
         self.sideslip_vouched = False  # the last estimate's sideslip valid (GNSS_SPEED_GAP)
+        self.velocity_vouched = False  # the last estimate's velocity valid (GNSS_READMIT_CHECK)
+        self.readmit = GnssReadmitCheck()  # GNSS back from isolation, not yet checked (GNSS_READMIT_CHECK)
         self.bank_lag_var = 0.0  # (m/s)^2: vy's variance of b_ay's lag behind a changing bank (BANK_LAG_STD)
         self.steer_vy_hold = 0.0  # held vx error a missed vy puts through steered wheels (STEERED_WHEEL_VY)
         self.awd_slip_hold = 0.0  # held drive slip an AWD's wheels may carry at the limit (AWD_LIMIT_SLIP)
@@ -1660,6 +1671,7 @@ class Estimator:
         from the first step before the IMU's first frame; the validity bits say "do not use".
         """
         self.sideslip_vouched = False  # (GNSS_SPEED_GAP)
+        self.velocity_vouched = False  # (GNSS_READMIT_CHECK)
         status = STATUS_INPUT_STALE
         if self._reset_flag:
             status |= STATUS_RESET
@@ -1864,8 +1876,10 @@ class Estimator:
             gyro_ss_ok = gg.sideslip_ok()
         ss_valid = (vel_valid and imu_trusted and vx > MIN_SPEED_SIDESLIP and beta_std < SIDESLIP_STD_VALID
                     and not self.lat_scale.failing and wsc.confirmed
-                    and (iso & YAW_RATE != 0 or gyro_ss_ok))
+                    and (iso & YAW_RATE != 0 or gyro_ss_ok)
+                    and not (GNSS_READMIT_CHECK and self.readmit.pending))
         self.sideslip_vouched = ss_valid
+        self.velocity_vouched = vel_valid
         return _new_estimate(Estimate, (
             t, beta, beta_std, x[PSI], psi_std, vx, vy, vx_std, vy_std,
             r, x[BR], sd_br, x[BAX], sd_bax, x[BAY], sd_bay, self._published_delay(), x[KW],
@@ -1994,9 +2008,12 @@ class Estimator:
                 log.warning("%s", wsc.message())
             self._observe_wheel_scale(s, js, speed, fus)
         tol = GNSS_WHEEL_TOL_MPS + GNSS_WHEEL_TOL_REL * speed
+        was_isolated = self.fdi.gnss_isolated  # (GNSS_READMIT_CHECK)
         verdict = self.fdi.check_gnss(
             s, agree if math.isfinite(h.aux[js, AUX_WHEEL]) else None,
             abs(speed - h.X[js, VX]) <= max(tol, 5.0 * math.sqrt(max(h.P[js][VX, VX], 0.0))))
+        if GNSS_READMIT_CHECK and was_isolated and not self.fdi.gnss_isolated:
+            self.readmit.released(self.velocity_vouched)  # back: checked against what? (gnss_readmit.py)
         if verdict is False or self.fdi.gnss_isolated:  # never fused, never learned from
             t_k = k * self.dt
             self.gnss_conflict_t = min(self.gnss_conflict_t, t_k)
@@ -2074,6 +2091,8 @@ class Estimator:
                     self.single_track.take_drive_estimate(self.stiffness.model_parameters())
         self.last_gnss_rejected = not ok
         if ok:
+            if GNSS_READMIT_CHECK:  # a fix checked against a vouched velocity ends the wait
+                self.readmit.fused(self.velocity_vouched)
             self.gnss_conflict_t = math.inf
             if k * self.dt - self.last_gnss_fused_t > HEADING_FRESH_S:  # GNSS back after a gap
                 self.mag_bridged = (self.mag is not None and self.last_gnss_fused_t > -math.inf
