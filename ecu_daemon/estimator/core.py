@@ -458,19 +458,30 @@ SLIDE_RATE = True
 # the gyro's bias and scale errors, is the model's error; it joins the law excess (fusion/course_slide.py).
 # A bank enters ay, not the gyro or the course: it cannot open this rule. False: main's behaviour, bit
 # for bit.
-# Off (stop 44): with the GNSS latency configured fixed and far off (tests/test_latency_prior_wrong.py:
+# Was off at stop 44: with the GNSS latency configured fixed and far off (tests/test_latency_prior_wrong.py:
 # dlc_lat08 replayed with delay_s = 0.1 for a true 0.8, estimate_delay false) the sideslip was published
-# valid beyond 3 sigma on 86 rows with it on, 0 with it off. Not traced; the likely path: courses 0.7 s
-# misaligned with the gyro open the rule, whose 3 sigma counts the latency's std times the yaw rate's
-# change with a fixed latency's 0.01 s (latency.FIXED_STD_S) however wrong it is, and the widened model
-# lets those courses move vy. Off until that is traced (tests/test_course_slide.py runs it on).
-COURSE_SLIDE = False
+# valid beyond 3 sigma on 86 rows with it on, 0 with it off. Traced at stop 45: the rule's timing term
+# (COURSE_SLIDE_TIMING below); on again with that term.
+COURSE_SLIDE = True
 # ... and while they do, a single antenna's heading (course + sideslip) took the sideslip's error: the
 # courses moved it by what the model withheld from vy (2271: heading 2-2.8 deg off at a 0.6 deg std,
 # 709 rows beyond 3 sigma, the sideslip's own std 0.7-2.6 deg). The published heading std is at least
 # the largest sideslip std seen while the rule is open, held TURN_MEMORY_S after it closes (the courses
 # take the heading back). False: COURSE_SLIDE alone.
 COURSE_SLIDE_HEADING = True
+# The rule's timing term with the latency as far as it is known (issue 7, stop 45: test_latency_prior_wrong
+# [fixed], dlc_dry with a 0.8 s receiver configured fixed at 0.1 s: 86 sideslip rows valid beyond 3 sigma
+# with COURSE_SLIDE on). Each course is from its true instant, the latency error d earlier, so it carries
+# the heading turned over d: the term was the latency's std times the change of r *at the two fixes*, a
+# linearisation that fails for a d of 0.7 s (a lane change's r is 0 at both fixes 4 s apart while it was
+# 0.3 rad/s 0.7 s before each) and used a fixed delay's 0.01-0.15 s std although the data never vouch for
+# a fixed delay (timing_trust). The rule measured 7-10 deg on straights at a 3 sigma of 1.7-2 deg, opened,
+# and the widened model let the mistimed courses move vy (published 5-7 deg off at 0.3-0.65 deg). Now:
+# the std is timing_trust.along_track_std (the receiver's range until identified) and r's change is the
+# largest the yaw rate shows between any two instants the courses may be from (its min / max over +- 3
+# std around each fix, within the receiver's range). A steady circle (2271) keeps a constant r: unchanged.
+# False: the stop-44 term.
+COURSE_SLIDE_TIMING = True
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -2236,10 +2247,23 @@ class Estimator:
         vy_m, std_m = self.single_track.model_error(vx, r, a[AUX_AY], a[AUX_RDOT])
         beta_m = math.atan2(vy_m + r * fus.lever_x, vx - r * fus.lever_y)
         speed = g.speed_mps
+        lat_std = lat.std_s
+        r_lo = r_hi = r
+        if COURSE_SLIDE_TIMING:
+            # the course is from the true instant, anywhere the latency may put it: within 3 of its
+            # std as far as the data vouch for it (timing_trust), never outside the receiver's range
+            lat_std = along_track_std(lat)
+            n = int(math.ceil(3.0 * lat_std / self.dt))
+            a0 = max(s - n, k - 1 - lat.max_steps, h.oldest())
+            b0 = min(s + n, h.last)
+            if a0 < b0:
+                rr = h.aux[np.arange(a0, b0 + 1) % h.n, AUX_R]
+                r_lo = min(r, float(rr.min()))
+                r_hi = max(r, float(rr.max()))
         cs.observe(s * self.dt, fus.course(g), fus.sigma(g) / max(speed, 0.1),
                    None if y is None else float(y) * self.dt, (s - k_last) * self.dt, xs[BR],
-                   math.sqrt(max(h.P.item(i, BR, BR), 0.0)), beta_m, std_m / vx, r, vx, speed, lat.std_s,
-                   self.yaw_scale_std, k * self.dt)
+                   math.sqrt(max(h.P.item(i, BR, BR), 0.0)), beta_m, std_m / vx, r, vx, speed, lat_std,
+                   self.yaw_scale_std, k * self.dt, r_lo, r_hi)
 
     def _widen_for_scale_change(self, s: int, e: float, vx: float) -> None:
         """A detected scale change left a heading error of about e (rad, the fit's residual) in

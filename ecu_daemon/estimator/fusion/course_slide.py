@@ -12,7 +12,9 @@ measures the heading's change alone. Between two fixes W seconds apart
 ``d_course + int(r) dt + d_beta_model`` (the heading clockwise, course + sideslip; r counter-clockwise) is the model's sideslip error's change: a bank enters ay, not the
 gyro nor the course, so it cannot open this rule. What else moves it: each course's noise (the fix's
 velocity noise over the speed), the gyro's bias error times W and its scale error times the turn, the
-receiver's latency error times the yaw rate's change, and the change of the model's own error (a bias
+receiver's latency error times the yaw rate's change (the largest between the instants the two courses
+may really be from: a latency 0.7 s off carries a lane change's 0.3 rad/s into courses taken where r is
+0; ``core.COURSE_SLIDE_TIMING``), and the change of the model's own error (a bias
 for the corner: the change of its std, and a floor for unmodelled dynamics). Beyond 3
 sigma of those, the excess angle times vx is what the model's vy may be off by: it joins the law excess
 (``core.COURSE_SLIDE``), which widens the pseudo-measurement, so the filter's sideslip std grows with it.
@@ -41,7 +43,7 @@ class CourseSlide:
         self.reset()
 
     def reset(self) -> None:
-        self.fixes: deque = deque()  # (t, course, course_var, turn, bias, beta_model, model_var, r, span)
+        self.fixes: deque = deque()  # (t, course, course_var, turn, bias, beta_model, model_var, r, span, r_lo, r_hi)
         self.turn = 0.0  # the gyro's raw turn since the first fix (rad)
         self.span = 0.0  # the time it spans (s)
         self.var = 0.0  # the excess of the last fix ((m/s)^2)
@@ -51,10 +53,14 @@ class CourseSlide:
 
     def observe(self, t: float, course: float, course_std: float, yaw_sum: float | None, dt_sum: float,
                 bias: float, bias_std: float, beta_model: float, model_std: float, r: float, vx: float,
-                speed: float, latency_std: float, scale_std: float, now: float) -> None:
+                speed: float, latency_std: float, scale_std: float, now: float, r_lo: float | None = None,
+                r_hi: float | None = None) -> None:
         """One fix at its time of validity ``t``: ``yaw_sum`` the stored bias-corrected yaw rates' sum
         since the previous fix (None: no continuous history, start over), ``dt_sum`` the time it spans,
-        ``bias`` the filter's gyro bias there; ``now`` the step it arrives at (the hold runs from it)."""
+        ``bias`` the filter's gyro bias there; ``now`` the step it arrives at (the hold runs from it);
+        ``r_lo`` / ``r_hi`` the yaw rate's least and largest over the instants the course may really be
+        from (the latency's error: default ``r``), so that the timing term is the largest change of r
+        between the two courses' true instants, not its change between the fixes' nominal ones."""
         if yaw_sum is None or not speed >= MIN_SPEED or not vx >= MIN_SPEED:
             self.reset()
             return
@@ -63,18 +69,20 @@ class CourseSlide:
             # the gyro's raw turn (the corrected sum plus the bias it was corrected by) and its time
             self.turn += yaw_sum + bias * dt_sum
             self.span += dt_sum
+        if r_lo is None or r_hi is None:
+            r_lo = r_hi = r
         fx.append((t, course, course_std * course_std, self.turn, bias, beta_model, model_std * model_std, r,
-                   self.span))
+                   self.span, r_lo, r_hi))
         while len(fx) > 1 and t - fx[1][0] >= WINDOW_S:
             fx.popleft()
-        t0, c0, cv0, turn0, b0, beta0, mv0, r0, span0 = fx[0]
+        t0, c0, cv0, turn0, b0, beta0, mv0, r0, span0, r0_lo, r0_hi = fx[0]
         if t - t0 < WINDOW_S or len(fx) < 2:
             return
         dturn = self.turn - turn0 - b0 * (self.span - span0)  # less the bias known at the older fix
         # the heading is clockwise (course + sideslip), the gyro's turn counter-clockwise (ISO 8855)
         m = math.remainder(course - c0 + dturn + (beta_model - beta0), 2.0 * math.pi)
         var = (cv0 + course_std * course_std + (bias_std * (t - t0)) ** 2 + (scale_std * dturn) ** 2
-               + (latency_std * (r - r0)) ** 2 + (model_std - math.sqrt(mv0)) ** 2 + MODEL_FLOOR_RAD ** 2)
+               + (latency_std * max(r_hi - r0_lo, r0_hi - r_lo)) ** 2 + (model_std - math.sqrt(mv0)) ** 2 + MODEL_FLOOR_RAD ** 2)
         lim = SIGMA * math.sqrt(var)
         self.angle, self.lim = m, lim
         e = abs(m) - lim
