@@ -461,8 +461,16 @@ SLIDE_RATE = True
 # Was off at stop 44: with the GNSS latency configured fixed and far off (tests/test_latency_prior_wrong.py:
 # dlc_lat08 replayed with delay_s = 0.1 for a true 0.8, estimate_delay false) the sideslip was published
 # valid beyond 3 sigma on 86 rows with it on, 0 with it off. Traced at stop 45: the rule's timing term
-# (COURSE_SLIDE_TIMING below); on again with that term.
-COURSE_SLIDE = True
+# (COURSE_SLIDE_TIMING below). Off again at stop 45: a gyro scale error the filter has not found yet
+# opens it as a slide does (tests/test_scale_sensitivity.py, a corner with the gyro 3-5 % off: the
+# courses turn 3-5 % less or more than the gyro; its 3 sigma counts the scale as yaw_scale_std x the
+# turn, the scale check's std, not traced whether that covered the error before the check found it;
+# failing with it on, passing with it off): the heading floor then made a right heading invalid (flying_10_gyro_-5pct: valid
+# above 5 m/s 0.40) and left a valid one 2.7 deg off within its 3 sigma (x0.97). With it on, on the
+# never-seen drives 2641-2880, the heading rows valid beyond 3 sigma went 280 -> 0 (2827) for 87.1 ->
+# 86.7 % heading availability; it waits for a scale term that counts the scale as far as the gyro's
+# scale check has confirmed it (as COURSE_SLIDE_TIMING does the latency). Its tests run it on.
+COURSE_SLIDE = False
 # ... and while they do, a single antenna's heading (course + sideslip) took the sideslip's error: the
 # courses moved it by what the model withheld from vy (2271: heading 2-2.8 deg off at a 0.6 deg std,
 # 709 rows beyond 3 sigma, the sideslip's own std 0.7-2.6 deg). The published heading std is at least
