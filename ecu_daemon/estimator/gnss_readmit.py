@@ -36,6 +36,3 @@ class GnssReadmitCheck:
         """A fix was fused; while the velocity is vouched for it has passed a real check."""
         if vel_vouched:
             self.pending = False
-
-    def reset(self) -> None:
-        self.pending = False
