@@ -75,3 +75,53 @@ def test_the_course_against_the_gyro_measures_the_slide():
     only) never enters."""
     assert _circle(0.0) == 0.0
     assert 0.30 < _circle(1.0) < 0.38, _circle(1.0)
+
+
+def _straight_after_corner(scale_sd: float, s_br: float | None, bias_share: float = 1.0) -> float:
+    """Largest excess (m/s) on a straight (true r 0, 14 m/s, courses constant) after a corner at
+    0.5 rad/s in which the filter's bias state took ``bias_share`` of a -5 % gyro scale error
+    (b_r = -S_br s with S_br = -0.5 bias_share rad/s per unit scale): the gyro reads nothing, the
+    rule subtracts the older fix's bias, a slide the car does not have."""
+    from ecu_daemon.estimator.fusion.course_slide import CourseSlide
+    cs = CourseSlide()
+    scale, vx, dt, worst = -0.05, 14.0, 0.1, 0.0
+    sens = -0.5 * bias_share  # d b_r / d s
+    b = -sens * scale  # the bias state's error: -0.025 rad/s (-1.4 deg/s) taken whole
+    for n in range(100):
+        t = n * dt
+        # the stored yaw rates are bias-corrected: 0 - b
+        cs.observe(t, 0.0, 0.01, -b * dt if n else 0.0, dt, b, 0.001, 0.0, 0.003, 0.0, vx, vx, 0.01,
+                   scale_sd, t, s_br=None if s_br is None else sens)
+        worst = max(worst, math.sqrt(cs.excess_var(t)))
+    return worst
+
+
+def test_a_scale_the_bias_state_took_in_the_corner_is_not_a_slide_on_the_straight():
+    """stop 46 (core.COURSE_SLIDE_SCALE_SENS): the scale error the bias state took in a corner is b_r's
+    error S_br s, and less the older fix's bias the rule measures S_br s W on the straight (5.7 deg over
+    4 s here; the -5 % flying start: 7-9 deg). The stop-45 term, a scale std x the turn, is 0 there: it
+    opened (at the scale check's 1 % for a true 5 %). Signed with the turn, the term covers it."""
+    assert _straight_after_corner(0.01, None) > 0.7  # the stop-45 term: opens, 0.78 m/s
+    assert _straight_after_corner(0.05, 0.0) == 0.0  # the unapplied scale's 5 % x the bias's share
+    assert _straight_after_corner(0.012, 0.0) > 0.0  # the prior's 1.2 % does not cover a 5 % scale
+
+
+def test_the_scale_term_cancels_where_the_bias_state_took_the_scale():
+    """In a steady corner the turn and the bias's share have opposite signs (S_br ~ -r where b_r took the
+    whole scale): a slide still opens the rule under an unapplied 5 % scale (2271's gain kept), as a
+    scale std x the whole turn (0.4 rad, 3 sigma 3.4 deg more) would not."""
+    from ecu_daemon.estimator.fusion.course_slide import CourseSlide
+
+    def circle(s_br):
+        cs = CourseSlide()
+        r, vx, dt, beta, worst = 0.1, 14.0, 0.1, 0.0, 0.0
+        for n in range(100):
+            t = n * dt
+            cs.observe(t, -r * t - beta, 0.01, r * dt if n else 0.0, dt, 0.002, 0.001, 0.0, 0.003, r, vx, vx,
+                       0.01, 0.05, t, s_br=s_br)
+            beta += math.radians(1.0) * dt
+            worst = max(worst, math.sqrt(cs.excess_var(t)))
+        return worst
+
+    assert 0.30 < circle(-0.1) < 0.38, circle(-0.1)  # as with no scale term at all (_circle(1.0))
+    assert circle(None) == 0.0  # 5 % x the whole turn: the slide hidden
