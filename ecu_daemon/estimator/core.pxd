@@ -30,6 +30,13 @@ cdef class Estimator:
     cdef public object yaw_scale_heading, yaw_scale_realigned, scale_sens, wheel_scale_check
     cdef public object axis_swap, gyro_gate, spin, drive_slip, law_var_held, law_steady_t, law_var_min
     cdef public object brake_grip, speed_gap, gap_terms, slip_ratio_limit, rear_fy
+    # read or written every step by _step / _estimate (perf46: each was a __dict__ look-up through
+    # Cython's generic getattr)
+    cdef public object ay_out, ay_out_new, awd_slip_hold, bank_lag_var, bank_walk, course_slide
+    cdef public object course_slide_psi, course_slide_psi_t, friction, friction_var, input_age
+    cdef public object law_bound, lever_flagged, mass_lf, readmit, sideslip_vouched, slide_rate
+    cdef public object slip_witness, speed_run_grade, steer_vy_hold, velocity_vouched, wheelbase
+    cdef public object yaw_inertia
 
     # The published fields of every step: floating-point locals as C doubles (the same IEEE
     # operations as Python floats, -ffp-contract=off; an expression with an object operand is still

@@ -1183,7 +1183,7 @@ class Estimator:
         delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
         xpl = xp.tolist()
         iso = fdi.step(k, (fl, fr, rl, rr), wheels_ok, r_m, ax_m, ay_m, imu_ok, xpl,
-                       float(Pp[VX, VX]), self.wheels.noise2, delta,
+                       Pp.item(VX, VX), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
         wheel_z = fdi.wheel_z
         # ay alone stale (its samples dropped: a g scale on a signal already in m/s^2 reads a 3 m/s^2
@@ -1225,7 +1225,7 @@ class Estimator:
         r_sw = fdi.r_wheels if iso & YAW_RATE else r_m - xpl[BR]
         # the witness leaves r vy out: a window over a slide (the filter's |vy| + 3 std, times r,
         # beyond the check's tolerance) is no evidence either way (AXIS_SWAP_SLIDE)
-        rvy = abs(r_sw) * (abs(xpl[VY]) + 3.0 * math.sqrt(max(Pp[VY, VY], 0.0))) if AXIS_SWAP_SLIDE else 0.0
+        rvy = abs(r_sw) * (abs(xpl[VY]) + 3.0 * math.sqrt(max(Pp.item(VY, VY), 0.0))) if AXIS_SWAP_SLIDE else 0.0
         if self.axis_swap.step(k, wheel_z * xpl[KW] if wheels_ok and not iso & WHEELS else math.nan,
                                ax_m if imu_published else math.nan, ay_m, r_sw, xpl[VX], rvy):
             log.warning("%s", self.axis_swap.message())
@@ -1280,10 +1280,10 @@ class Estimator:
                 # float arithmetic, not numpy scalar arithmetic (the same doubles; issue 10)
                 vx_p = x.item(VX)
                 e = IMU_LEVER_STD_M * abs(self.rdot) + self.yaw_scale_std * abs(self.r_lp * vx_p)
-                P[VY, VY] = (math.sqrt(max(P[VY, VY], 0.0)) + e * self.dt) ** 2
+                P[VY, VY] = (math.sqrt(max(P.item(VY, VY), 0.0)) + e * self.dt) ** 2
                 self.bank_walk.step(P, BAY, vx_p, self.r_lp)  # the road's bank moves where it curves
                 # the gyro turns with the road's plane: the heading (about the vertical) at r / cos(bank)
-                sb = min(abs(math.sin(self.road.bank.x[0])), MAX_TILT_SIN)
+                sb = min(abs(math.sin(self.road.bank.x.item(0))), MAX_TILT_SIN)
                 # (float % is numpy's scalar remainder operation for operation: the same bits)
                 x[PSI] = wrap_pi(x.item(PSI) - (r_m - x.item(BR)) * self.dt * (1.0 / math.sqrt(1.0 - sb * sb) - 1.0))
         if iso:
@@ -1323,9 +1323,10 @@ class Estimator:
         # the rear slip angle a driven rear axle on its friction limit takes (DRIVE_SLIP, drive_slip.py)
         drive_alpha = 0.0
         # read once for the rules below (the drive slip, the brake grip, the slip witness): the grade
-        # filter's offset as a Python float, and the axles' force regressors (pure functions of
+        # and bank filters' offsets as Python floats, and the axles' force regressors (pure functions of
         # ay_c and rdot; nothing below changes them before the slip witness)
-        ax_off = float(self.road.grade.x[1])
+        ax_off = self.road.grade.x.item(1)
+        ay_off = self.road.bank.x.item(1)
         if imu_ok:
             st = self.single_track
             reg_f = -st.regressor_front(1.0, ay_c, rdot)
@@ -1341,8 +1342,8 @@ class Estimator:
             elif wheels_ok and imu_ok:
                 fy_rear = reg_r
                 if DRIVE_SLIP_TYRE_FORCE:  # the tyres' lateral force, bank in (tyre_lateral_force.py)
-                    fy_rear = self.rear_fy.step(ay_m - float(self.road.bank.x[1]), rdot,
-                                                math.sqrt(max(float(self.road.bank.P[1, 1]), 0.0)))
+                    fy_rear = self.rear_fy.step(ay_m - ay_off, rdot,
+                                                math.sqrt(max(self.road.bank.P.item(1, 1), 0.0)))
                 drive_alpha = self.drive_slip.step(
                     vx, fl, fr, rl, rr, delta, ax_m - ax_off, fy_rear,
                     resistance(reg_f, delta) if DRIVE_RESISTANCE else 0.0)
@@ -1443,11 +1444,11 @@ class Estimator:
         # subtracted instead: that estimate follows the filter's b_ax, which takes up wheel slip
         # and latency errors on flat roads (latency_0.1: 0.142 s for 0.100 with it subtracted).
         si = self.speed_integral
-        grade = float(self.road.grade.x[0])
+        grade = self.road.grade.x.item(0)
         if si.first >= k:
             self.speed_run_grade = grade
         # vx, xl: x as it stands here (Python floats, not numpy scalar reads; step's locals are C doubles)
-        si.step(k, vx, xl[VY], r, ax_m, ay, math.sqrt(max(P[VY, VY], 0.0)),
+        si.step(k, vx, xl[VY], r, ax_m, ay, math.sqrt(max(P.item(VY, VY), 0.0)),
                 imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y) and vx > -0.1
                 and G * abs(grade - self.speed_run_grade) <= GRADE_RUN_CHANGE)
         wheels = self.wheels
@@ -1463,7 +1464,7 @@ class Estimator:
             # whether the steering says a tyre has left its law (then a small force is no release)
             # (not this rule's own widening: it rests on the slip the witness holds, and holding it for
             # that would latch both for good, SLIP_RATIO_LIMIT)
-            ax_m - ax_off, ay_m - float(self.road.bank.x[1]), law_var_seen > 0.0)
+            ax_m - ax_off, ay_m - ay_off, law_var_seen > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
             sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,

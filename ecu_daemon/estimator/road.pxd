@@ -14,6 +14,7 @@ cdef class RoadAttitude:
     # look-up and a numpy scalar); they are only ever these two _Channel objects
     cdef public _Channel grade, bank
     cdef public object roll_gyro_params, roll_std, vertical_fused, vertical_zero
+    cdef public object dist, bank_walk_seen, var_gay_seen, roll_doubt  # step's, every step (perf46)
     # every step: the lateral force and its low-pass as C doubles (the same IEEE operations as the
     # .py's floats and numpy float64 scalars; fabs as Python's; see fault_detection.pxd). Never
     # x ** 2 of a C double: gcc makes pow(x, 2.0) x * x, Python's libm pow differs in the last bit
