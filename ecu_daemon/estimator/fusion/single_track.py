@@ -273,6 +273,18 @@ class SingleTrackFusion:
         nl = 0.0 if n < 0.8 else (n - 0.8) * math.radians(3.0)
         return self.lr * r + y, math.sqrt(var_par + (nl * vx) ** 2 + (self.base_sigma_beta * vx) ** 2)
 
+    def bias_std(self, vx: float, r: float, ay: float, rdot: float) -> float:
+        """std (m/s) of the part of :meth:`model_error` that is a bias for the whole corner: the
+        parameter and tyre-law uncertainty and the saturation term, the terms
+        :meth:`pseudo_measurement` inflates by CORNER_STEPS and so lets count again every 2 s. The
+        unmodelled dynamics' floor is left out: it decorrelates in ~0.1 s, the filter may average it
+        (``core.MODEL_BIAS_FLOOR``)."""
+        phi = self.regressor_rear(vx, ay, rdot)
+        n = abs(ay) / G
+        _, var_par = self.rear.predict(phi, n * n, True)
+        nl = 0.0 if n < 0.8 else (n - 0.8) * math.radians(3.0)
+        return math.sqrt(var_par + (nl * vx) ** 2)
+
     def law_holds(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> bool:
         """Whether the steering confirms both axles' tyre law, with no vy and no GNSS: the difference
         of the axle relations is L r - vx delta = k_f phi_f - k_r phi_r (the understeer relation),
