@@ -97,3 +97,44 @@ def test_the_live_model_takes_the_stiffness_and_uncertainty_the_drive_taught(tmp
     assert abs(learned["kappa_r"] / kappa_true - 1.0) <= 0.10
     assert learned["kappa_r_std"] <= 0.2 * learned["kappa_r"]
     assert abs(learned["kappa_r"] - kappa_true) <= 3.0 * learned["kappa_r_std"]
+
+
+def _ramped_circle(scale_error: float, consider: bool, seed: int = 1) -> tuple[float, float, float]:
+    """One axle's filter on a circle (R 120 m) driven 10 -> 30 m/s in 40 s, fed as ``observe``
+    feeds it, with a gyro that reads ``scale_error`` too much: (k1, its std, the true k1)."""
+    import numpy as np
+
+    from ecu_daemon.estimator.fusion import stiffness_regression as sr
+    rng = np.random.default_rng(seed)
+    mass, c_r, lf, lr = 1500.0, 75000.0, 1.2, 1.4
+    k_true, tau, dt, steps = mass / c_r, 0.1, 0.005, 20
+    ax = sr.AxleFilter(1.3 * k_true, 0.0)
+    ax.start_heading(0.0, math.radians(0.5) ** 2, 0.0, 1e-4 ** 2)
+    psi_true = 0.0
+    for i in range(400):
+        vx = 10.0 + 0.05 * i
+        r = vx / 120.0
+        ay = vx * r
+        psi_true -= r * steps * dt
+        ax.propagate(r * (1.0 + scale_error) * steps, steps, dt, 5e-4 ** 2 * steps * dt, 2e-5 ** 2 * steps * dt)
+        ax.latency(tau, 0.01)
+        if consider:
+            ax.scale_std(0.005)
+        phi = -vx * lf * ay / (lf + lr)
+        z = k_true * phi + vx * (ax.psi - psi_true) + 0.05 * rng.normal() - ay * tau
+        model_var = (0.1 * ax.x[0] * phi) ** 2
+        ax.update(z, np.array([phi, phi * (ay / 9.81) ** 2, vx, 0.0, -ay, 0.0]), 0.05 ** 2 + model_var, model_var)
+    return float(ax.x[0]), ax.k1_std(), k_true
+
+
+@pytest.mark.parametrize("scale_error", [0.004, -0.004])
+def test_a_gyro_scale_error_on_a_ramped_circle_is_inside_the_claimed_std(scale_error):
+    # The heading ramp a scale error turns in (s x angle turned, ~ vx^2..vx^3 on a circle driven
+    # faster) grows like the slip (phi ~ vx^3): no residual shows it. As a white random walk only, the
+    # estimate sat 4-5 claimed sigma off (never-seen drive 2946: the live model took it, sideslip
+    # 1.6 deg off); considered (CONSIDER_GYRO_SCALE) its std says how far it can be.
+    k, std, k_true = _ramped_circle(scale_error, consider=False)
+    assert abs(k - k_true) > 3.0 * std  # the mechanism: overconfident without it
+    k, std, k_true = _ramped_circle(scale_error, consider=True)
+    assert abs(k - k_true) <= 2.0 * std
+    assert std >= 0.2 * k_true  # a circle alone does not teach the stiffness to the live model's gate

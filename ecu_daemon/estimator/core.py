@@ -2182,7 +2182,7 @@ class Estimator:
                 # moved the estimate by S x 0.06 s and back: k_r 16 % (lat13) or 31 % (main) off.
                 if g.source == self.stiffness_source:
                     self.stiffness.observe(h, s, fus.course(g), speed, fus.sigma(g), fus.lever_x, lat.delay_s,
-                                           lat.std_s, self.steer_offset / self.steer_ratio)
+                                           lat.std_s, self.steer_offset / self.steer_ratio, self.yaw_scale_std)
                 if self.delay_compensation:  # the regression is only right where samples sit at their time
                     self.single_track.take_drive_estimate(self.stiffness.model_parameters())
         self.last_gnss_rejected = not ok

@@ -35,6 +35,11 @@ cross-covariance; replays with the latency fixed 0.02 s apart moved the estimate
 slope), the std were the latency exact, and the latency the estimate is for:
 ``fleet/calibrate.py`` moves every drive to the vehicle's combined latency, known several times
 better, and counts that latency's error once.
+
+Gyro scale: psi_g also turns by the gyro's scale error times the angle turned (the sensor's, the
+road's tilt). On a circle driven faster and faster that heading ramp grows with the slip's own
+regressor and no residual shows it; it is *considered* like the latency (CONSIDER_GYRO_SCALE, its
+1-sigma the estimator's ``yaw_scale_std``), so k1's std says how far it can move the estimate.
 """
 from __future__ import annotations
 
@@ -56,6 +61,18 @@ GYRO_SCALE_ERR = 0.005  # relative yaw-rate scale uncertainty (heading error per
 MODEL_ERR = 0.1  # relative slip error the two-term law and tyre relaxation leave (white part)
 MIN_UPDATES = 20  # fewer samples: the residuals say too little about the noise level; the prior's std
 MAX_RHO = 0.9  # residual autocorrelation cap (x19 variance)
+# The gyro heading's scale error (the sensor's, the road's tilt: the estimator's yaw_scale_std) as a
+# *considered* parameter: a constant scale error s turns psi_g by s x the angle turned, a heading
+# ramp that on a circle driven faster and faster grows with the slip's own regressor (angle turned ~
+# vx t, times vx: ~vx^2 ... vx^3, the slip phi ~ vx^3 / R), so no residual shows it. As the white
+# random walk of GYRO_SCALE_ERR (kept) it counted 1/sqrt(N) of it over N samples: on the never-seen
+# 2946 (accelerating 140 m circle, 3.3 deg bank) the gyro heading drifted 1.2 deg over 6 rad turned
+# (scale and bias) and the rear k1 went to 0.23-0.39 of the truth with a claimed std of 0.11-0.16
+# of it (4-5 sigma), which the live model took. Considered (never estimated, as the latency: the
+# other states' gains allow for it), k1's std carries what such a scale moves it by
+# (AxleFilter.scale_std; tests/test_stiffness_regression.py: a 0.4 % scale on a circle ramped
+# 10 -> 30 m/s put k1 4-5 sigma off, considered within 1.1 sigma, its std 4x).
+CONSIDER_GYRO_SCALE = True
 SLIP_STANDS_OUT = 4.0  # slip^2 / (rest of the innovation variance) above which a residual measures the tyre law
 
 # state of one axle's filter: compliances k1, k3, heading error, yaw-rate bias error, GNSS latency,
@@ -152,6 +169,11 @@ class AxleFilter:
         self.updates = 0
         self.model_sum = 0.0  # residual variance beyond every modelled term, relative to slip^2
         self.model_n = 0
+        # the considered gyro-scale error s (CONSIDER_GYRO_SCALE): S = d x_error / d s, its variance.
+        # The states' covariance with s is S x var_s; P holds its share var_s S S' (tau is never
+        # updated, so S[TAU] stays 0 and :meth:`latency` leaves both alone)
+        self.S = np.zeros(NS)
+        self.var_s = 0.0
 
     def start_heading(self, psi: float, var_psi: float, bias: float, var_bias: float) -> None:
         self.psi, self.bias = psi, bias
@@ -160,6 +182,14 @@ class AxleFilter:
             self.P[j, :] = 0.0
             self.P[:, j] = 0.0
             self.P[j, j] = v
+            self.S[j] = 0.0
+
+    def scale_std(self, std: float) -> None:
+        """Follow the gyro-scale error's 1-sigma (considered, like the latency): its share of every
+        variance, var_s S S', rescaled."""
+        var = std * std
+        self.P += (var - self.var_s) * np.outer(self.S, self.S)
+        self.var_s = var
 
     def latency(self, tau: float, std: float) -> None:
         """Follow the latency estimator: tau is a *considered* state (Schmidt): this regression never
@@ -179,15 +209,28 @@ class AxleFilter:
 
     def propagate(self, r_sum: float, steps: int, dt: float, q_psi: float, q_bias: float) -> None:
         """Integrate ``steps`` raw yaw-rate samples (their sum ``r_sum``) into the heading."""
-        self.psi -= (r_sum - steps * self.bias) * dt  # yaw rate positive left, heading clockwise
+        turned = (r_sum - steps * self.bias) * dt
+        self.psi -= turned  # yaw rate positive left, heading clockwise
+        if self.var_s > 0.0:
+            # the heading error grows by s x the angle turned: F = I + turned e_dpsi e_s' on [x, s]
+            S0 = self.S.copy()
+            self.S[DPSI] += turned
+            self.P += self.var_s * (np.outer(self.S, self.S) - np.outer(S0, S0))
         axle_propagate(self.P, steps * dt, q_psi, q_bias)
+        if self.var_s > 0.0:
+            self.S[DPSI] += steps * dt * self.S[EB]  # ... and by the bias error's (F of axle_propagate)
 
     def update(self, z: float, h: np.ndarray, rv: float, model_var: float = 0.0) -> None:
         """Scalar update, tau considered (its gain zero; Joseph form, the covariance then stays
         that of the suboptimal gain). ``model_var``: the two-term law's share of ``rv``; where the
         slip stands out of the rest, the residual says how wrong the law is (:meth:`model_rel_var`)."""
         slip = float(h[K1] * self.x[K1] + h[K3] * self.x[K3])
-        rest = float(h @ self.P @ h) + rv - model_var
+        Ph = self.P @ h
+        rest = float(h @ Ph) + rv - model_var
+        if self.var_s > 0.0:  # the considered scale: S <- (I - g h') S, g the update's gain
+            g = Ph / (rest + model_var)
+            g[TAU] = 0.0
+            self.S -= g * float(h @ self.S)
         nu = axle_update(self.x, self.P, z, h, rv)
         if slip * slip > SLIP_STANDS_OUT * rest:
             self.model_sum += max(nu * nu * (rest + model_var) - rest, 0.0) / (slip * slip)
@@ -227,7 +270,7 @@ class AxleFilter:
 
     def k1_std_given_latency(self) -> float:
         """1-sigma of k1 were the latency exactly ``x[TAU]``: the noise-driven part of
-        :meth:`k1_std` only. What a fleet combines per drive once it knows the vehicle's latency
+        :meth:`k1_std` and the gyro scale's (CONSIDER_GYRO_SCALE: one drive's own). What a fleet combines per drive once it knows the vehicle's latency
         better than one drive does (the latency part is common to all its drives: it does not
         average out, ``fleet/calibrate.py`` adds it back once)."""
         return math.sqrt(self._k1_var_parts()[0])
@@ -235,12 +278,15 @@ class AxleFilter:
     def _k1_var_parts(self) -> tuple[float, float]:
         var = max(float(self.P[K1, K1]), 0.0)
         lat = self.P[K1, TAU] ** 2 / self.P[TAU, TAU] if self.P[TAU, TAU] > 0 else 0.0
-        noise = max(var - lat, 0.0)
+        # the considered gyro scale's share (CONSIDER_GYRO_SCALE): as the latency's, no residual shows
+        # it; unlike it, common to nothing beyond this drive (in the first part, unscaled)
+        scl = min(self.var_s * self.S[K1] ** 2, max(var - lat, 0.0))
+        noise = max(var - lat - scl, 0.0)
         if self.updates < MIN_UPDATES:
-            return noise, var - noise
+            return noise + scl, var - noise - scl
         nis = self.nis_sum / self.updates
         rho = min(max(self.lag_sum / self.nis_sum, 0.0), MAX_RHO) if self.nis_sum > 0 else 0.0
-        return noise * nis * (1.0 + rho) / (1.0 - rho), lat
+        return noise * nis * (1.0 + rho) / (1.0 - rho) + scl, lat
 
 
 class StiffnessRegression:
@@ -260,11 +306,13 @@ class StiffnessRegression:
         self.last_s: int | None = None  # step up to which the gyro headings are integrated
 
     def observe(self, h: StepHistory, s: int, course: float, speed: float, sigma_v: float,
-                lever_x: float, latency: float, latency_std: float, steer_offset: float) -> None:
+                lever_x: float, latency: float, latency_std: float, steer_offset: float,
+                scale_std: float = 0.0) -> None:
         """Use one fused GNSS velocity (course, speed; per-axis 1-sigma ``sigma_v``) valid at step s
         by the latency estimator's ``latency`` (+- ``latency_std``). ``steer_offset``: the road-wheel
         angle offset the estimator currently removes from the steering (added back: d0 is the true,
-        constant offset, not the learner's slowly moving one)."""
+        constant offset, not the learner's slowly moving one). ``scale_std``: the gyro's scale error
+        1-sigma (considered, CONSIDER_GYRO_SCALE)."""
         i = h.slot(s)
         if self.last_s is not None and s <= self.last_s:
             return  # out of order (a second receiver): the headings only move forward
@@ -284,6 +332,8 @@ class StiffnessRegression:
         self.last_s = s
         for ax in axles:
             ax.latency(latency, latency_std)
+            if CONSIDER_GYRO_SCALE:
+                ax.scale_std(scale_std)
         vx = float(h.X[i, VX])
         lo, hi = max(h.oldest(), s - WINDOW), min(h.last, s + WINDOW)
         if hi - lo < 2:
