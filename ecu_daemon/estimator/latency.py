@@ -103,7 +103,13 @@ CLEAN_LATE_CHASE = True
 # a right delay. Random drives 2711, 2737, 2751 (wheels the only timing, prior the truth) ended
 # 0.168, 0.072, 0.061 s off; simulated with noise-free wheels, 0.000. A centred average does not
 # move a clock (a ramp or a kink is matched where it is); 0 keeps the single samples.
-WHEEL_SMOOTH_S = 0.1
+# Off at stop 46 (the lead's CI of the integration): with it on, the fleet's simulated 14 s drives
+# learned no latency at all, so no vehicle had one for the second pass (tests/test_fleet.py
+# test_a_second_pass_replays_each_drive_from_its_vehicles_latency: 0 drives restarted, >= 3 wanted;
+# test_a_partial_second_pass_replays_only_its_drives); both pass with it 0. Not traced: the broader,
+# honest profile of a short drive may reject its prior later. On random drives 2641-2760 (lat46, with
+# CLEAN_LATE_CHASE) it took latency within 0.03 s from 65.5 to 72.3 %. Its tests run it at 0.1.
+WHEEL_SMOOTH_S = 0.0
 
 
 _FLOAT_MAX = float(np.finfo(np.float64).max)
