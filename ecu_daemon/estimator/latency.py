@@ -448,9 +448,7 @@ class LatencyEstimator:
         if scan is None:
             return  # the best at either end of the candidates
         i, y0, y1, y2, first, last, at_cur = scan
-        den = y0 - 2 * y1 + y2
-        off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
-        est = (i + 1 + max(-0.5, min(0.5, off))) * self.dt  # candidate i is a delay of (i+1) steps
+        est = parabola_delay(y0, y1, y2, i, self.dt)
         width_std = 0.5 * (last - first + 1) * self.dt / math.sqrt(LR_REJECT)
         prior_std = self.prior_std_s
         # The wheels are a biased clock (braking slip, the antenna-to-wheel ratio's errors in a
@@ -499,11 +497,8 @@ class LatencyEstimator:
             self._chasing_clean = True
             if target is None:
                 c, j = clean
-                off = 0.0
-                if 0 < j < len(c) - 1:
-                    den = c[j - 1] - 2.0 * c[j] + c[j + 1]
-                    off = max(-0.5, min(0.5, 0.5 * (c[j - 1] - c[j + 1]) / den)) if den > 0 else 0.0
-                target = (j + 1 + off) * self.dt
+                inner = 0 < j < len(c) - 1
+                target = parabola_delay(c[j - 1], c[j], c[j + 1], j, self.dt) if inner else (j + 1) * self.dt
         else:
             self._chasing_clean = False
         if target is not None:
@@ -517,6 +512,16 @@ class LatencyEstimator:
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
         self.std_s = max(std, STD_FALL * self.std_s)
+
+
+def parabola_delay(y0: float, y1: float, y2: float, i: int, dt: float) -> float:
+    """The delay at the vertex of the parabola through a profile's values ``y0, y1, y2`` at the
+    candidates i - 1, i, i + 1 (candidate i is a delay of i + 1 steps of ``dt``), its offset from i
+    held within half a candidate; i itself where the three do not curve upwards. Read of the summed
+    profile's best and of the clean wheel fixes' (:meth:`LatencyEstimator._refine`)."""
+    den = y0 - 2.0 * y1 + y2
+    off = 0.5 * (y0 - y2) / den if den > 0 else 0.0
+    return (i + 1 + max(-0.5, min(0.5, off))) * dt
 
 
 def shared_correlation(resid_var: list[float], gnss_var: float = math.nan) -> float:
