@@ -11,6 +11,7 @@ from ecu_daemon.estimator.fusion.wheel_speed import WheelSpeedFusion
 from ecu_daemon.estimator.history import AUX_AX, AUX_AY, AUX_R, AUX_WHEEL, StepHistory
 from ecu_daemon.estimator.kinematic import VX, VY
 from ecu_daemon.estimator.latency import PRIOR_STD_S, LatencyEstimator, SpeedIntegral
+from latency_feed import feed_wheels
 
 DT = 0.006
 FIX_EVERY = 33  # steps: GNSS at ~5 Hz
@@ -21,18 +22,8 @@ def run(speed, delay_s, prior_s=0.2, seconds=120.0, gnss_noise=0.0, wheel_scale=
 
     ``wheel_scale``: the wheels read scale * the true speed (a radius error must not bias timing).
     """
-    rng = np.random.default_rng(seed)
-    est = LatencyEstimator(DT, prior_s, max_s=0.8)
-    hist = StepHistory(est.max_steps + 20)
-    hist.reset(0)
-    d_steps = round(delay_s / DT)
-    for k in range(int(seconds / DT)):
-        hist.aux[hist.slot(k), AUX_WHEEL] = wheel_scale * speed(k * DT)
-        hist.last = k
-        if k % FIX_EVERY == 0 and k > d_steps:
-            # received just before step k + 1, valid at step k + 1 - d_steps (delay of d_steps)
-            est.observe(k + 1, speed((k + 1 - d_steps) * DT) + gnss_noise * rng.normal(), hist)
-    return est
+    return feed_wheels(LatencyEstimator(DT, prior_s, max_s=0.8), speed, delay_s, seconds, FIX_EVERY,
+                       np.random.default_rng(seed), gnss_noise=gnss_noise, wheel_scale=wheel_scale)
 
 
 def accelerating(t):

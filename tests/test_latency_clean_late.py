@@ -22,6 +22,7 @@ from ecu_daemon.sim.suite import SuiteCase
 from ecu_daemon.sim.tyre import TyreParams
 from ecu_daemon.sim.vehicle import VehicleParams
 from ecu_daemon.suite import run_case
+from latency_feed import feed_wheels
 
 DT = 0.006
 
@@ -113,23 +114,12 @@ def noisy_wheels(prior_s: float, delay_s: float = 0.192, seed: int = 1, seconds:
     """Wheels the only timing reference, each stored sample with its own noise (``wheel_noise``), GNSS
     at 2 Hz (``every`` steps); by default the speed changes by +-0.3 m/s only (a sine, a circle at a
     near constant speed)."""
-    from ecu_daemon.estimator.history import AUX_WHEEL, StepHistory
-
     if speed is None:
         def speed(t):
             return 20.0 + 0.3 * np.sin(2 * np.pi * t / 5.0)
 
-    rng = np.random.default_rng(seed)
-    est = LatencyEstimator(DT, prior_s, max_s=0.8)
-    hist = StepHistory(est.max_steps + 20)
-    hist.reset(0)
-    d = round(delay_s / DT)
-    for k in range(int(seconds / DT)):
-        hist.aux[hist.slot(k), AUX_WHEEL] = speed(k * DT) + wheel_noise * rng.normal()
-        hist.last = k
-        if k % every == 0 and k > d:
-            est.observe(k + 1, speed((k + 1 - d) * DT) + gnss_noise * rng.normal(), hist)
-    return est
+    return feed_wheels(LatencyEstimator(DT, prior_s, max_s=0.8), speed, delay_s, seconds, every,
+                       np.random.default_rng(seed), gnss_noise=gnss_noise, wheel_noise=wheel_noise)
 
 
 def test_the_wheels_sample_noise_does_not_move_a_right_delay(monkeypatch):
