@@ -33,19 +33,19 @@ from __future__ import annotations
 
 import math
 
-#: share of the spin's grip above which the tyres are taken to be at the road's limit again
-#: (friction_limit.HOLD_SHARE: 80 % of a tyre's peak force is well beyond its linear slip)
-HOLD_SHARE = 0.8
+# the share of the spin's grip above which the tyres are at the road's limit again: friction_limit's
+# (80 % of a tyre's peak force is well beyond its linear slip); the force's low-pass: slip_ratio_limit's
+from .friction_limit import HOLD_SHARE
+from .slip_ratio_limit import SMOOTH_S
+
 #: sigmas of the force's offsets a force must exceed the grip by before the road is taken to grip
 #: better: the offsets move in and after a spin (3169: b_ay by 0.35 m/s^2 between the slide and the
 #: drive off, |f| 1.5 in the spin, 1.9-2.0 after it, truth 0.88-0.94 of mu g in both)
 SIGMA = 3.0
-#: s: low-pass of the tyres' force (slip_ratio_limit.SMOOTH_S)
-SMOOTH_S = 0.1
 
 
 class SpinGrip:
-    """The largest tyre force a spin showed; :meth:`step` says whether the tyres carry near it now."""
+    """The most force the tyres carried in a spin; :meth:`step`: do they carry near it again?"""
 
     def __init__(self, dt: float) -> None:
         self.a = min(dt / SMOOTH_S, 1.0)
