@@ -29,7 +29,7 @@ cdef class Estimator:
     cdef public object yaw_scale_checks, yaw_scale_std, yaw_scale_applied, yaw_scale_ring, yaw_scale_changes
     cdef public object yaw_scale_heading, yaw_scale_realigned, scale_sens, wheel_scale_check
     cdef public object axis_swap, gyro_gate, spin, drive_slip, law_var_held, law_steady_t, law_var_min
-    cdef public object brake_grip, speed_gap, gap_terms, slip_ratio_limit, rear_fy
+    cdef public object brake_grip, speed_gap, gap_terms, slip_ratio_limit, rear_fy, spin_grip
     # read or written every step by _step / _estimate (perf46: each was a __dict__ look-up through
     # Cython's generic getattr)
     cdef public object ay_out, ay_out_new, awd_slip_hold, bank_lag_var, bank_walk, course_slide

@@ -60,6 +60,7 @@ from .fusion.wheel_slip import SlipWitness
 from .fusion.brake_grip import BrakeGrip
 from .fusion.drive_slip import DriveSlip, resistance
 from .fusion.slip_ratio_limit import SlipRatioLimit
+from .fusion.spin_grip import SpinGrip
 from .fusion.law_excess_bound import LawExcessBound
 from .fusion.tyre_lateral_force import RearLateralForce
 from .fusion.friction_limit import FrictionLimit
@@ -349,6 +350,14 @@ BRAKE_GRIP = True
 # (fusion/slip_ratio_limit.py); what that exceeds the law by joins the law excess (same gates).
 # False: main's behaviour, bit for bit.
 SLIP_RATIO_LIMIT = True
+# A spin has shown the road's grip: while the car slides its tyres carry the friction ellipse's radius,
+# and after it tyres carrying HOLD_SHARE of that again are at their limit, where the tyre law bounds
+# no slip angle: the single-track pseudo-measurement is then left out (and its bound off), vy rests on
+# the kinematics and GNSS (fusion/spin_grip.py). Random drive 3169 (AWD, mu 0.19, GNSS 1 Hz at 0.72 s):
+# after its spin the car drove off at 0.93-0.96 of mu g, both axles slid to -12..-14 deg and the
+# sideslip was published valid at -2.2 +- 0.4-0.65 deg for a true 0..+11 (735 rows beyond 3 sigma).
+# False: main's behaviour, bit for bit.
+SPIN_GRIP = True
 # The drive-slip rule's angle, kappa F_yr / F_xr, takes the rear tyres' lateral force from the specific
 # force less the sensor's offset (the bank's g sin(phi) in), not from the model's ay (b_ay holds the
 # bank): on a banked road the tyres hold the car against gravity at a kinematic ay of 0, and at the
@@ -797,6 +806,7 @@ class Estimator:
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
         self.spin = SpinCheck(dt, veh.track_m)  # a spinning car: nothing promised (spin_check.py)
+        self.spin_grip = SpinGrip(dt)  # the grip a spin showed (SPIN_GRIP, fusion/spin_grip.py)
         self.yaw_bias_walk = es.yaw_rate_bias_walk
         # (yaw-rate bias, its variance, t) when the last slide began; what _after_spin carries over
         self.spin_bias = None
@@ -1289,6 +1299,7 @@ class Estimator:
             ay_m = age.at_mid(I_AY - I_YAW, ay_m, t)
         r_g = r_m  # the gyro and ay as measured, for the spin check (a spin makes the fault detector
         ay_g = ay_m  # isolate a good gyro: its substitute, the wheels' yaw rate, is no witness then)
+        ax_g = ax_m  # (and ax, for the tyres' force the spin's grip is measured by: SPIN_GRIP)
         if iso & (YAW_RATE | ACCEL_X | ACCEL_Y):
             r_m, ax_m, ay_m = self._substitute(iso, xpl, r_m, ax_m, ay_m)
         x = h.Xr[i]
@@ -1358,6 +1369,11 @@ class Estimator:
         # ay_c and rdot; nothing below changes them before the slip witness)
         ax_off = self.road.grade.x.item(1)
         ay_off = self.road.bank.x.item(1)
+        # the tyres at the grip a spin has shown (SPIN_GRIP, fusion/spin_grip.py): the model is no witness
+        spin_limit = (SPIN_GRIP and imu_ok
+                      and self.spin_grip.step(spin.active, ax_g - ax_off, ay_g - ay_off,
+                                              math.sqrt(max(self.road.grade.P.item(1, 1), 0.0)
+                                                        + max(self.road.bank.P.item(1, 1), 0.0))))
         if imu_ok:
             st = self.single_track
             reg_f = -st.regressor_front(1.0, ay_c, rdot)
@@ -1458,7 +1474,7 @@ class Estimator:
                 or fdi.lat_unexplained > self.lat_drift_tol or fdi.yaw_disagreement > 0.0 or law_off
                 or (t - self.last_gnss_fused_t > GNSS_FRESH_S
                     and not self.single_track.law_holds(vx, r_c, ay_c, rdot, delta))
-                or self.model_unsteady_t == math.inf):
+                or self.model_unsteady_t == math.inf or spin_limit):
             self.model_unsteady_t = t
             if LAW_EXCESS_BOUND:
                 self.law_bound.reset(t, law_var)
@@ -1529,7 +1545,7 @@ class Estimator:
                 elif self._wheels_diverged(t):
                     self._reset(k)
                     return self._invalid(t)
-            if imu_ok and k % MODEL_EVERY == 0:
+            if imu_ok and k % MODEL_EVERY == 0 and not spin_limit:
                 # with an IMU signal isolated the model still holds vy, from its substitute (the
                 # wheels' yaw rate, ay = r vx), widened for it: vy has no other anchor then
                 if self.single_track.fuse(x, P, r_c, ay_c, rdot, A, MODEL_EVERY,
