@@ -424,7 +424,7 @@ BANK_LAG_STD = True
 # well as that split (it cannot tell a constant bank from a constant offset): the offset's std, through
 # the rear law's d vy / d fy = vx kappa_r lf / L, joins the model's bias terms (the law excess's slot,
 # inflated alike) and its bound. False: main's behaviour, bit for bit.
-MODEL_TYRE_FORCE = False
+MODEL_TYRE_FORCE = True
 # A standstill is declared from the wheels reading ~0, and a wheel sensor sees no pulses below its floor
 # (~0.15 m/s, fusion/standstill.WHEEL_PULSE_FLOOR_MPS): "every wheel 0" says |v| below that floor, not v = 0,
 # and the accelerometer cannot tell a steady creep from rest (ax ~0 both). The zero-velocity update pins vx
@@ -433,7 +433,7 @@ MODEL_TYRE_FORCE = False
 # every wheel below the floor: vx published valid 0.00 at 0.01 m/s, 197 rows beyond 3 sigma). While the
 # standstill holds, the published vx std is at least a third of that floor (3 sigma covers it); the state
 # and its update are unchanged. False: main's behaviour, bit for bit.
-STANDSTILL_CREEP_STD = False
+STANDSTILL_CREEP_STD = True
 # After a spin the filter re-initialises from the wheels with a gripping car's vy while the car may
 # still slide sideways (random drive 879: 13 m/s at -80 deg sideslip, vx published valid 2.6 m/s off;
 # 760 after its spin); the fault detector isolates GNSS, the one source that sees it. A fix's speed
