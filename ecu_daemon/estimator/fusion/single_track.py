@@ -242,6 +242,13 @@ class SingleTrackFusion:
     def regressor_front(self, vx: float, ay: float, rdot: float) -> float:
         return -vx * (self.lr * ay + self.iz_f * rdot) / self.L
 
+    def force_var(self, vx: float, force_var: float) -> float:
+        """Variance (m/s)^2 of the rear law's vy from a variance ``force_var`` (m/s^2)^2 of the lateral
+        force it is given (core.MODEL_TYRE_FORCE: the sensor offset's, road.py's bank split): the
+        law's d vy / d ay = vx kappa_r lf / L, the softer of the configured and learned compliance."""
+        d = vx * max(float(self.rear.k[0]), self.rear.k10) * self.lf / self.L
+        return d * d * force_var
+
     def pseudo_measurement(self, vx: float, r: float, ay: float, rdot: float) -> tuple[float, float]:
         """(vy_model, variance per 6 ms fusion) for the rear-axle relation at this instant.
 

@@ -11,6 +11,9 @@ from .. import kalman
 from ..kinematic import BAX, BAY, BR, VX, VY
 
 STANDSTILL_SPEED = 0.05  # m/s, every wheel below this
+#: m/s: the speed below which a wheel sensor sees no pulses and reads 0 (detect's docstring; typical
+#: active sensors 0.1-0.2 m/s): a standstill from the wheels bounds |v| by it (core.STANDSTILL_CREEP_STD)
+WHEEL_PULSE_FLOOR_MPS = 0.15
 STANDSTILL_HOLD_S = 0.3
 ACCEL_GATE = 6.0  # sigma: the accelerometer-bias update's gate at rest; beyond it the car accelerates
 
