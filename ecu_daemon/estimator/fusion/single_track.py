@@ -101,6 +101,10 @@ class AxleRls:
         self.from_drive = False  # following the per-drive regression (SingleTrackFusion.take_drive_estimate)
         # what the two-term law still gets wrong, relative to its regressor (learned from residuals)
         self.rel_var = self.rel_var0 = (MODEL_REL_STD * k1) ** 2
+        # the largest (|ay| / g)^2 at which a data-told vy (update) found the law within
+        # LAW_HOLDS_SIGMA of its own uncertainty: the grip this drive has shown the law to hold at
+        # (core.MODEL_BOUND_GRIP_SHOWN); not kept across drives (the road changes)
+        self.n2_shown = 0.0
         if learned_std is not None:
             self.restore_std(*learned_std)
 
@@ -160,6 +164,10 @@ class AxleRls:
                 h0 * h0 * var1 + 2.0 * h0 * h1 * p01 + h1 * h1 * p11)
 
     def update(self, phi: float, n2: float, y: float, rv: float, lam: float = 0.999) -> None:
+        if n2 > self.n2_shown:  # the law as it stood, against a vy the data told (before the step)
+            y0, var0 = self.predict(phi, n2, True)
+            if (y - y0) ** 2 <= LAW_HOLDS_SIGMA ** 2 * (var0 + rv):
+                self.n2_shown = n2
         e = rls_update(self.k, self.P, self.P0, phi, n2, y, rv, lam)
         if phi * phi * self.k10 * self.k10 > rv:  # the slip stands out of the vy noise: a model error
             rel = max(e * e - rv, 0.0) / (phi * phi)
