@@ -10,13 +10,15 @@ ends 0.9 deg off. The courses read heading - sideslip, so the sideslip is 1.0 de
 heading's published std carried that (S_psi x the scale not applied yet, scale_sensitivity.py: 0.49
 of its 0.68 deg); the sideslip's (0.33 deg, P alone) did not: on main (e0a190a) 534 valid rows beyond
 3 sigma. With the sideslip's own share of the same consider term (|d beta / d s|, S_vy / vx, which
-follows S_psi) 0 rows, valid above 5 m/s 98.1 -> 93.1 %.
+follows S_psi) 0 rows, valid above 5 m/s 98.1 -> 93.1 %. Off by default: it also withholds right
+sideslips (the suite's mu03_outage_30s 91.9 -> 87.7 % valid above 5 m/s, target 90 %).
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from ecu_daemon.estimator import core
 from ecu_daemon.estimator.kinematic import NX, PSI, VX, VY
 from ecu_daemon.estimator.scale_sensitivity import ScaleSensitivity
 from ecu_daemon.sim.scenario import Scenario
@@ -50,8 +52,10 @@ BANKED_CIRCLE = Scenario(name='random_v1_s2946', manoeuvre='steady_circle', mu=1
     1.274)), latency_prior_s=None, imu_in_config=True, relaxation_in_config=False)
 
 
-def test_the_sideslip_carries_the_scale_the_heading_owes_on_a_banked_circle(tmp_path):
-    """main: 534 valid sideslip rows beyond 3 sigma (94.7 %), worst 1.58 deg; with the term 0 (100 %)."""
+def test_the_sideslip_carries_the_scale_the_heading_owes_on_a_banked_circle(tmp_path, monkeypatch):
+    """main: 534 valid sideslip rows beyond 3 sigma (94.7 %), worst 1.58 deg; with the term 0 (100 %).
+    The flag is off by default (core.SIDESLIP_SCALE_SENS: the suite's mu03_outage_30s availability)."""
+    monkeypatch.setattr(core, "SIDESLIP_SCALE_SENS", True)
     sc = BANKED_CIRCLE
     row = run_case(SuiteCase(sc.name, "random", sc), tmp_path)
     assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
