@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .history import StepHistory
-from .kinematic import NX, PSI
+from .kinematic import NX, PSI, VX, VY
 from .latency_sensitivity import prefix_products
 
 
@@ -50,6 +50,16 @@ class ScaleSensitivity:
     def heading(self, k: int) -> float:
         """|d psi / d s| at stored step k (rad per unit scale error)."""
         return abs(float(self.Sr[k % len(self.Sr)][PSI]))
+
+    def sideslip(self, k: int, vx: float, vy: float) -> float:
+        """|d beta / d s| at stored step k (rad per unit scale error), beta = atan2(vy, vx): in a
+        corner the courses keep heading - sideslip right, so this follows :meth:`heading`."""
+        S = self.Sr[k % len(self.Sr)]
+        return abs(vx * float(S[VY]) - vy * float(S[VX])) / (vx * vx + vy * vy)
+
+    def vy(self, k: int) -> float:
+        """|d vy / d s| at stored step k (m/s per unit scale error)."""
+        return abs(float(self.Sr[k % len(self.Sr)][VY]))
 
     def fused(self, hist: StepHistory, s: int, P: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
         """A fix was fused at stored step s with Jacobian H and noise R against the covariance P it
