@@ -3,13 +3,6 @@
 The fleet is 3 vehicles x 3 short drives written by ``fleet simulate`` (the real simulator). The
 Dask test starts a real ``LocalCluster`` with two worker processes and requires the same table
 bytes as the run in this process.
-
-The drives are 16 s: every manoeuvre is 5 s at rest and a constant-acceleration launch that ends at
-15 s (sim/manoeuvres.py ``_start``). Cut at 14 s, a drive's GNSS speeds above 3 m/s all lie on the
-ramp, and on a ramp a shift in time is an offset in speed: the latency regression's offset takes it
-whole (noise-free, true 0.41 s against the 0.3 s prior: residual sums 3e-6 (m/s)^2 apart over 31
-fixes, the GNSS noise's 1e-2), so a 14 s drive has no latency to learn. The one second past the
-launch's end is the first timing any of them carries.
 """
 from __future__ import annotations
 
@@ -39,7 +32,7 @@ TABLES = ("drives.parquet", "drives.csv", "vehicles.parquet", "vehicles.csv")
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("fleet") / "fleet"
-    write_fleet(root, vehicles=3, drives=3, seed=5, duration_s=16.0, jobs=1)  # 16 s: the launch ends (docstring)
+    write_fleet(root, vehicles=3, drives=3, seed=5, duration_s=14.0, jobs=1)
     return root
 
 
@@ -71,7 +64,7 @@ def test_serial_run_scores_and_learns_every_drive(fleet, serial):
     rows = read_drives(out)
     assert len(rows) == 9
     for r in rows:
-        assert r["duration_s"] == pytest.approx(16.0, abs=0.1)
+        assert r["duration_s"] == pytest.approx(14.0, abs=0.1)
         assert 0.0 <= r["sideslip_valid_fraction"] <= 1.0
         assert math.isfinite(r["wheel_scale"]) and 0 < r["wheel_scale_std"] < 0.05
         truth = json.loads((fleet / r["vehicle"] / "vehicle.json").read_text())
@@ -461,7 +454,7 @@ def test_a_second_pass_replays_each_drive_from_its_vehicles_latency(fleet, seria
     recs = run_fleet(str(fleet), out, jobs=1, report=False, passes=2)
     first = {(r["vehicle"], r["drive"]): r for r in serial[1]}
     starts = second_pass_starts(load_drives(str(fleet)), serial[1])
-    assert sum(s is not None for s in starts) >= 3  # a vehicle whose drives learned no latency keeps pass 1
+    assert sum(s is not None for s in starts) >= 3  # a vehicle whose 14 s drives learned no latency keeps pass 1
     moved = []
     for r, s in zip(recs, starts):
         f = first[(r["vehicle"], r["drive"])]

@@ -213,12 +213,11 @@ def _tick_through(cfg, events, arrival):
     return pl, late, per_tick
 
 
-def _demo_events(duration_s, latency_prior_s=None):
-    """The demo drive's first seconds as (time, 0 CAN / 1 GNSS, id, payload) in arrival order
-    (``latency_prior_s``: the configured GNSS latency; None: the true one)."""
+def _demo_events(duration_s):
+    """The demo drive's first seconds as (time, 0 CAN / 1 GNSS, id, payload) in arrival order."""
     from ecu_daemon.sim import SCENARIOS, simulate, vehicle_config
 
-    scenario = SCENARIOS["demo"].with_(duration_s=duration_s, latency_prior_s=latency_prior_s)
+    scenario = SCENARIOS["demo"].with_(duration_s=duration_s)
     cfg = vehicle_config(scenario)
     sim = simulate(scenario, cfg)
     events = sorted([(float("%.6f" % t), 0, fid, data) for t, fid, data in sim.can_frames]
@@ -267,10 +266,7 @@ def test_a_late_can_frame_is_applied_at_the_next_step_not_dropped(drive):
 
 @pytest.fixture(scope="module")
 def long_drive():
-    # long enough for the latency identification to move, from a configured 0.3 s (true 0.4): from
-    # the true latency it has nothing to learn, and what moved it there was the wheels' sample noise
-    # (latency.py WHEEL_SMOOTH_S)
-    return _demo_events(40.0, latency_prior_s=0.3)
+    return _demo_events(40.0)  # long enough for the latency identification to move
 
 
 def test_a_late_gnss_sample_does_not_lengthen_the_identified_latency(long_drive):
