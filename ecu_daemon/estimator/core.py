@@ -1428,10 +1428,13 @@ class Estimator:
         ax_off = self.road.grade.x.item(1)
         ay_off = self.road.bank.x.item(1)
         # the tyres at the grip a spin has shown (SPIN_GRIP, fusion/spin_grip.py): the model is no witness
+        # (the offsets' std is read by SpinGrip.step only once a spin has shown a grip: 0.0 until then,
+        # two P reads and a sqrt a step less on a drive without a spin; perf48, issue 10)
+        sg = self.spin_grip
         spin_limit = (SPIN_GRIP and imu_ok
-                      and self.spin_grip.step(spin.active, ax_g - ax_off, ay_g - ay_off,
-                                              math.sqrt(max(self.road.grade.P.item(1, 1), 0.0)
-                                                        + max(self.road.bank.P.item(1, 1), 0.0))))
+                      and sg.step(spin.active, ax_g - ax_off, ay_g - ay_off,
+                                  math.sqrt(max(self.road.grade.P.item(1, 1), 0.0)
+                                            + max(self.road.bank.P.item(1, 1), 0.0)) if sg.grip > 0.0 else 0.0))
         if imu_ok:
             st = self.single_track
             reg_f = -st.regressor_front(1.0, ay_c, rdot)
@@ -2113,7 +2116,9 @@ class Estimator:
         # each channel's std once (RoadAttitude.valid's test inline: it read the std again)
         b_std = b.std
         g_std = g.std
-        return (float(b.x[0]), b_std, float(g.x[0]), g_std, float(rd.roll), rd.roll_std,
+        # the angles as Python floats by ndarray.item (the same doubles as float() of a numpy scalar,
+        # without the scalar object; perf48)
+        return (b.x.item(0), b_std, g.x.item(0), g_std, float(rd.roll), rd.roll_std,
                 lat_ok and b.updates > 0 and b_std < ANGLE_STD_VALID,
                 imu_ok and not iso & ACCEL_X and g.updates > 0 and g_std < ANGLE_STD_VALID,
                 # roll is ay through a gain: not promised while ay's yaw-rate witnesses disagree
