@@ -60,7 +60,7 @@ def _stop(lock, wheels, dt=0.006, ax=-2.2, v0=0.6):
     the steps at which the wheels were called locked."""
     seen = []
     v = v0
-    for k in range(60):  # force-free at first (the anchor), then braking
+    for k in range(60):  # rolling at first (the reference follows the wheels), then braking
         a = 0.0 if k < 10 else ax
         seen.append(lock.step(wheels(k * dt, v), a, 0.0, 1e-6, 0.0, a))
         v += a * dt
