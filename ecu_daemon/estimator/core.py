@@ -56,6 +56,7 @@ from .fusion.gnss_velocity import ALIGN_SPEED, IMPLAUSIBLE, align_speed_ok, MAX_
 from .fusion.single_track import G as MODEL_G, LEARNED_MAX_N, LaggedModelInputs, SingleTrackFusion, std_keys as stiffness_std_keys
 from .fusion.stiffness_regression import StiffnessRegression
 from .fusion.standstill import WHEEL_PULSE_FLOOR_MPS, StandstillFusion
+from .fusion.wheel_lock import WheelLock
 from .fusion.wheel_slip import SlipWitness
 from .fusion.brake_grip import BrakeGrip
 from .fusion.drive_slip import DriveSlip, resistance
@@ -468,6 +469,13 @@ MODEL_TYRE_FORCE = False
 # standstill holds, the published vx std is at least a third of that floor (3 sigma covers it); the state
 # and its update are unchanged. False: main's behaviour, bit for bit.
 STANDSTILL_CREEP_STD = True
+# Braked to a stop on low friction the wheels lock below walking pace (no ABS acts there) while the car
+# still slides: they fell 0.55 -> 0 m/s in 50 ms at ax -2.2 m/s^2 and each wheel update, inside its gate,
+# pulled vx after them (random drives 3319, 3422, 3475, mu 0.14-0.26: vx valid 0 +- 0.06 while the car
+# slid at 0.3-0.4 m/s). The wheels losing speed faster than the accelerometer says the car does, beyond
+# the comparison's own error, below 2 m/s, is a lock: their update is skipped until they are back with the
+# car (fusion/wheel_lock.py). False: main's behaviour, bit for bit.
+WHEEL_LOCK_SKIP = True
 # After a spin the filter re-initialises from the wheels with a gripping car's vy while the car may
 # still slide sideways (random drive 879: 13 m/s at -80 deg sideslip, vx published valid 2.6 m/s off;
 # 760 after its spin); the fault detector isolates GNSS, the one source that sees it. A fix's speed
@@ -769,6 +777,7 @@ class Estimator:
         self.yaw_inertia = veh.yaw_inertia_kgm2
         # slip measured against the accelerometer: the linear law's bound fails at the friction limit
         self.slip_witness = SlipWitness(dt, self.wheels.noise2, self.wheels.use_all)
+        self.wheel_lock = WheelLock(dt, self.wheels.noise2)  # WHEEL_LOCK_SKIP
         # a driven rear axle on its limit, from its wheels against the free front (drive_slip.py)
         self.drive_slip = DriveSlip(dt, veh.driven_axle, veh.cg_to_front_axle_m, veh.cg_to_rear_axle_m)
         self.friction = FrictionLimit()  # FRICTION_MEMORY
@@ -1564,9 +1573,12 @@ class Estimator:
         # standstill test (nothing between them changes P; issue 10: float arithmetic in both)
         p_bax = P.item(BAX, BAX)
         # the slip the wheels show against the integrated ax (wheel_slip.py), beside the linear law's
+        v_wheels = (wheels.as_vx(wheel_z, xl[KW], xl[VY], r, delta if steer_ok else 0.0)
+                    if wheels_ok and imu_ok and not iso & (WHEELS | ACCEL_X) else math.nan)
+        wheels_locked = WHEEL_LOCK_SKIP and self.wheel_lock.step(v_wheels, ax_m, xl[BAX], p_bax, r * xl[VY],
+                                                                 ax_m - ax_off)
         seen = self.slip_witness.step(
-            wheels.as_vx(wheel_z, xl[KW], xl[VY], r, delta if steer_ok else 0.0)
-            if wheels_ok and imu_ok and not iso & (WHEELS | ACCEL_X) else math.nan,
+            v_wheels,
             ax_m, xl[BAX], p_bax, r * xl[VY],
             # the tyres' force: the specific force less the sensor's offsets (road.py's split); and
             # whether the steering says a tyre has left its law (then a small force is no release)
@@ -1598,7 +1610,7 @@ class Estimator:
             self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
             r = r_m - x[BR]
         else:
-            if wheels_ok and self.wheel_new and not iso & WHEELS:
+            if wheels_ok and self.wheel_new and not iso & WHEELS and not wheels_locked:
                 # slip seen beyond the witness's own errors is the wheels' error, not vx's: widened by it
                 if wheels.fuse(x, P, wheel_z, delta if steer_ok else 0.0, r, ax, A,
                                fdi.wheel_z_excess_var + self.slip_witness.excess ** 2):
