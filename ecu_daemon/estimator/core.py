@@ -1607,7 +1607,7 @@ class Estimator:
         if (self.standstill.detect(wheels_max, ax, p_bax) and imu_ok and not iso & (YAW_RATE | ACCEL_X | ACCEL_Y)
                 and fdi.standstill_plausible(vx, self._fresh_gnss_speed(t))):
             status |= STATUS_STANDSTILL
-            self.standstill.fuse(x, P, r_m, ax_m, ay_m, A)
+            self.standstill.fuse(x, P, r_m, ax_m, ay_m, A, held_t[I_YAW])  # the gyro sample's stamp
             r = r_m - x[BR]
         else:
             if wheels_ok and self.wheel_new and not iso & WHEELS and not wheels_locked:
