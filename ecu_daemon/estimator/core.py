@@ -613,6 +613,24 @@ COURSE_SLIDE_SCALE_SENS = True
 # 30 s outage the courses put the rotation's scale share into vy) valid above 5 m/s 91.9 -> 87.7 %
 # (target 90 %, worst 0.85 deg, all within 3 sigma either way). False: main's behaviour, bit for bit.
 SIDESLIP_SCALE_SENS = False
+# The latency error the heading's std carries (|S_psi| x latency std, latency_sensitivity.py) reaches vy
+# too, and vy is where a single antenna's velocity fixes put most of it (issue 7, stop 48): a fix fused at
+# t_rx - delay with the delay off by d reads v(t_s - d) = v - a d, a the antenna's acceleration across
+# the track, the same sign on every fix of a turn: a bias the filter averages into vy (and b_ay) however
+# many fixes it fuses, and the consider analysis tracks it exactly (x_err = S d). Random drive 3358
+# (demo, mu 0.32, 10 Hz UBX): the latency identification walked from its right prior 0.066 s to 0.32 s
+# (std 0.133) before the corner; in the corner S_vy rose to 2.2 m/s per s, S_psi stayed 0.005: vy
+# -0.54 m/s for a true +0.15 (S_vy d = -0.57), published at 0.20 m/s, sideslip 2.3 deg off as valid (74
+# rows beyond 3 sigma). The sideslip publishes that term too: |d beta / d d| x the latency std (the
+# heading's, _latency_std), in quadrature, vy |S_vy| x it. Only with one velocity receiver whose latency
+# error is not a state (with a fresh dual-antenna heading P carries it: latency_consider.py).
+# With it, 3358: 0 rows beyond 3 sigma, worst valid 1.07 deg, valid above 5 m/s 0.988 -> 0.946. OFF: it
+# also withholds right sideslips wherever the latency is not identified yet (its std the prior's
+# 0.10-0.15 s) and a transient makes S_vy large: on the 60 low-friction drives of 3121-3360 sideslip
+# valid rows -0.6 %, 3124 (double lane change, latency 0.057 s off at a std of 0.106, worst 0.57 deg)
+# valid above 5 m/s 0.937 -> 0.732 (tests/test_sideslip_latency_sens.py runs it on). False: main's
+# behaviour, bit for bit.
+SIDESLIP_LATENCY_SENS = False
 MODEL_STEADY_S = 2.0
 # yaw acceleration above which the corner is a transient: a 0.5 m tyre relaxation length lags the
 # model's vy by (0.5 m / vx) x lr x r_dot, 0.03 m/s (0.3 deg) at 5 m/s and this rate
@@ -1880,6 +1898,14 @@ class Estimator:
                 var_b += e * e
                 beta_std = math.sqrt(var_b)
                 vy_std = math.hypot(vy_std, sc * self.scale_sens.vy(self.hist.last))
+        if SIDESLIP_LATENCY_SENS and sp2 > 0.25 and self.lat_sens is not None and not self.augmented:
+            # the heading's latency term, the sideslip's share (SIDESLIP_LATENCY_SENS)
+            sd = self._latency_std()
+            e = sd * self.lat_sens.sideslip(self.hist.last, vx, vy)
+            if e > 0.0:
+                var_b += e * e
+                beta_std = math.sqrt(var_b)
+                vy_std = math.hypot(vy_std, sd * self.lat_sens.vy(self.hist.last))
         if beta_std >= SIDESLIP_STD_VALID and sp2 > 0.25 and MODEL_BOUND:
             b = self._model_bound(t, vx, vy, r, iso)
             if b < vy_std:

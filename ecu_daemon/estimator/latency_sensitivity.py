@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from .history import AUX_AX, AUX_AY, AUX_R, AUX_RDOT, StepHistory
-from .kinematic import NX, PSI
+from .kinematic import NX, PSI, VX, VY
 
 
 class LatencySensitivity:
@@ -50,6 +50,15 @@ class LatencySensitivity:
     def heading(self, k: int) -> float:
         """|d psi / d d| at stored step k (rad per s of latency error)."""
         return abs(float(self.Sr[k % len(self.Sr)][PSI]))
+
+    def sideslip(self, k: int, vx: float, vy: float) -> float:
+        """|d beta / d d| at stored step k (rad per s of latency error), beta = atan2(vy, vx)."""
+        S = self.Sr[k % len(self.Sr)]
+        return abs(vx * float(S[VY]) - vy * float(S[VX])) / (vx * vx + vy * vy)
+
+    def vy(self, k: int) -> float:
+        """|d vy / d d| at stored step k (m/s per s of latency error)."""
+        return abs(float(self.Sr[k % len(self.Sr)][VY]))
 
     def fused(self, hist: StepHistory, s: int, P: np.ndarray, H: np.ndarray, R: np.ndarray,
               h: np.ndarray) -> None:
