@@ -131,3 +131,18 @@ def test_a_car_creeping_below_its_wheel_sensors_floor_keeps_the_vx_promise(tmp_p
     assert valid[creep].all()  # still promised: 0.05 m/s is far inside the frame's 1.275
     assert beyond[creep].sum() == 0, e["t"][creep & beyond][:5]
     assert beyond.sum() == 0
+
+
+def test_the_law_is_learned_on_the_force_the_model_is_given(tmp_path, monkeypatch):
+    # the suite's dual_circle (flat, a 0.15 m/s^2 lateral offset: road.py calls it a 0.88 deg bank, which no
+    # sensor tells from an offset): with MODEL_TYRE_FORCE the model takes the specific force less the offset,
+    # and the learners (SingleTrackFusion.adapt_from, StiffnessRegression) must regress vy on that same force.
+    # Learned on the kinematic ay they fitted a law to the other force, and the model missed by the
+    # difference: sideslip RMS above 5 m/s 0.1003 deg (target 0.1; flag off 0.0910), 0.0964 learned alike.
+    from ecu_daemon.sim.suite import SUITE
+    from ecu_daemon.suite import TARGETS
+    monkeypatch.setattr(core, "MODEL_TYRE_FORCE", True)
+    case = {c.name: c for c in SUITE}["dual_circle"]
+    row = run_case(case, tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["sideslip_rms_above_5mps_deg"] <= TARGETS["dual_antenna_sideslip_rms_above_5mps_deg"], row

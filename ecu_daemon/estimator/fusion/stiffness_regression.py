@@ -307,12 +307,15 @@ class StiffnessRegression:
 
     def observe(self, h: StepHistory, s: int, course: float, speed: float, sigma_v: float,
                 lever_x: float, latency: float, latency_std: float, steer_offset: float,
-                scale_std: float = 0.0) -> None:
+                scale_std: float = 0.0, force_shift: float = 0.0) -> None:
         """Use one fused GNSS velocity (course, speed; per-axis 1-sigma ``sigma_v``) valid at step s
         by the latency estimator's ``latency`` (+- ``latency_std``). ``steer_offset``: the road-wheel
         angle offset the estimator currently removes from the steering (added back: d0 is the true,
         constant offset, not the learner's slowly moving one). ``scale_std``: the gyro's scale error
-        1-sigma (considered, CONSIDER_GYRO_SCALE)."""
+        1-sigma (considered, CONSIDER_GYRO_SCALE). ``force_shift`` (m/s^2): the tyres' lateral force
+        less the kinematic ay the history holds (core.MODEL_TYRE_FORCE: the bank's share of b_ay), in
+        the tyre law's regressor only; the latency term stays kinematic (the velocity vector turns
+        at the kinematic ay)."""
         i = h.slot(s)
         if self.last_s is not None and s <= self.last_s:
             return  # out of order (a second receiver): the headings only move forward
@@ -339,7 +342,8 @@ class StiffnessRegression:
         if hi - lo < 2:
             return
         rdot, r, ay, sig_ay = window_fit(h.aux, AUX_R, AUX_AY, lo, hi, s, self.dt)
-        n = abs(ay) / G
+        fy = ay + force_shift
+        n = abs(fy) / G
         if vx < MIN_SPEED or n > MAX_N:
             return
         n2 = n * n
@@ -351,7 +355,7 @@ class StiffnessRegression:
                 continue
             # measured lateral velocity at the CG, as if the sample were placed by tau
             vy = speed * math.sin(rel) - r * lever_x - ay * latency
-            phi = -vx * (arm * ay - sign * iz * rdot) / self.L
+            phi = -vx * (arm * fy - sign * iz * rdot) / self.L
             z = vy - self.lr * r if ax is self.rear else vy + self.lf * r - vx * delta
             hv = np.array([phi, phi * n2, vax, 0.0, -ay, 0.0 if ax is self.rear else -vx])
             # noise: GNSS, the regressor's own (ay noise), what the two-term tyre law leaves
