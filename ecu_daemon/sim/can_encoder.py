@@ -224,7 +224,7 @@ class FrameEncoder:
 
         A wheel-speed channel saturates at its range, as an ABS does: after a spin a car rolls on
         tail first faster than the chassis DBC's -10.016 m/s (random drives 3170, 3313, 3382, 3420:
-        wheels at -10.05..-20 m/s). The receiver's plausibility check (wheel speeds: [-5, 120] m/s)
+        a wheel below it, vx down to -12.8 m/s on 3170). The receiver's plausibility check (wheel speeds: [-5, 120] m/s)
         drops the range end as an invalid sample, so the estimator is told "no speed", never a
         wrong one, and the drive can be scored. A range end the receiver would take as a
         measurement (a signal too narrow for the config: a wrong scale) is still refused.

@@ -356,8 +356,8 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
             dr_ = mz / iz
             # the velocity's angle off the body's long axis, either way (a car rolling backwards
             # straight is not sliding); by the speed, not vx: a spin passes vx ~ 0 at speed
-            # (random drive 3170: flying on mu 0.22 at 28 m/s, 180 deg round, then -20 m/s tail
-            # first: by vx > 3 its |beta| > 25 deg was never looked at)
+            # (the lead's trace of a flying start on mu 0.22 at 28 m/s: 180 deg round, then -20 m/s
+            # tail first, spun_out False: by vx > 3 its |beta| > 25 deg was never looked at)
             if vx * vx + vy * vy > 9.0:
                 beta = math.atan2(abs(vy), abs(vx))
                 if beta > max_beta:
