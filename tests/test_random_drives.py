@@ -92,14 +92,39 @@ def test_a_drive_never_above_5_mps_is_summed_with_the_rest(rd):
     assert overall["vx"]["beyond_3sigma"] == 3 and overall["vx"]["valid_rows"] == 1800
 
 
-def test_a_drive_the_chassis_dbc_cannot_carry_is_listed_not_scored_and_not_a_broken_promise(rd, tmp_path):
-    """Seed 165 (generator v1): a straight drive on ice spins out after the friction drop and its
-    wheels turn backwards faster than the chassis DBC's wheel-speed signals reach (-10.016 m/s).
-    No recording of that drive can exist, so it says nothing of the estimator: reported apart,
-    not counted as a broken promise nor as an error of the tool."""
-    drives, overall = rd.run([165], tmp_path, jobs=1)
-    (d,) = drives
-    assert d["unencodable"] and d["unencodable"].startswith("error: UnencodableValue"), d["error"]
-    assert d["broken"] == [] and d["figures"] == {}
+def test_a_drive_the_chassis_dbc_cannot_carry_is_listed_not_scored_and_not_a_broken_promise(rd):
+    """A drive the simulator refuses (UnencodableValue: a value the config would take as a
+    measurement beyond what its DBC carries) says nothing of the estimator: reported apart, not
+    counted as a broken promise nor as an error of the tool."""
+    err = ("error: UnencodableValue: [inputs.accel_y] 19.6 (SI) cannot be encoded in ESP_02 of x.dbc:"
+           " 19.6 does not fit signal ESP_Querbeschleunigung [-12.5, 12.5]")
+    d = {"seed": 165, "manoeuvre": "straight", "spun_out": False, "error": err, "unencodable": err,
+         "figures": {}, "broken": []}
+    overall = rd.summary([d])
     assert overall["unencodable"] == [165] and overall["errors"] == [] and overall["breaking_seeds"] == []
-    assert "not scored: the simulated drive does not fit the chassis DBC" in rd.format_report(drives, overall)
+    assert "not scored: the simulated drive does not fit the chassis DBC" in rd.format_report([d], overall)
+
+
+def test_a_spin_that_ends_rolling_backwards_beyond_the_wheel_speed_range_is_scored_and_honest(rd, tmp_path):
+    """Random drive 3170 (generator v1: steady circle, mu 0.22): the car spins out and rolls on
+    tail first at up to -12.8 m/s, its wheels beyond the chassis DBC's -10.016 m/s. Refused on main
+    (d90b31e: UnencodableValue, not scored); the ABS now sends the range end, the decoder drops it
+    (can_encoder.FrameEncoder._saturated) and the drive is scored: spun out, no valid row beyond
+    3 sigma (measured: sideslip 0/8444 worst 0.55 deg, heading 0/8039, vx 0/10443 worst 1.37 m/s)."""
+    d = rd.run_drive(3170, str(tmp_path))
+    assert d["error"] is None and d["unencodable"] is None and d["spun_out"]
+    # the saturation was exercised: WHEEL_SPEEDS frames with a wheel at raw 0 (-10.016 m/s)
+    from ecu_daemon.config import Config
+    from ecu_daemon.dbc_loading import load_dbc
+    msg = load_dbc(Config().dbc_path()).get_message_by_name("WHEEL_SPEEDS")
+    frames = [bytes.fromhex(line.split("#")[1]) for line in
+              (tmp_path / d["name"] / "drive.log").read_text().splitlines() if " 0B0#" in line]
+    saturated = sum(1 for f in frames if 0 in [v for k, v in msg.decode(f, scaling=False).items()
+                                               if k.startswith("WHEEL_SPEED_")])
+    assert saturated > 10, saturated
+    for q in ("sideslip", "heading", "vx"):
+        f = d["figures"][q]
+        assert f["valid_rows"] > 5000 and f["coverage_3sigma"] >= 0.99, (q, f)
+    assert d["figures"]["sideslip"]["worst_error_valid"] <= math.radians(2.0)
+    assert d["figures"]["heading"]["worst_error_valid"] <= math.radians(5.0)
+    assert d["broken"] == []

@@ -456,3 +456,15 @@ def test_zero_relaxation_length_is_the_instant_tyre_bit_for_bit():
     explicit = _drive(man, params=replace(VehicleParams(), tyre_front=replace(VehicleParams().tyre_front,
                                                                               relaxation_length_m=0.0)))
     assert np.array_equal(base.data, explicit.data)
+
+
+def test_a_spin_through_low_vx_is_detected():
+    """A car sliding sideways at speed (vx 2 m/s, vy 8 m/s: 76 deg of sideslip, a spin passing
+    vx ~ 0 on its way to rolling on tail first, random drive 3170) is spun out although vx stays
+    below 3 m/s: the sideslip is judged at speed hypot(vx, vy), not at vx."""
+    p = VehicleParams()
+    man = _constant(2.0, 0.0, duration=1.0)
+    tr = integrate(p, Road(0.1, 0.0), mn.Driver(man, p, 0.1, 0.0), 0.0, man.duration_s, v0=2.0, vy0=8.0)
+    assert tr.col("vx").max() < 3.0 and math.hypot(2.0, 8.0) > 3.0
+    assert tr.spin_time == 0.0
+    assert tr.max_abs_sideslip == pytest.approx(math.atan2(8.0, 2.0), abs=0.05)

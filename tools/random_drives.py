@@ -235,8 +235,9 @@ def run_drive(seed: int, out_dir: str, max_duration_s: float | None = None) -> d
     row = run_case(SuiteCase(sc.name, "random", sc), out_dir)
     ev_path = Path(out_dir) / sc.name / "evaluation.json"
     error = next((f for f in row["failed"] if f.startswith("error:")), None)
-    # the drive left what the chassis DBC can carry (a spinning car's wheels turning backwards
-    # faster than its wheel-speed signals' range): a limit of the recording, not of the estimator
+    # the drive left what the chassis DBC can carry and the config would take the range end as a
+    # measurement (a wheel speed beyond its range that the config's plausibility range drops is sent
+    # saturated: sim/can_encoder.py): a limit of the recording, not of the estimator
     unencodable = error if error is not None and error.startswith("error: UnencodableValue") else None
     figures = {}
     if error is None:

@@ -11,7 +11,9 @@ checks them with (:class:`ecu_daemon.checksums.FrameChecksum`). Quantisation hap
 A sign-magnitude mapping (``sign_signal``) gets |value| in its signal(s) and 1 in the sign signal
 when negative. A value the DBC cannot hold (a negative yaw rate in an unsigned signal without a
 sign bit, a speed beyond the signal's range) raises :class:`UnencodableValue`: clipping it would
-hand the estimator a different drive than the truth describes.
+hand the estimator a different drive than the truth describes; except when the config's
+plausibility range ``[min, max]`` rejects the clipped value: then the frame carries the range end
+(a sensor saturates) and the decoder drops it as invalid (:meth:`FrameEncoder._saturated`).
 """
 from __future__ import annotations
 
@@ -215,6 +217,27 @@ class FrameEncoder:
         except KeyError:
             raise ConfigError(f"[inputs.{name}] signal '{sig_name}' is not in message {msg.name}") from None
 
+    @staticmethod
+    def _saturated(m, sigs: list[SignalInfo], sign: SignalInfo | None, phys: float, raw: dict):
+        """The raw range end a sensor sends for ``phys`` beyond its signal's range, when the
+        config's plausibility range ``[m.min, m.max]`` rejects that end; else None (refuse).
+
+        A wheel-speed channel saturates at its range, as an ABS does: after a spin a car rolls on
+        tail first faster than the chassis DBC's -10.016 m/s (random drives 3170, 3313, 3382, 3420:
+        a wheel below it, vx down to -12.8 m/s on 3170). The receiver's plausibility check (wheel speeds: [-5, 120] m/s)
+        drops the range end as an invalid sample, so the estimator is told "no speed", never a
+        wrong one, and the drive can be scored. A range end the receiver would take as a
+        measurement (a signal too narrow for the config: a wrong scale) is still refused.
+        """
+        if len(sigs) != 1:
+            return None
+        s = sigs[0]
+        p = s.clip(phys)
+        si = (-p if sign is not None and raw[sign.name] else p) * m.scale + m.offset
+        if m.min <= si <= m.max:
+            return None
+        return s.to_raw(p)
+
     def encode(self, plan: MessagePlan, values: dict) -> bytes:
         """One frame of ``plan`` carrying ``values`` (input name -> SI value); advances counters."""
         raw = dict(plan.template)
@@ -233,6 +256,10 @@ class FrameEncoder:
             try:
                 raw.update(split_value(sigs, phys))
             except UnencodableValue as e:
+                sat = self._saturated(m, sigs, sign, phys, raw)
+                if sat is not None:
+                    raw[sigs[0].name] = sat
+                    continue
                 hint = next(filter(None, (unsigned_range_hint(plan.message.get_signal_by_name(i.name),
                                                               plan.message.name, self.dbc_path.name)
                                           for i in sigs)), None) if phys < 0 else None

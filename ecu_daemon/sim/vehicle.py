@@ -180,6 +180,7 @@ class TruthArrays:
 
 
 SPIN_SIDESLIP_RAD = math.radians(25.0)  # |beta| above this at speed = spun out (not controllable)
+# |beta| here is the velocity's angle off the body's long axis in [0, 90] deg, at speed > 3 m/s
 
 
 def steady_cornering(params: VehicleParams, v: float, radius_m: float, left: bool = True) -> tuple[float, float, float]:
@@ -353,8 +354,12 @@ def integrate(params: VehicleParams, road: Road, driver, t0: float, duration: fl
             dvx = ax + r * vy
             dvy = ay - r * vx
             dr_ = mz / iz
-            if vx > 3.0:
-                beta = abs(math.atan2(vy, vx))
+            # the velocity's angle off the body's long axis, either way (a car rolling backwards
+            # straight is not sliding); by the speed, not vx: a spin passes vx ~ 0 at speed
+            # (the lead's trace of a flying start on mu 0.22 at 28 m/s: 180 deg round, then -20 m/s
+            # tail first, spun_out False: by vx > 3 its |beta| > 25 deg was never looked at)
+            if vx * vx + vy * vy > 9.0:
+                beta = math.atan2(abs(vy), abs(vx))
                 if beta > max_beta:
                     max_beta = beta
                 if beta > SPIN_SIDESLIP_RAD and spin_time is None:
