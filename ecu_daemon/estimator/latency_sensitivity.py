@@ -31,6 +31,12 @@ from .history import AUX_AX, AUX_AY, AUX_R, AUX_RDOT, StepHistory
 from .kinematic import NX, PSI, VX, VY
 
 
+def sideslip_rate(S, vx: float, vy: float) -> float:
+    """|d beta / d e| of beta = atan2(vy, vx) from one step's sensitivity row S (d x / d e): the
+    sideslip's share of a considered error e (this module's latency, scale_sensitivity's scale)."""
+    return abs(vx * float(S[VY]) - vy * float(S[VX])) / (vx * vx + vy * vy)
+
+
 class LatencySensitivity:
     """``S``: the state error per second of latency error, per history slot."""
 
@@ -53,8 +59,7 @@ class LatencySensitivity:
 
     def sideslip(self, k: int, vx: float, vy: float) -> float:
         """|d beta / d d| at stored step k (rad per s of latency error), beta = atan2(vy, vx)."""
-        S = self.Sr[k % len(self.Sr)]
-        return abs(vx * float(S[VY]) - vy * float(S[VX])) / (vx * vx + vy * vy)
+        return sideslip_rate(self.Sr[k % len(self.Sr)], vx, vy)
 
     def vy(self, k: int) -> float:
         """|d vy / d d| at stored step k (m/s per s of latency error)."""

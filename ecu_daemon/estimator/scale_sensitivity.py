@@ -26,8 +26,8 @@ from __future__ import annotations
 import numpy as np
 
 from .history import StepHistory
-from .kinematic import NX, PSI, VX, VY
-from .latency_sensitivity import prefix_products
+from .kinematic import NX, PSI, VY
+from .latency_sensitivity import prefix_products, sideslip_rate
 
 
 class ScaleSensitivity:
@@ -54,8 +54,7 @@ class ScaleSensitivity:
     def sideslip(self, k: int, vx: float, vy: float) -> float:
         """|d beta / d s| at stored step k (rad per unit scale error), beta = atan2(vy, vx): in a
         corner the courses keep heading - sideslip right, so this follows :meth:`heading`."""
-        S = self.Sr[k % len(self.Sr)]
-        return abs(vx * float(S[VY]) - vy * float(S[VX])) / (vx * vx + vy * vy)
+        return sideslip_rate(self.Sr[k % len(self.Sr)], vx, vy)
 
     def vy(self, k: int) -> float:
         """|d vy / d s| at stored step k (m/s per unit scale error)."""

@@ -58,29 +58,32 @@ class WheelLock:
             self.v_ref = v_wheels
             self.locked = False
             return False
-        locked = self.locked
-        if locked:
+        locked_before = self.locked
+        if locked_before:
             self.t += self.dt
         else:
             self.bax = bax
             self.bax_var = bax_var
             self.t = 0.0
         self.v_ref += (ax_m - self.bax + r_vy) * self.dt
-        lost = self.v_ref - v_wheels  # > 0: the wheels slower than the car (moving forwards)
-        if self.v_ref < 0.0:
-            lost = -lost
-        if fx * self.v_ref >= 0.0:  # not braking: traction or a lag, not a lock
-            lost = 0.0
-        if locked:
-            # the lock holds until the wheels are back with the car (spun up again, or the car has slid to
-            # the wheels' 0): within the bias's drift since the onset. Not within their noise as well: the
-            # configured noise (~0.08 m/s a sample) would end it with the car still 0.24 m/s above locked
-            # wheels (drive 3422), and the next updates pull vx to them
-            bound2 = self.bax_var * self.t * self.t
-        else:
-            # a lock begins beyond the wheels' noise (now, and smoothed in the reference)
-            bound2 = self.wheel_noise2 * (1.0 + 0.5 * self.pull)
-        locked = abs(self.v_ref) < MIN_SPEED_MPS and lost > LOCK_SIGMAS * math.sqrt(bound2)
+        v_ref = self.v_ref
+        locked = False
+        # braking (traction or a lag is no lock) below the ABS's range: the only place a lock is judged
+        # (the rest of the drive pays the reference's update alone)
+        if abs(v_ref) < MIN_SPEED_MPS and not fx * v_ref >= 0.0:
+            lost = v_ref - v_wheels  # > 0: the wheels slower than the car (moving forwards)
+            if v_ref < 0.0:
+                lost = -lost
+            if locked_before:
+                # the lock holds until the wheels are back with the car (spun up again, or the car has
+                # slid to the wheels' 0): within the bias's drift since the onset. Not within their noise
+                # as well: the configured noise (~0.08 m/s a sample) would end it with the car still
+                # 0.24 m/s above locked wheels (drive 3422), and the next updates pull vx to them
+                bound2 = self.bax_var * self.t * self.t
+            else:
+                # a lock begins beyond the wheels' noise (now, and smoothed in the reference)
+                bound2 = self.wheel_noise2 * (1.0 + 0.5 * self.pull)
+            locked = lost > LOCK_SIGMAS * math.sqrt(bound2)
         if not locked:
             self.v_ref += self.pull * (v_wheels - self.v_ref)
         self.locked = locked
