@@ -35,7 +35,7 @@ from .io.health import gap_line
 from .io.logging_setup import RateLimitedLog
 from .io.output_file import OutputFile, OutputPathError, check_output_paths
 from .pipeline import CAN, Pipeline, TickRecord, gnss_source
-from .replay_input import check_time_base, choose_channel, report_other_channels
+from .replay_input import check_time_base, choose_channel, output_channel, report_other_channels
 from .samples import INPUT_NAMES, GnssHeadingSample, InputSample
 from .signals import SignalDecoder
 from .step_grid import last_step_at, step_of
@@ -222,7 +222,8 @@ def run_replay(cfg: config_mod.Config, can_path: str, gnss_path: str | list[str]
         can_file = OutputFile(out_can) if out_can else None
         outputs += [can_file] if can_file else []
         csv_out = csv_file.open() if csv_file else None
-        can_out = open_can_writer(can_file.write_path, name=can_file.path) if can_file else None
+        can_out = (open_can_writer(can_file.write_path, output_channel(can_path, channel), name=can_file.path)
+                   if can_file else None)
     except (OutputPathError, CanLogError) as e:
         for o in outputs:
             o.keep_partial()

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import logging
 import math
+from pathlib import Path
 
-from .canlog import CanLogError, log_channels, read_can_log
+from .canlog import PYTHON_CAN_SUFFIXES, CanLogError, log_channels, read_can_log
 from .errors import UserError
 from .gnss.logfile import GnssLogError, read_gnss_log
 
@@ -75,6 +76,22 @@ def choose_channel(can_path: str, option: str | None, configured: str) -> str | 
         return configured
     raise UserError(f"{can_path} holds frames of {len(channels)} CAN channels: {_listing(channels)};"
                     " choose one with --can-channel NAME (or canplayer's IF=NAME), or set [can] channel")
+
+
+def output_channel(can_path: str, channel: str | None) -> str:
+    """The channel the replay's ``--out-can`` candump lines name: the replayed candump log's own
+    (the daemon sends its outputs on the bus it reads), ``can0`` for a log of another format or
+    without frames.
+
+    Why: a daemon recording's ``outputs.log`` names the daemon's bus (``vcan0``, the demo's
+    ``ecu-daemon-demo-PID``); the replay of the recording wrote the same frames, byte for byte,
+    but named them ``can0``, so ``cmp outputs.log out.log`` failed on every line (live49: four
+    demo runs, frames and estimates identical, the files not)."""
+    suffixes = {s.lower() for s in Path(can_path).suffixes[-2:]}
+    candump = not (suffixes & {*PYTHON_CAN_SUFFIXES, ".gz"})
+    if candump and channel and not any(c.isspace() for c in channel):
+        return channel
+    return "can0"
 
 
 def report_other_channels(can_path: str, channel: str | None, seen: dict[str, int]) -> None:

@@ -124,6 +124,9 @@ def test_replay_of_the_recording_sends_the_live_frames_byte_for_byte(live_run):
     first_diff = next((i for i, (a, b) in enumerate(zip(live, rep)) if a != b), None)
     assert first_diff is None, (first_diff, live[first_diff], rep[first_diff])
     assert len(live) == len(rep)
+    # the file itself, byte for byte: the replay names the frames with the recording's bus (the
+    # daemon's channel), not can0, so `cmp outputs.log replay.log` holds
+    assert out_can.read_bytes() == (rec / "outputs.log").read_bytes()
     live_rows = (rec / "estimates.csv").read_text().splitlines()
     rep_rows = out_csv.read_text().splitlines()
     assert live_rows == rep_rows
