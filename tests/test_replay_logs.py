@@ -235,3 +235,17 @@ def test_channel_appearing_after_the_scan_is_kept_out_and_reported(drive, origin
     assert [line.split(" WARNING ", 1)[1] for line in err if "not replayed" in line] == [
         f"{asc}: replayed channel 0 only; 1 ({n} frames) not replayed (choose with --can-channel)"]
     assert not [line for line in err if "CRC" in line]  # can1's inverted frames stayed out
+
+
+@pytest.mark.parametrize("log,channel,want", [
+    ("rec/can.log", "vcan0", "vcan0"),  # a daemon recording: its outputs.log names the daemon's bus
+    ("rec/can.log", "ecu-daemon-demo-12", "ecu-daemon-demo-12"),
+    ("drive.log", None, "can0"),  # no frames: nothing to name
+    ("drive.asc", "0", "can0"),  # python-can formats number their channels: not a candump name
+    ("drive.blf", "1", "can0"),
+    ("drive.log.gz", "can1", "can0"),
+])
+def test_out_can_names_the_replayed_candump_channel(log, channel, want):
+    from ecu_daemon.replay_input import output_channel
+
+    assert output_channel(log, channel) == want
