@@ -15,7 +15,8 @@ walks to 0.41-0.42 s, and a fix dated 12-18 ms off in a circle at r = 0.49 rad/s
 course by r * d = 0.35-0.5 deg: the circle's sideslip bin goes 0.18 -> 0.36-0.52 deg RMS. With
 the latency held at its (true) prior the six phases give 0.118-0.125; with the wheels' profile
 averaged over 0.1 s (``latency.WHEEL_SMOOTH_S``, off by default: see its comment) the delay stays
-at 0.4 s through the circle at every phase (0.095-0.096 at phases 0-2).
+at 0.4 s through the circle at every phase (0.089-0.096 over the six; live, three demo runs at
+load 17-18: 0.082-0.097).
 
 The shipped default fails this (strict xfail: it passes once the identification stops hanging on
 the phase; then drop the mark).
