@@ -132,7 +132,17 @@ def test_the_wheels_sample_noise_does_not_move_a_right_delay(monkeypatch):
 
 def test_without_the_average_the_sample_noise_moves_it(monkeypatch):
     monkeypatch.setattr(L, "WHEEL_SMOOTH_S", 0.0)
+    monkeypatch.setattr(L, "TIMING_INFORMATION", False)  # the information gate holds it (next test)
     assert max(abs(noisy_wheels(0.192, seed=s).delay_s - 0.192) for s in range(1, 9)) > 0.02
+
+
+def test_without_the_average_too_little_information_does_not_move_it(monkeypatch):
+    """TIMING_INFORMATION: +-0.3 m/s of speed change over the fixes cannot put 16 of likelihood ratio
+    between the right delay and the ragged profile's best, so the sample noise's "refutation" does not
+    count, and the right prior stands (the same as the average's, by the information, not the noise)."""
+    monkeypatch.setattr(L, "WHEEL_SMOOTH_S", 0.0)
+    monkeypatch.setattr(L, "TIMING_INFORMATION", True)
+    assert max(abs(noisy_wheels(0.192, seed=s).delay_s - 0.192) for s in range(1, 9)) <= 0.006
 
 
 def test_the_average_does_not_move_the_wheels_clock(monkeypatch):

@@ -110,6 +110,24 @@ CLEAN_LATE_CHASE = True
 # honest profile of a short drive may reject its prior later. On random drives 2641-2760 (lat46, with
 # CLEAN_LATE_CHASE) it took latency within 0.03 s from 65.5 to 72.3 %. Its tests run it at 0.1.
 WHEEL_SMOOTH_S = 0.0
+# A refutation needs the information to make it (_refine). Why: the cost profile's likelihood ratios
+# are read as chi-square, but a speed that is an affine function of time (a constant acceleration)
+# has no timing in it at all: y = a x(t - d) + b fits every d equally, the shift going into b. Only
+# the acceleration's *changes* within the forgotten window time the GNSS. What is left of a flat
+# profile is noise that differs from candidate to candidate (each reads its own wheel sample: the
+# GNSS noise times that sample's noise, ~2 sqrt(N) sigma_w sigma_g over the fixes), max over ~130
+# candidates. Random drive 3358 (a straight launch at a steady 1.19 m/s^2, 1208-1219 s, prior = truth
+# 0.066 s): the wheels' profile ragged between 3.6 and 16.8 with its best at 0.324 s, the
+# accelerometer's flat (0.2-1.0), the prior's 16.5 > LR_REJECT "refuted", the two clocks "agreeing"
+# (neither rejects the other's best) and the delay chased to 0.3215 s, which the corner after it
+# fused as a sideslip 2.3 deg off while valid. The information per reference is the Fisher
+# information of the linearised model: the regressor's slope across the candidates at the current
+# delay (its least-squares slope over +-TIMING_SLOPE_S, a wheel sample's noise averaged out), less
+# what the fit's own regressors (scale, offset, ramp) explain, summed over the forgotten fixes, over
+# the residual variance per fix. The data refute the current delay only if that information could
+# put LR_REJECT between it and the best: info * (best - current)^2 >= LR_REJECT.
+TIMING_INFORMATION = True
+TIMING_SLOPE_S = 0.25  # s: half the span the regressor's slope is fitted over (its sample noise)
 
 
 _FLOAT_MAX = float(np.finfo(np.float64).max)
@@ -190,6 +208,14 @@ class LatencyEstimator:
         # the GNSS fixes' own speed noise variance (m^2/s^2; NaN: unknown), set by the fusion per
         # fix: the part every reference's residual shares (combined_profile)
         self.gnss_var = math.nan
+        # the timing information's statistics (TIMING_INFORMATION): the forgotten Gram matrix of
+        # [slope, x, extras..., 1] at the current candidate, and the earlier runs' information
+        # (forget), forgotten as the statistics are; None: this reference does not keep them
+        self.info_zz: np.ndarray | None = None
+        self.past_info = 0.0
+        h = max(1, min(self.max_steps // 2, int(round(TIMING_SLOPE_S / dt))))
+        i = np.arange(2 * h + 1) - h
+        self._slope_w = i / float(np.dot(i, i))  # least-squares slope over 2h + 1 candidates
 
     def observe(self, k_rx: int, speed: float, hist: StepHistory, lever: tuple[float, float] = (0.0, 0.0),
                 wheels=None) -> None:
@@ -264,24 +290,36 @@ class LatencyEstimator:
             ends = [(k_rx - 1) % hist.n, (k_rx - 1 - self.max_steps) % hist.n]  # the newest and oldest candidate
             ends = _antenna_to_wheel(hist.X[ends], hist.aux[ends], lever, wheels)
             slip_free = abs(ends[0] - 1.0) <= RATIO_ERROR and abs(ends[-1] - 1.0) <= RATIO_ERROR
+        info = timing_point(x, c, self._slope_w) if TIMING_INFORMATION else None
         if slip_free:
             if self.slip_free is None:
                 self.slip_free = LatencyEstimator(self.dt, self.delay_s, (self.max_steps + 0.5) * self.dt,
                                                   forgetting=self.forgetting, min_spread=self.min_spread)
-            self.slip_free._accumulate(x, speed / ratio)
-        self.observe_series(x, speed / ratio)
+            self.slip_free._accumulate(x, speed / ratio, (), info)
+        self.observe_series(x, speed / ratio, (), info)
 
-    def observe_series(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
+    def observe_series(self, x: np.ndarray, y: float, extra: tuple[float, ...] = (),
+                       info: tuple[float, float] | None = None) -> None:
         """One observation ``y ~ a * x[m] + c . extra + b`` for every candidate m (``x[m]``: the
-        reference signal at the candidate validity step, a delay of m + 1 steps)."""
+        reference signal at the candidate validity step, a delay of m + 1 steps). ``info``: the
+        regressor's (slope across the candidates, value) at the current delay (:func:`timing_point`),
+        for the timing information (TIMING_INFORMATION); None: not kept."""
         if not self.enabled:
             return
-        self._accumulate(x, y, extra)
+        self._accumulate(x, y, extra, info)
         self._refine()
 
-    def _accumulate(self, x: np.ndarray, y: float, extra: tuple[float, ...] = ()) -> None:
+    def _accumulate(self, x: np.ndarray, y: float, extra: tuple[float, ...] = (),
+                    info: tuple[float, float] | None = None) -> None:
         lam = self.forgetting
         accumulate(self.zz, self.zy, x, extra, y, lam)
+        if info is not None:
+            z = np.array((info[0], info[1], *extra, 1.0))
+            if self.info_zz is None:
+                self.info_zz = np.zeros((len(z), len(z)))
+            self.info_zz *= lam
+            self.info_zz += np.outer(z, z)
+            self.past_info *= lam
         self.syy = lam * self.syy + y * y
         self.updates += 1
         if self.past_cost is not None:
@@ -293,6 +331,7 @@ class LatencyEstimator:
                 self._drop_past()
 
     def _drop_past(self) -> None:
+        self.past_info = 0.0
         self.past_cost = None
         self.past_n = 0.0
         self.past_p = 0
@@ -301,6 +340,11 @@ class LatencyEstimator:
     def shift(self, offsets: tuple[float, ...]) -> None:
         """Re-anchor the regressors: x and the extras from now on are read less ``offsets`` (an
         integral and a time that would otherwise grow without bound); the fit is unchanged."""
+        if self.info_zz is not None:
+            # the same re-anchoring of the information's Gram [slope, x, extras..., 1]
+            m = np.eye(len(self.info_zz))
+            m[1:-1, -1] = -np.asarray(offsets, dtype=float)
+            self.info_zz = m @ self.info_zz @ m.T
         if self.p in (3, 4) and shift_bits_match() and shift_statistics(self.zz, self.zy, offsets):
             return  # the einsums' bits, in place (shift_statistics_reference: why)
         m = np.eye(self.p)
@@ -325,6 +369,7 @@ class LatencyEstimator:
             if latency_costs(np.ascontiguousarray(self.zz), np.ascontiguousarray(self.zy), self.syy,
                              self.min_spread ** 2 * self.zz[0, -1, -1] * 0.1, c):
                 self.past_cost = c if self.past_cost is None else self.past_cost + c
+                self.past_info += self._run_information()
                 self.past_n += float(self.zz[0, -1, -1])
                 self.past_p += self.p
                 self.past_updates += self.updates
@@ -332,6 +377,30 @@ class LatencyEstimator:
         self.zy[:] = 0.0
         self.syy = 0.0
         self.updates = 0
+        if self.info_zz is not None:
+            self.info_zz[:] = 0.0
+
+    def _run_information(self) -> float:
+        """The current run's timing information, unscaled: the slope's forgotten sum of squares
+        less what the fit's regressors (x, extras, offset) explain ((m/s per candidate)^2)."""
+        g = self.info_zz
+        if g is None or not self.updates > g.shape[0]:
+            return 0.0
+        a = g[1:, 1:]
+        b = g[1:, 0]
+        try:
+            sol = np.linalg.solve(a, b)
+        except np.linalg.LinAlgError:
+            return 0.0
+        return max(float(g[0, 0] - b @ sol), 0.0)
+
+    def information(self, s2: float) -> float:
+        """The timing information of this reference's profile (1/s^2: the likelihood ratio a delay
+        error of 1 s would show, linearised), its residual variance per fix ``s2``; inf when this
+        reference keeps no information statistics (a heading receiver's: no gate)."""
+        if self.info_zz is None:
+            return math.inf
+        return (self._run_information() + self.past_info) / (max(s2, 1e-12) * self.dt ** 2)
 
     def attach(self, other: "LatencyEstimator") -> None:
         """Identify the delay from ``other``'s statistics too (another timing reference of the
@@ -401,6 +470,7 @@ class LatencyEstimator:
             self.owner._refine()
             return
         profiles = [ref._profile() for ref in self.references]
+        owners = {id(p): ref for ref, p in zip(self.references, profiles) if p is not None}  # (TIMING_INFORMATION)
         judge = profiles[-1] if len(profiles) > 1 else None
         if judge is None and self.slip_free is not None and profiles[0] is not None:
             # no accelerometer to judge the wheels: their fixes without braking judge them all
@@ -408,6 +478,7 @@ class LatencyEstimator:
             sf = self.slip_free._profile()
             if sf is not None and sf[0][int(profiles[0][0].argmin())] > LR_REJECT:
                 profiles[0] = sf
+                owners[id(sf)] = self.slip_free
         if judge is not None:
             # The last reference attached (the accelerometer's) has no lag and no slip; the
             # others (the wheels) have both, and they show as a timing bias. A reference whose
@@ -458,6 +529,11 @@ class LatencyEstimator:
         # not contradict them. A broad or stale accelerometer profile passing braked wheels took
         # flying_50_straight 0.032 s off, and wheels in a circle dual_circle 0.036 s.
         refuted = at_cur > LR_REJECT
+        if refuted and TIMING_INFORMATION:
+            # the references' information, what their residuals share counted once (the std's share);
+            # a reference without information statistics (a heading receiver's) does not gate
+            info = share * sum(owners[id(p)].information(p[2]) if id(p) in owners else math.inf for p in profiles)
+            refuted = info * (est - self.delay_s) ** 2 >= LR_REJECT
         clean = None  # the clean wheel fixes' (profile, best) while the accelerometer does not reject their best
         if (refuted or self._chasing_clean) and judge is not None:
             sf = self.slip_free._profile() if self.slip_free is not None else None
@@ -512,6 +588,18 @@ class LatencyEstimator:
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
         self.std_s = max(std, STD_FALL * self.std_s)
+
+
+def timing_point(x: np.ndarray, c: int, w: np.ndarray) -> tuple[float, float]:
+    """The regressor's least-squares slope across the candidates (per candidate; weights ``w`` over
+    2h + 1 of them) around candidate ``c`` (the window held inside the candidates), and its value at
+    ``c``: what the timing information of a fix is read from (TIMING_INFORMATION)."""
+    n = len(w)
+    lo = min(max(c - n // 2, 0), max(len(x) - n, 0))
+    seg = x[lo:lo + n]
+    if len(seg) < n:
+        return 0.0, float(x[c])
+    return float(np.dot(w, seg)), float(x[c])
 
 
 def parabola_delay(y0: float, y1: float, y2: float, i: int, dt: float) -> float:
@@ -878,4 +966,8 @@ class SpeedIntegral:
         self.anchor[receiver] = (self.last, self.total)
         x = lat._window_x  # the estimator's per-fix buffer, consumed within observe_series
         speed_window(self.v, self.vel, k_rx - 1, self.total, lever[0], lever[1], x)
-        lat.observe_series(x, speed, (0.0,))
+        info = None
+        if TIMING_INFORMATION:
+            d = (lat.owner or lat).delay_s  # the receiver's current delay (the owner identifies it)
+            info = timing_point(x, min(max(int(round(d / lat.dt)) - 1, 0), lat.max_steps), lat._slope_w)
+        lat.observe_series(x, speed, (0.0,), info)
