@@ -32,6 +32,7 @@ cdef class Estimator:
     cdef public object brake_grip, speed_gap, gap_terms, slip_ratio_limit, rear_fy, spin_grip
     # read or written every step by _step / _estimate (perf46: each was a __dict__ look-up through
     # Cython's generic getattr)
+    cdef public object return_level_sd, return_level_k  # WHEELS_RETURN_LEVEL (slide49)
     cdef public object ay_out, ay_out_new, awd_slip_hold, bank_lag_var, bank_walk, course_slide
     cdef public object course_slide_psi, course_slide_psi_t, friction, friction_var, input_age
     cdef public object law_bound, lever_flagged, mass_lf, readmit, sideslip_vouched, slide_rate

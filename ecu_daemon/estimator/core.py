@@ -439,6 +439,17 @@ ISOLATED_GYRO_PLOUGH = True
 # force (3x the linear law's; awd_limit_slip.py), held with the wheel-slip memory. False: main's
 # behaviour, bit for bit.
 AWD_LIMIT_SLIP = True
+# An all-wheel drive's wheels back from an isolation (stop 49, issue 7: random drive 3169, AWD on mu 0.19,
+# the wheels held out after a spin by fault_detection.SLIDE_WHEEL_HOLD): their common drive slip is a
+# level no vote sees (every fused wheel is driven) and no change-based witness sees either (the slip
+# witness and the longitudinal check compare speed changes with ax; this slip built while the wheels were
+# out). The one comparison of that level was the return test's, against a vx whose std the isolation had
+# grown (3169: 1.34 m/s); the first update then takes vx to the wheels at the wheels' noise (std 1.34 ->
+# 0.24), and 1.2 s later vx was published 0.25 m/s off at 0.08 (the four wheels 0.2 m/s ahead, spinning
+# at 65 % of the road's grip). So until a GNSS fix taken after the return has compared the wheels' level
+# (WheelScaleSeed.gap then publishes what it saw), the published vx std carries vx's std at the return.
+# Only with a receiver configured (no other level witness exists). False: main's behaviour, bit for bit.
+WHEELS_RETURN_LEVEL = True
 # While the road's bank ramps, b_ay (which holds g sin(bank)) lags it by seconds and the filter
 # integrates the lag into vy, which its P[b_ay] (grown by the bank walk, which a ramp outruns) does
 # not carry (random drive 1796, t+118 s: b_ay 0.65 m/s^2 behind, sideslip valid 0.9 deg off at a 0.29
@@ -953,6 +964,8 @@ class Estimator:
         self.bank_lag_var = 0.0  # (m/s)^2: vy's variance of b_ay's lag behind a changing bank (BANK_LAG_STD)
         self.steer_vy_hold = 0.0  # held vx error a missed vy puts through steered wheels (STEERED_WHEEL_VY)
         self.awd_slip_hold = 0.0  # held drive slip an AWD's wheels may carry at the limit (AWD_LIMIT_SLIP)
+        self.return_level_sd = 0.0  # vx's std when an AWD's wheels came back, until a fix checks them (WHEELS_RETURN_LEVEL)
+        self.return_level_k = 0  # the step they came back at
         # The lateral cross-check's residual rate (fault_detection.py) that the filter's own
         # lateral-acceleration noise covers (1 sigma over the check's window). Beyond it vy may be
         # drifting faster than its std grows: an ay error below the fault tolerance (which real
@@ -1311,9 +1324,13 @@ class Estimator:
         steer_ok = t - held_t[I_STEER] <= tmo[I_STEER]
         delta = (steer_sw - self.steer_offset) / self.steer_ratio if steer_ok else math.nan
         xpl = xp.tolist()
+        wheels_out = fdi.isolated & WHEELS
         iso = fdi.step(k, (fl, fr, rl, rr), wheels_ok, r_m, ax_m, ay_m, imu_ok, xpl,
                        Pp.item(VX, VX), self.wheels.noise2, delta,
                        0.0 if fdi.isolated & YAW_RATE else self.rdot)
+        if WHEELS_RETURN_LEVEL and wheels_out and not iso & WHEELS and self.wheels.use_all and self.receivers:
+            self.return_level_sd = max(self.return_level_sd, math.sqrt(max(Pp.item(VX, VX), 0.0)))
+            self.return_level_k = k
         wheel_z = fdi.wheel_z
         # ay alone stale (its samples dropped: a g scale on a signal already in m/s^2 reads a 3 m/s^2
         # turn past the 30 m/s^2 range): the gyro and ax are fresh, so the step still integrates
@@ -2029,6 +2046,8 @@ class Estimator:
             vx_std = math.hypot(vx_std, self.steer_vy_hold)
         if AWD_LIMIT_SLIP:  # an AWD's drive slip at its tyres' limit, a uniform bias (awd_limit_slip.py)
             vx_std = math.hypot(vx_std, self.awd_slip_hold / math.sqrt(3.0))
+        if WHEELS_RETURN_LEVEL and self.return_level_sd:  # an AWD's returned wheels, level unchecked
+            vx_std = math.hypot(vx_std, self.return_level_sd)
         if GNSS_SPEED_GAP:  # GNSS speed shows the velocity this far off (gnss_speed_gap.py)
             vx_std = max(vx_std, self.speed_gap.gap)
         if STANDSTILL_CREEP_STD and status & STATUS_STANDSTILL:  # "every wheel 0": |v| below their floor
@@ -2370,6 +2389,8 @@ class Estimator:
         refuted = seed.offset_found
         seeded = seed.observe(s * self.dt, raw, speed, float(x[VY]), float(a[AUX_R]), float(a[AUX_AX]),
                               fus.lever_x, fus.lever_y, kw, float(h.P[js][KW, KW]), bounds)
+        if self.return_level_sd and s >= self.return_level_k and seed.gap_t == s * self.dt:
+            self.return_level_sd = 0.0  # a fix since the return compared the wheels' level (WHEELS_RETURN_LEVEL)
         if seed.offset_found and not refuted:  # the fixes across speeds show an offset, not a scale
             log.warning("%s", seed.offset_message())
         if not seeded:

@@ -23,6 +23,7 @@ cdef class FaultDetector:
     cdef public object yaw_catch_up, yaw_disagreement, yaw_suspect, substitute_yaw_error, e_sub
     cdef public object yaw_pair, yaw_pair_mask, witnesses_must_agree, _scale_ay
     cdef public object _rg_lp, _rdot_g  # the yaw vote's gyro low-pass, every step (perf46)
+    cdef public object _fused_mask  # the fused wheels' bits (SLIDE_WHEEL_HOLD, slide49)
     # The yaw vote (~half of the detector's per-step cost): its floating-point locals are C doubles
     # and its verdicts C flags. A Python float is an IEEE double and each of its operators is the
     # same C operation (+ - * / on two doubles, compiled with -ffp-contract=off: no fused

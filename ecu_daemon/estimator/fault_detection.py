@@ -86,6 +86,15 @@ SOURCE_BITS = {"wheels": WHEELS, "yaw_rate": YAW_RATE, "accel_x": ACCEL_X, "acce
 WHEEL_TOL_MPS = 0.5  # + WHEEL_TOL_REL * speed: driven-wheel slip stays out of the median
 WHEEL_TOL_REL = 0.03
 WHEEL_PAIR_SIGMA2 = 9.0  # (3 sigma)^2: a pair's half-difference within it is the configured noise
+#: a slide that isolates the gyro (issue 7, stops 48-49). The wheel vote then has r = 0 and cannot
+#: put an axle's two wheels, legitimately |r| T apart in a yaw, at one CG speed: it masks good wheels.
+#: True: (1) while the vote masks every fused wheel the wheels stay isolated (the return latch, which
+#: compares them with a vx the isolation itself has widened to +-4 sigma = 4-4.5 m/s, may not release
+#: them in the same step: ``_each_wheel`` says "nothing left to fuse"); (2) a stand-in partner wheel,
+#: uncorrected by the unknown r T / 2, carries (T/2 * r_gyro)^2 in ``wheel_z_excess_var`` (the raw
+#: gyro less its bias: isolated in a slide, but the wheels' spread confirms it within 5 % in 3661).
+#: 3661 88 -> 0, 3834 38 -> 0 vx rows beyond 3 sigma (slide48.md). False: as before stop 49.
+SLIDE_WHEEL_HOLD = True
 
 # --- longitudinal: wheel speed change vs integrated ax over LON_WINDOW_S
 LON_WINDOW_S = 0.15
@@ -241,6 +250,7 @@ class FaultDetector:
         self.track = track_m
         self.lf = lf_m
         self.fused_wheels = {"all": (0, 1, 2, 3), "rear": (0, 1)}.get(driven_axle, (2, 3))
+        self._fused_mask = sum(1 << j for j in self.fused_wheels)  # the fused wheels' bits in wheel_mask
         self._other_wheels = tuple(j for j in range(4) if j not in self.fused_wheels)
         # the yaw witness: the axle whose wheels roll free, the one the speed fusion trusts (a driven
         # axle's wheels slip unequally in a corner: random seed 21, a rear-driven car at 0.6 of its
@@ -362,6 +372,9 @@ class FaultDetector:
             r = (r_m - x[BR]) if imu_ok and not before & YAW_RATE else 0.0
             fl, fr, rl, rr = self._each_wheel(wheels, r, delta, x[VY])
             self.wheel_z = self._measured(fl, fr, rl, rr)
+            if SLIDE_WHEEL_HOLD and self.wheel_mask and imu_ok and before & YAW_RATE:
+                # a stand-in partner with the yaw rate unknown to the vote: off by up to |r| T / 2
+                self.wheel_z_excess_var = (0.5 * self.track * (r_m - x[BR])) ** 2
         else:
             self.wheel_z = math.nan
         v = self.wheel_z * kw if wheels_ok else math.nan
@@ -369,6 +382,9 @@ class FaultDetector:
         self._longitudinal(k, v, ax, ax_m if imu_ok else math.nan)
         self._all_wheels_stuck(k, wheels, wheels_ok, r_m - x[BR] if imu_ok else math.nan)
         self._wheels_return(v, x[VX], p_vx, wheel_r2)
+        if SLIDE_WHEEL_HOLD and wheels_ok and self.wheel_mask & self._fused_mask == self._fused_mask:
+            self.wheels_isolated = True  # the vote's own verdict: no fused wheel to return with
+            self.wheels_back.good = 0
         left, right, judge = self._yaw_wheels(fl, fr, rl, rr, delta)
         self._yaw(k, left, right, wheels_ok and not self.wheel_mask & self.yaw_pair_mask, r_m, ay_m, imu_ok, x,
                   rdot, ax < -BRAKE_WITNESS_MPS2 or not judge)

@@ -376,6 +376,7 @@ class WheelScaleSeed:
         self.spread = math.nan  # its ratios' std
         self.seeded = False
         self.gap = 0.0  # |low-passed ratio - state|, relative (published vx std: gap x raw wheel speed)
+        self.gap_t = -math.inf  # the time of validity of the last fix that set the gap
         self._q_lp = math.nan
         self.fit: list[tuple[float, float, float]] = []  # steady fixes (t, GNSS speed, raw wheel speed)
         self.v_seed = math.nan  # the mean GNSS speed of the window that seeded the scale
@@ -469,6 +470,7 @@ class WheelScaleSeed:
             ql = self._q_lp
             self._q_lp = q if ql != ql else ql + KWS_GAP_GAIN * (q - ql)
             self.gap = abs(self._q_lp - kw)
+            self.gap_t = t
         if gnss < KWS_MIN_SPEED or abs(ax) > KWS_MAX_AX or abs(lat) > KWS_MAX_LATERAL * gnss:
             return False
         self.q.append(q)
