@@ -415,6 +415,13 @@ AXIS_SWAP_SLIDE = True
 # cost slaloms and lane changes on snow up to 60 points of sideslip validity at errors within 0.5
 # deg (random drives 636, 563, 505, 515). False: main's behaviour, bit for bit.
 FRICTION_MEMORY = True
+# ... and on the pseudo-measurement too, narrowly: once the front has ploughed in a corner and the
+# steering's misfit swings to the oversteer side while |ay| stays at that limit, the rear has let go
+# as well (fusion/friction_limit.py, FrictionLimit.rear_var): the misfit shrinks while both axles are
+# off their law, and the law held vy near a gripping car's (random drive 3791: front slip -6 deg at
+# |ay| 2.8 m/s^2, then the rear -3 -> -4 deg at the same |ay|; sideslip published valid 0.8 +- 0.65
+# deg against 3.1). Ends when |ay| falls below the hold or ay changes side. False: main's bits.
+FRICTION_REAR = False
 # The steered front pair measures vx only through vy (vx cos delta + (vy + lf r) sin delta): in a slide
 # the filter's vy stays near a gripping car's at a gripping std while the driver counter-steers, and vx
 # was published valid 4.65 m/s (random drive 760) and 2.34 m/s (297) off at 0.2-0.34 m/s. The published
@@ -1516,10 +1523,13 @@ class Estimator:
                 self.slide_rate.reset()
         # what the steering says the tyre law is off by, with fresh GNSS (LAW_EXCESS)
         law_var = 0.0
+        oversteer = math.nan  # the steering's misfit on the oversteer side, in sigmas (FRICTION_REAR)
         if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S
                                       or (LAW_EXCESS_GNSS_ISOLATED and fdi.gnss_isolated)):
             if abs(rdot) <= MODEL_STEADY_RDOT:
                 law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
+                if FRICTION_REAR:
+                    oversteer = self.single_track.oversteer_sigmas(vx, r_c, ay_c, rdot, delta)
                 if drive_alpha > 0.0:  # the driven rear on its limit: the law's slip angle, not its noise
                     dv = self.single_track.drive_excess_var(vx, ay_c, rdot, drive_alpha)
                     if DRIVE_SLIP_TYRE_FORCE:  # ... and the doubt of the force it rests on (tyre_lateral_force.py)
@@ -1544,13 +1554,15 @@ class Estimator:
                 # for the gyro's scale fit only (_check_lever_arm): the pseudo-measurement keeps the
                 # present misfit (held through the whole limit, slaloms on snow lost 60 points of
                 # sideslip validity at 0.5 deg error; the model's bound is off while it is nonzero)
-                self.friction_var = self.friction.step(t, vx, ay_c, law_var)
+                self.friction_var = self.friction.step(t, vx, ay_c, law_var, oversteer)
             if brake_ratio > 1.0:
                 # the rear braking in a corner may slip this far beyond its law; from the measured forces
                 # (no steering, no relaxation lag), so in a transient too: the speed falls, the yaw rate
                 # with it (drive 507: |rdot| beyond MODEL_STEADY_RDOT through the braking's second half)
                 law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, brake_ratio))
             law_var_seen = law_var  # what the steering, drive and brake rules saw (the witness's at_limit)
+            if FRICTION_REAR and FRICTION_MEMORY and self.friction.rear_var > law_var:
+                law_var = self.friction.rear_var  # the rear let go at the limit the front showed
             # the kinematics against the model (SLIDE_RATE), in a transient too, while the steering has shown
             # the road's friction at this |ay| (friction_limit.py): off the limit a mismatch is the bank's
             # step the accelerometer states have not followed yet (road_handling), not a slide

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import math
 
+from .single_track import LAW_HOLDS_SIGMA
+
 #: share of the |ay| the limit was seen at above which the axles are taken to be at it still: a
 #: tyre's force near its peak is flat in slip (Magic Formula curvature), so 80 % of the peak force
 #: is already well beyond the linear law's slip
@@ -40,6 +42,11 @@ HOLD_SHARE = 0.8
 RELEASE_S = 1.0
 #: m/s: below this the misfit's angle is noise (as single_track.MIN_SPEED)
 MIN_SPEED_MPS = 3.0
+#: sigmas of the steering's misfit on the oversteer side that, after a plough in the same corner at
+#: the same |ay|, say the rear has let go too (:attr:`FrictionLimit.rear_var`): the front's excess
+#: cannot be negative at the limit, so oversteer there is the rear's own excess, and a swing from
+#: beyond 3 sigma understeer to 1 sigma oversteer is 4 sigma of the misfit's noise
+REAR_OVERSTEER_SIGMA = 1.0
 
 
 class FrictionLimit:
@@ -52,18 +59,43 @@ class FrictionLimit:
         self.a_lim = math.inf  # |ay| (m/s^2) an axle was last seen beyond its law at; inf: none
         self.angle = 0.0  # the largest excess seen there (rad of slip)
         self.below_t = math.inf  # when |ay| fell below the hold (inf: not below)
+        self.plough_side = 0  # the side (sign of ay) of the corner the front was last seen ploughing in
+        self.rear = False  # the rear seen letting go at that limit, in that corner
+        self.rear_var = 0.0  # the held excess while it is ((m/s)^2; 0 otherwise)
 
-    def step(self, t: float, vx: float, ay: float, law_var: float) -> float:
-        """One step: the steering's law excess variance of this step ((m/s)^2, 0 inside the law);
-        returns it, or the held excess at this vx when that is larger."""
+    def step(self, t: float, vx: float, ay: float, law_var: float, oversteer: float = math.nan) -> float:
+        """One step: the steering's law excess variance of this step ((m/s)^2, 0 inside the law) and
+        its misfit on the oversteer side in sigmas (``SingleTrackFusion.oversteer_sigmas``; NaN: not
+        measured); returns the law excess, or the held excess at this vx when that is larger, and
+        sets :attr:`rear_var`.
+
+        The rear's own witness (core.FRICTION_REAR): the held excess says what the rear *may* be off
+        by anywhere at the limit; a plough alone leaves the rear on its law, and held on the
+        pseudo-measurement through every limit stretch it cost slaloms on snow their validity. But
+        once the front has ploughed in this corner (the misfit beyond its law on the understeer side)
+        and, with |ay| still at that limit, the misfit swings to the oversteer side, the rear has
+        left its law as well: the front's excess cannot be negative at the limit, so oversteer there
+        is the rear's, and the misfit *shrinks* while both are off (random drive 3791: front slip
+        -6 deg at |ay| 2.8 m/s^2, misfit +3.4 deg; the driver unwinds, the rear goes -3 -> -4 deg at
+        the same |ay|, the misfit swings to -1.2 then -3.2 deg, while the law pulled vy from 0.54 to
+        0.22 m/s). Then the held excess is :attr:`rear_var` until |ay| falls below HOLD_SHARE of the
+        limit (the axles off their limit: the law's own misfit speaks again) or ay changes side (a
+        slalom's next corner has shown no plough yet: per side, not per |ay|)."""
         a = abs(ay)
+        side = (ay > 0.0) - (ay < 0.0)
+        if side != self.plough_side:  # the corner the plough was seen in is over
+            self.plough_side = 0
+            self.rear = False
         if law_var > 0.0 and vx >= MIN_SPEED_MPS:
             ang = math.sqrt(law_var) / vx
             if ang > self.angle:
                 self.angle = ang
             self.a_lim = a  # the limit as last seen
             self.below_t = math.inf
+            if oversteer < -LAW_HOLDS_SIGMA:  # the front beyond its law: a plough in this corner
+                self.plough_side = side
             held = self.angle * vx
+            self._rear(a, vx, oversteer, held)
             return max(law_var, held * held)
         if self.a_lim == math.inf:
             return law_var
@@ -79,4 +111,13 @@ class FrictionLimit:
         else:
             self.below_t = math.inf
         held = self.angle * vx
+        self._rear(a, vx, oversteer, held)
         return max(law_var, held * held)
+
+    def _rear(self, a: float, vx: float, oversteer: float, held: float) -> None:
+        """The rear's witness (:meth:`step`), with |ay| = ``a`` and the held excess ``held`` (m/s)."""
+        if a < HOLD_SHARE * self.a_lim:
+            self.rear = False
+        elif self.plough_side != 0 and oversteer > REAR_OVERSTEER_SIGMA and vx >= MIN_SPEED_MPS:
+            self.rear = True
+        self.rear_var = held * held if self.rear else 0.0

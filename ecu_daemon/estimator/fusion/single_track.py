@@ -341,6 +341,19 @@ class SingleTrackFusion:
         lim = LAW_HOLDS_SIGMA * math.sqrt(var)
         return (e - lim) ** 2 if e > lim else 0.0
 
+    def oversteer_sigmas(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> float:
+        """The understeer relation's misfit (:meth:`law_holds`) on the oversteer side, in its own
+        sigmas: > 0 when the car yaws more than the two laws and the steering say (the rear beyond
+        its law more than the front), < 0 when less (the front: a plough); NaN without a steering
+        angle, below MIN_SPEED or without a lateral acceleration to give the corner its side.
+        Signed by ay: in a corner to the right (ay < 0) a ploughing front makes the misfit
+        ``L r - vx delta - (y_f - y_r)`` positive (random drive 3791: +3.4 deg of slip at -2.8 m/s^2),
+        in one to the left negative."""
+        if not vx >= MIN_SPEED or not math.isfinite(delta) or ay == 0.0:
+            return math.nan
+        e, var = self._understeer_misfit(vx, r, ay, rdot, delta)
+        return (e if ay > 0.0 else -e) / math.sqrt(var)
+
     def drive_excess_var(self, vx: float, ay: float, rdot: float, alpha: float) -> float:
         """Variance (m/s)^2 the rear law's vy is off by when the driven rear axle is on its friction
         limit and slips ``alpha`` (rad, magnitude; ``drive_slip.DriveSlip``): the slip beyond the
