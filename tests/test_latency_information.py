@@ -71,3 +71,24 @@ def test_informative_speed_changes_still_find_a_wrong_prior(monkeypatch, delay_s
     est = feed_wheels(LatencyEstimator(DT, 0.2, max_s=0.8), accelerating, delay_s, 120.0, 33,
                       np.random.default_rng(1), gnss_noise=0.03, wheel_noise=0.03)
     assert est.delay_s == pytest.approx(delay_s, abs=0.012)
+
+
+def test_drive_3358_keeps_its_right_prior_and_its_promise(tmp_path, monkeypatch):
+    """The drive itself (written out in test_sideslip_latency_sens.py): main walked the delay to
+    0.32 s and published the corner's sideslip 2.31 deg off as valid (74 rows beyond 3 sigma)."""
+    import math
+
+    from ecu_daemon.sim.suite import SuiteCase
+    from ecu_daemon.suite import run_case
+    from test_sideslip_latency_sens import DEMO_LATENCY_WALKED_OFF as sc
+
+    monkeypatch.setattr(L, "TIMING_INFORMATION", True)
+    row = run_case(SuiteCase(sc.name, "random", sc), tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert abs(row["latency_error_s"]) <= 0.01, row["latency_error_s"]
+    est = np.genfromtxt(tmp_path / sc.name / "estimate.csv", delimiter=",", names=True)
+    t = est["t"]
+    assert np.max(np.abs(est["gnss_delay_s"][(t > 1216.0) & (t < 1224.0)] - TRUE_S)) <= 0.006
+    assert row["sideslip_coverage_3sigma"] >= 0.99, row["sideslip_coverage_3sigma"]
+    assert row["sideslip_worst_valid_deg"] < 1.0, row["sideslip_worst_valid_deg"]
+    assert math.isfinite(row["sideslip_worst_valid_deg"])

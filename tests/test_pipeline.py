@@ -266,7 +266,13 @@ def test_a_late_can_frame_is_applied_at_the_next_step_not_dropped(drive):
 
 @pytest.fixture(scope="module")
 def long_drive():
-    return _demo_events(40.0)  # long enough for the latency identification to move
+    """The demo's first 40 s, configured with a 0.3 s latency prior for its true 0.4 s: the data must
+    move it (the demo's own prior is the truth, which latency.TIMING_INFORMATION now keeps exactly:
+    before it, noise moved it to 0.3926 s; from 0.3 it goes to 0.387 s, std 0.016 s)."""
+    import dataclasses
+
+    cfg, events = _demo_events(40.0)
+    return dataclasses.replace(cfg, gnss=dataclasses.replace(cfg.gnss, delay_s=0.3)), events
 
 
 def test_a_late_gnss_sample_does_not_lengthen_the_identified_latency(long_drive):

@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from ecu_daemon.estimator import core
+from ecu_daemon.estimator import core, latency
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.sensors import GnssParams, SensorParams
 from ecu_daemon.sim.suite import SuiteCase
@@ -58,6 +58,10 @@ def _run(tmp_path, monkeypatch, on):
     from ecu_daemon.pipeline import Pipeline
 
     monkeypatch.setattr(core, "SIDESLIP_LATENCY_SENS", on)
+    # the walk itself: latency.TIMING_INFORMATION keeps the right prior on this drive (the launch before
+    # the corner has no timing information; tests/test_latency_information.py), so these tests of what
+    # the sideslip std does with a walked-off latency run without it
+    monkeypatch.setattr(latency, "TIMING_INFORMATION", False)
     rec = []
     publish = Pipeline._publish
 
