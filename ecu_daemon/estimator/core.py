@@ -481,6 +481,18 @@ BANK_LAG_STD = True
 # (dual_circle 0.096 vs 0.091 off; tests/test_fault_detection.py yaw_rate_stuck: b_ay 0.0315 off after
 # the gyro's isolation (0.0253 off), 0.0278 with the offset set to its true value) (tyre48 report).
 MODEL_TYRE_FORCE = False
+# The slip-ratio rule (SLIP_RATIO_LIMIT) scales the rear law's linear angle by the wheels' slip ratio over a
+# linear tyre's, and took that angle for the kinematic ay (b_ay holds the bank's g sin(phi)): on a banked
+# straight the kinematic ay is ~0, so a tyre at its limit longitudinally widened nothing, however far it
+# slipped. The tyres carry the bank's force: random drive 3876 (AWD, straight, 2.2 deg bank, +6 % grade,
+# mu 0.41 -> 0.187, accelerating 15 -> 25 m/s): the slip witness read 3.2-4.5 % against a linear tyre's
+# 1.0 % (ratio 2.8-4.5) while the kinematic ay was -0.25..+0.24 m/s^2 and the tyres' force 0.3-0.5; the
+# rule's excess std was 0.002-0.12 m/s, the true rear slip 0.5-0.9 deg (the law's 0.1), the sideslip
+# published valid 0.85 deg off at 0.16-0.28 deg (439 rows beyond 3 sigma). With the tyres' force (the
+# specific force less road.py's offset, as MODEL_TYRE_FORCE and DRIVE_SLIP_TYRE_FORCE take it) the
+# rule's angle is the bank's, against the law as it is fused, and the split's doubt (the offset's std)
+# joins it, times the ratio. False: main's behaviour, bit for bit.
+SLIP_RATIO_TYRE_FORCE = False
 # A standstill is declared from the wheels reading ~0, and a wheel sensor sees no pulses below its floor
 # (~0.15 m/s, fusion/standstill.WHEEL_PULSE_FLOOR_MPS): "every wheel 0" says |v| below that floor, not v = 0,
 # and the accelerometer cannot tell a steady creep from rest (ax ~0 both). The zero-velocity update pins vx
@@ -1576,9 +1588,20 @@ class Estimator:
                 # the tyres near their limit longitudinally: the wheels' slip ratio (the witness's, as of
                 # the step before) over a linear tyre's is the factor the rear's angle exceeds its law
                 # by (slip_ratio_limit.py); from the wheels and ax, no steering: in a transient too
-                slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off, ay_c)
-                if slip_ratio > 1.0:
-                    law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, slip_ratio))
+                if SLIP_RATIO_TYRE_FORCE and not iso & (YAW_RATE | ACCEL_Y):
+                    # the tyres' force, the bank's share of b_ay back in (SLIP_RATIO_TYRE_FORCE)
+                    fy_t = ay_c + (xl[BAY] - ay_off)
+                    slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off, fy_t)
+                    if slip_ratio > 1.0:
+                        # the angle the tyres take for that force, against the law as it is fused (the
+                        # kinematic ay's, or MODEL_TYRE_FORCE's), and the bank/offset split's doubt of it
+                        law_var = max(law_var, self.single_track.brake_excess_var(
+                            vx, fy_t, rdot, slip_ratio, fy_t if MODEL_TYRE_FORCE else ay_c)
+                            + self.single_track.force_var(vx, self.road.bank.P.item(1, 1)) * slip_ratio ** 2)
+                else:
+                    slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off, ay_c)
+                    if slip_ratio > 1.0:
+                        law_var = max(law_var, self.single_track.brake_excess_var(vx, ay_c, rdot, slip_ratio))
         else:
             self.law_var_held = 0.0
             self.law_var_min = math.inf

@@ -367,18 +367,24 @@ class SingleTrackFusion:
         e = vx * math.tan(alpha) - abs(y)
         return e * e if e > 0.0 else 0.0
 
-    def brake_excess_var(self, vx: float, ay: float, rdot: float, ratio: float) -> float:
+    def brake_excess_var(self, vx: float, ay: float, rdot: float, ratio: float, law_ay: float | None = None) -> float:
         """Variance (m/s)^2 the rear law's vy may be off by while the rear axle brakes in a corner:
         its linear angle (the softer of the configured and the learned compliance) times ``ratio``
         (``brake_grip.BrakeGrip``: the brush tyre's slip over its linear angle at the rear's lateral
         utilisation bound), beyond the law's own angle (counted once, as :meth:`model_error`), as a
-        speed, squared; 0 when it is not beyond it."""
+        speed, squared; 0 when it is not beyond it. ``law_ay``: the force the law is fused with when it
+        is not ``ay`` (core.SLIP_RATIO_TYRE_FORCE: ``ay`` the tyres' force, the law the kinematic ay's):
+        the excess is then the tyres' angle less that law's, signed."""
         if not vx >= MIN_SPEED or not ratio > 1.0:
             return 0.0
         phi = self.regressor_rear(vx, ay, rdot)
-        y, _ = self.rear.predict(phi, (ay / G) ** 2, True)
-        e = abs(phi) * max(float(self.rear.k[0]), self.rear.k10) * ratio - abs(y)
-        return e * e if e > 0.0 else 0.0
+        if law_ay is None:
+            y, _ = self.rear.predict(phi, (ay / G) ** 2, True)
+            e = abs(phi) * max(float(self.rear.k[0]), self.rear.k10) * ratio - abs(y)
+            return e * e if e > 0.0 else 0.0
+        y, _ = self.rear.predict(self.regressor_rear(vx, law_ay, rdot), (law_ay / G) ** 2, True)
+        e = phi * max(float(self.rear.k[0]), self.rear.k10) * ratio - y
+        return e * e
 
     def substitute_vy_rate(self, vx: float, rdot: float) -> float:
         """|d vy / dt| the single-track model expects from the yaw acceleration ``rdot``: what an
