@@ -82,7 +82,7 @@ class FrictionLimit:
         limit (the axles off their limit: the law's own misfit speaks again) or ay changes side (a
         slalom's next corner has shown no plough yet: per side, not per |ay|)."""
         a = abs(ay)
-        side = (ay > 0.0) - (ay < 0.0)
+        side = 1 if ay > 0.0 else (-1 if ay < 0.0 else 0)  # not bool - bool: ay may be a numpy scalar
         if side != self.plough_side:  # the corner the plough was seen in is over
             self.plough_side = 0
             self.rear = False
