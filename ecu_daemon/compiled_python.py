@@ -56,6 +56,11 @@ MODULES = (
     "ecu_daemon/estimator/fusion/gnss_velocity.py",
     "ecu_daemon/estimator/fusion/gnss_heading.py",
     "ecu_daemon/estimator/fusion/stiffness_regression.py",
+    "ecu_daemon/estimator/fusion/wheel_lock.py",  # WheelLock.step: every step
+    "ecu_daemon/estimator/fusion/slide_rate.py",  # SlideRate.step: every step
+    "ecu_daemon/estimator/fusion/slip_ratio_limit.py",  # SlipRatioLimit.step: every step above walking speed
+    "ecu_daemon/estimator/fusion/spin_grip.py",  # SpinGrip.step: every step
+    "ecu_daemon/estimator/fusion/law_excess_bound.py",  # LawExcessBound.step: every step
     "ecu_daemon/estimator/input_age.py",  # InputAge.observe / at_mid: every sample, three a step
     "ecu_daemon/step_grid.py",  # step_of: every sample and step of the pipeline (~6 a step)
     "ecu_daemon/pipeline.py",  # Pipeline.advance / _publish: the replay's and daemon's per-step loop

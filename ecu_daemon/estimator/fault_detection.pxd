@@ -7,6 +7,13 @@
 cimport cython
 
 
+# one watched reading of _unchanged, updated in place (ten a step): the value, witness and step
+# as the objects the .py keeps (same bits), the verdict a C flag
+cdef class _StuckRef:
+    cdef public object value, witness, k
+    cdef public bint stuck
+
+
 cdef class FaultDetector:
     cdef dict __dict__
     cdef public object _a_lr, _a_slow, _a_yaw, _ax_jump_k, _ax_prev, _cum_a, _gnss_wheel_verdict
@@ -49,6 +56,7 @@ cdef class FaultDetector:
     # the stuck-value test, ten calls a step (from _each_wheel, _yaw, _all_wheels_stuck): as cpdef
     # those are C calls instead of Python method calls with their argument tuples (~1.3 k
     # instructions each). Untyped: every operation on the values stays the .py's.
+    @cython.locals(ref=_StuckRef)
     cpdef _unchanged(self, key, k, value, witness, tol)
     cpdef _all_wheels_stuck(self, k, wheels, wheels_ok, r)
     # likewise, untyped: called by step / _yaw / _longitudinal every step (C calls, the .py's operations)

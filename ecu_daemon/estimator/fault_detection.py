@@ -235,6 +235,20 @@ class _Latch:
         return self.update(True)
 
 
+class _StuckRef:
+    """One watched reading of :meth:`FaultDetector._unchanged`: its value and its witness's when it
+    last changed, that step, and whether it was found stuck since. Updated in place: ten readings
+    are watched every step, and a new tuple for each (the record before perf49) was ten allocations
+    and ten frees a step; the values kept and compared are the same objects."""
+
+    __slots__ = ("value", "witness", "k", "stuck")
+
+    def __init__(self):
+        self.value = self.witness = math.nan
+        self.k = 0
+        self.stuck = False
+
+
 class FaultDetector:
     """Cross-checks of wheels, IMU and GNSS; :attr:`isolated` is the mask of sources not to fuse."""
 
@@ -342,9 +356,9 @@ class FaultDetector:
         self.new_isolation = 0  # bits isolated at this step (the core widens their covariance)
         self.frozen: dict[int, float] = {}  # state index -> value held while its source is isolated
         self._stuck_steps = max(1, int(round(STUCK_S / dt)))
-        # per watched reading: (its value, the witness's value, the step) when it last changed, and
+        # per watched reading: its value, the witness's value and the step when it last changed, and
         # whether it was found stuck since
-        self._stuck_ref: dict[str, tuple] = {}
+        self._stuck_ref: dict[str, _StuckRef] = {}
         self.stuck_wheels = 0  # bit i: wheel i stuck (replaced like a wheel the others outvote)
         self.wheels_stuck = False  # all four stuck together (no wheel left to vote)
         self.gyro_stuck = False
@@ -443,13 +457,15 @@ class FaultDetector:
         a quantity that moves with it) moved by more than ``tol`` since its last change? Once
         found stuck it stays so until the value changes (the truth may come back past it)."""
         ref = self._stuck_ref.get(key)
-        if ref is None or value != ref[0] or not math.isfinite(witness) or not math.isfinite(ref[1]):
-            self._stuck_ref[key] = (value, witness, k, False)
+        if ref is None or value != ref.value or not math.isfinite(witness) or not math.isfinite(ref.witness):
+            if ref is None:
+                ref = self._stuck_ref[key] = _StuckRef()
+            ref.value, ref.witness, ref.k, ref.stuck = value, witness, k, False
             return False
-        if ref[3]:
+        if ref.stuck:
             return True
-        if k - ref[2] >= self._stuck_steps and abs(witness - ref[1]) > tol:
-            self._stuck_ref[key] = (value, witness, k, True)
+        if k - ref.k >= self._stuck_steps and abs(witness - ref.witness) > tol:
+            ref.value, ref.witness, ref.k, ref.stuck = value, witness, k, True
             return True
         return False
 
@@ -715,7 +731,7 @@ class FaultDetector:
             w_fail = True
             gyro.bad = max(gyro.bad, gyro.on - 1)
             if not was_stuck:  # its drift began when it last changed, not when the residual showed it
-                since = self._stuck_ref["gyro_w"][2]
+                since = self._stuck_ref["gyro_w"].k
                 self._w_fail_since = since if self._w_fail_since < 0 else min(self._w_fail_since, since)
         elif was_stuck:  # moving again: the residuals of the stuck stretch say nothing about it now
             self.e_w = self.e_ws = self.e_a = self.e_as = 0.0

@@ -8,3 +8,8 @@ cdef class SingleTrackFusion:
 cdef class LaggedModelInputs:
     cdef dict __dict__
     cdef public object a1, a2, ay, ay1, dt, r, vy1, vy2
+
+# one per axle: predict three times a step (the law's bound, its misfit, the pseudo-measurement)
+cdef class AxleRls:
+    cdef dict __dict__
+    cdef public object k10, k, P0, P, p00_prior, updates, from_drive, rel_var, rel_var0, n2_shown
