@@ -420,8 +420,11 @@ FRICTION_MEMORY = True
 # as well (fusion/friction_limit.py, FrictionLimit.rear_var): the misfit shrinks while both axles are
 # off their law, and the law held vy near a gripping car's (random drive 3791: front slip -6 deg at
 # |ay| 2.8 m/s^2, then the rear -3 -> -4 deg at the same |ay|; sideslip published valid 0.8 +- 0.65
-# deg against 3.1). Ends when |ay| falls below the hold or ay changes side. False: main's bits.
-FRICTION_REAR = False
+# deg against 3.1). Ends when |ay| falls below the hold or ay changes side. On (stop 49): 3791 37 -> 0
+# valid rows beyond 3 sigma; on 278 dev drives it fired in 17, changed no verdict, cost 0-1.9 points of
+# sideslip validity above 5 m/s (it fires 0.1-0.3 s as a driver unwinds at the end of a plough).
+# False: stop 48's bits.
+FRICTION_REAR = True
 # The steered front pair measures vx only through vy (vx cos delta + (vy + lf r) sin delta): in a slide
 # the filter's vy stays near a gripping car's at a gripping std while the driver counter-steers, and vx
 # was published valid 4.65 m/s (random drive 760) and 2.34 m/s (297) off at 0.2-0.34 m/s. The published
@@ -491,8 +494,9 @@ MODEL_TYRE_FORCE = False
 # published valid 0.85 deg off at 0.16-0.28 deg (439 rows beyond 3 sigma). With the tyres' force (the
 # specific force less road.py's offset, as MODEL_TYRE_FORCE and DRIVE_SLIP_TYRE_FORCE take it) the
 # rule's angle is the bank's, against the law as it is fused, and the split's doubt (the offset's std)
-# joins it, times the ratio. False: main's behaviour, bit for bit.
-SLIP_RATIO_TYRE_FORCE = False
+# joins it, times the ratio. On (stop 49): 3876 439 -> 0; 85 low-friction dev drives: rows beyond 3
+# sigma 52 -> 52, valid rows -0.07 % (two AWD drives braking on ice). False: stop 48's bits.
+SLIP_RATIO_TYRE_FORCE = True
 # A standstill is declared from the wheels reading ~0, and a wheel sensor sees no pulses below its floor
 # (~0.15 m/s, fusion/standstill.WHEEL_PULSE_FLOOR_MPS): "every wheel 0" says |v| below that floor, not v = 0,
 # and the accelerometer cannot tell a steady creep from rest (ax ~0 both). The zero-velocity update pins vx
