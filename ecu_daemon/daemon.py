@@ -5,10 +5,12 @@ Threads and data flow::
     CAN reader thread (buses without a file descriptor; io/can_bus.py)
     CAN frames, a batch per wake-up -> filter,
       ClockMapper ----------------------------------+
+    GNSS reader thread per port (io/serial_port.py) |
+    bytes -> stamp when the read returns -> queue   |
     event loop (asyncio, main thread)               |  tick thread (io/tick.py)
     ---------------------------------               |  ------------------------
     (socketcan: the same, on the loop) -------------+--> every 6 ms at k*dt + grace:
-    GNSS bytes -> stamp (a port per receiver) ------+--> Pipeline.tick(k): decode what is due,
+    GNSS chunks, in order, from the queue ----------+--> Pipeline.tick(k): decode what is due,
     host health (20 Hz) ----------------------------+    estimate, validity, frames -> bus.send
                                                          WATCHDOG=1
       recording, STATUS=, state persistence <---------- received frames (reader), published
@@ -20,7 +22,8 @@ through its inbox (a deque: append/popleft are atomic), so there is no lock on t
 tick thread never reads the bus itself: a flood or a backlog costs it CPU share, never a batch of
 unbounded length before its step (see ``io/can_bus.py``). Inputs carry receive
 times on the monotonic clock (CAN: kernel timestamps mapped once, see ``io/can_bus.py``; GNSS:
-time of the read), rounded to 1 us as the recording writes them.
+when the port's reader thread's read returned, not when the loop got round to the chunk, see
+``io/serial_port.py``), rounded to 1 us as the recording writes them.
 
 Live/replay equivalence: the recording (``--record``) keeps the inputs, the frames sent, the
 published estimates and the tick record (``ticks.log``: first tick, inputs that reached the tick

@@ -138,3 +138,69 @@ def test_rate_limited_logging_counts_suppressed_lines():
         assert buf.getvalue().splitlines()[2:] == ["bad frame 0x33 (+50 similar suppressed)"]
     finally:
         lg.removeHandler(handler)
+
+
+def _gnss_rx_threads():
+    import threading
+    return [th for th in threading.enumerate() if th.name.startswith("ecu-gnss-rx")]
+
+
+def test_stamp_is_the_arrival_not_when_the_loop_gets_round_to_it(tmp_path):
+    """Bytes written while the event loop is blocked are stamped when they arrive, before the
+    block ends: the port is read in its own thread. (Read from ``loop.add_reader``, the stamp was
+    when the loop got round to the port: after the block.) The block ends as soon as the port has
+    read the bytes, or after 5 s: only the order of the times is asserted."""
+    got = []
+    marks = {}
+
+    async def main():
+        rx = FakeReceiver(str(tmp_path / "ttyBLOCK"))
+        # stamps not rounded to 1 us: the order is asserted to the clock's own resolution
+        port = GnssSerial(rx.link, 115200, on_data=lambda t, b: got.append((t, b)), quantum_s=1e-9)
+        port.start(asyncio.get_running_loop())
+        done = asyncio.Event()
+
+        def write_then_block():
+            marks["write"] = time.monotonic()
+            rx.write(b"$GPRMC,during-block*00\r\n")
+            end = marks["write"] + 5.0
+            while port.bytes_read == 0 and time.monotonic() < end:
+                pass  # the loop is busy (a long callback, a GC pause, a recording flush)
+            marks["unblock"] = time.monotonic()
+            assert not got  # handed on in the loop only, after this callback
+            done.set()
+
+        asyncio.get_running_loop().call_soon(write_then_block)
+        await done.wait()
+        await wait_for(lambda: got, what="the chunk")
+        port.close()
+        rx.unplug()
+
+    asyncio.run(main())
+    assert b"".join(b for _, b in got) == b"$GPRMC,during-block*00\r\n"
+    assert marks["write"] <= got[0][0] < marks["unblock"]
+    assert not _gnss_rx_threads()  # close() left no reader behind
+
+
+def test_drain_delivers_every_byte_in_order_and_stops_the_reader(tmp_path):
+    """Chunks written while the loop never gets round to them (shutdown right after) all reach
+    on_data by drain(), in order, with non-decreasing stamps; no reader thread is left."""
+    got = []
+    msgs = [f"$GPGGA,{i:04d}*00\r\n".encode() for i in range(200)]
+
+    async def main():
+        rx = FakeReceiver(str(tmp_path / "ttyDRAIN"))
+        port = GnssSerial(rx.link, 115200, on_data=lambda t, b: got.append((t, b)))
+        port.start(asyncio.get_running_loop())
+        assert _gnss_rx_threads()
+        for m in msgs:
+            rx.write(m)
+        port.drain()  # no await in between: the loop never delivered a chunk itself
+        port.close()
+        assert not _gnss_rx_threads()
+        rx.unplug()
+
+    asyncio.run(main())
+    assert b"".join(b for _, b in got) == b"".join(msgs)
+    ts = [t for t, _ in got]
+    assert ts == sorted(ts)

@@ -1,7 +1,7 @@
 """The imperative shell of the live daemon: everything that touches a clock, a socket or a tty.
 
 ``can_bus``   python-can bus, asyncio reception, kernel time -> monotonic, error frames, bus-off TX gate
-``serial_port``  GNSS tty in the event loop, receive timestamps, unplug / reconnect
+``serial_port``  GNSS tty read in a thread, receive timestamps at read, unplug / reconnect
 ``tick``      the 6 ms thread on absolute deadlines, lateness statistics
 ``health``    the Diagnostics snapshot assembled from all the parts (the host's part, then on the step grid)
 ``recorder``  ``--record DIR``: what was received, published and sent, and the tick record that replays it
