@@ -494,9 +494,11 @@ MODEL_TYRE_FORCE = False
 # published valid 0.85 deg off at 0.16-0.28 deg (439 rows beyond 3 sigma). With the tyres' force (the
 # specific force less road.py's offset, as MODEL_TYRE_FORCE and DRIVE_SLIP_TYRE_FORCE take it) the
 # rule's angle is the bank's, against the law as it is fused, and the split's doubt (the offset's std)
-# joins it, times the ratio. On (stop 49): 3876 439 -> 0; 85 low-friction dev drives: rows beyond 3
-# sigma 52 -> 52, valid rows -0.07 % (two AWD drives braking on ice). False: stop 48's bits.
-SLIP_RATIO_TYRE_FORCE = True
+# joins it, times the ratio. Off: 3876 439 -> 0 and 85 low-friction dev drives 52 -> 52 rows beyond 3
+# sigma at -0.07 % valid rows (crab49), but tests/test_slip_ratio_limit.py's drive 1481 (AWD braking on
+# ice downhill, no bank) loses sideslip validity above 5 m/s 1.000 -> 0.917: the offset's doubt times the
+# ratio squared (4.5^2) widens where no bank is (stop 49 CI). False: stop 48's bits.
+SLIP_RATIO_TYRE_FORCE = False
 # A standstill is declared from the wheels reading ~0, and a wheel sensor sees no pulses below its floor
 # (~0.15 m/s, fusion/standstill.WHEEL_PULSE_FLOOR_MPS): "every wheel 0" says |v| below that floor, not v = 0,
 # and the accelerometer cannot tell a steady creep from rest (ax ~0 both). The zero-velocity update pins vx
