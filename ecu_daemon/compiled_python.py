@@ -62,6 +62,17 @@ MODULES = (
     "ecu_daemon/estimator/fusion/spin_grip.py",  # SpinGrip.step: every step
     "ecu_daemon/estimator/fusion/law_excess_bound.py",  # LawExcessBound.step: every step
     "ecu_daemon/estimator/input_age.py",  # InputAge.observe / at_mid: every sample, three a step
+    # perf50: small per-step functions that ran interpreted (a Python frame per call, ~1-3 k
+    # instructions each before any work; callgrind of the demo replay, DEVELOPERS.md). Not io/health.py:
+    # compiled, build_diagnostics took 3 % more instructions (its cost is the calls it makes)
+    "ecu_daemon/estimator/backend.py",  # _predict_from_compiled: every step (the kernel's wrapper)
+    "ecu_daemon/estimator/kinematic.py",  # wrap_pi: every step
+    "ecu_daemon/estimator/generated.py",  # wheel_speed / wheel_speed_H: every wheel-speed update
+    "ecu_daemon/estimator/bank_lag.py",  # vy_var: every step
+    "ecu_daemon/estimator/timing_trust.py",  # timing_std: every step (one per receiver)
+    "ecu_daemon/estimator/slip_heading.py",  # heading_floor: every step
+    "ecu_daemon/estimator/gyro_vote.py",  # onset_verdict: every step
+    "ecu_daemon/estimator/slow_turn_heading.py",  # scale_sd: every step
     "ecu_daemon/step_grid.py",  # step_of: every sample and step of the pipeline (~6 a step)
     "ecu_daemon/pipeline.py",  # Pipeline.advance / _publish: the replay's and daemon's per-step loop
     "ecu_daemon/outputs.py",  # OutputEncoder.payloads: every output frame's fields

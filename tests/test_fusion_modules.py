@@ -197,6 +197,22 @@ def test_single_track_law_excess_is_the_misfit_beyond_the_laws_own_3_sigma():
     assert st.law_excess_var(0.3, 0.0, 0.0, 0.0, 0.0) == 0.0
 
 
+def test_single_track_law_excess_and_oversteer_is_the_two_methods_bit_for_bit():
+    """core's step asks law_excess_and_oversteer for both when FRICTION_REAR is on (one misfit
+    computed, not two: perf50): each value the bits of its own method, at and beyond the law, both
+    signs of ay, ay = 0, no steering angle and below MIN_SPEED (0 / NaN as the methods give)."""
+    st = single_track()
+    cases = [(20.0, 0.2, 4.0, 0.0, 0.02), (20.0, 0.2, 4.0, 0.0, 0.02 + math.radians(5.0)),
+             (20.0, -0.2, -4.0, 0.1, -0.02 - math.radians(5.0)), (20.0, -0.2, -4.0, 0.1, -0.02 + math.radians(5.0)),
+             (15.0, 0.1, 0.0, 0.0, 0.05), (15.0, 0.1, 2.0, 0.0, math.nan), (0.3, 0.0, 1.0, 0.0, 0.0)]
+    for vx, r, ay, rdot, delta in cases:
+        excess, over = st.law_excess_and_oversteer(vx, r, ay, rdot, delta)
+        want_excess, want_over = st.law_excess_var(vx, r, ay, rdot, delta), st.oversteer_sigmas(vx, r, ay, rdot, delta)
+        assert excess.hex() == want_excess.hex()
+        assert over.hex() == want_over.hex() or (math.isnan(over) and math.isnan(want_over))
+    assert st.law_excess_and_oversteer(*cases[1])[0] > 0.0 and abs(st.law_excess_and_oversteer(*cases[2])[1]) > 1.0
+
+
 def test_single_track_fuse_widened_by_the_law_excess_moves_vy_less():
     """The excess widens the pseudo-measurement by its ~2 s correlation (CORNER_STEPS), a bias for
     the corner: the same model innovation moves vy less and leaves more vy variance."""

@@ -1545,9 +1545,10 @@ class Estimator:
         if LAW_EXCESS and imu_ok and (LAW_EXCESS_IN_OUTAGE or t - self.last_gnss_fused_t <= GNSS_FRESH_S
                                       or (LAW_EXCESS_GNSS_ISOLATED and fdi.gnss_isolated)):
             if abs(rdot) <= MODEL_STEADY_RDOT:
-                law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
-                if FRICTION_REAR:
-                    oversteer = self.single_track.oversteer_sigmas(vx, r_c, ay_c, rdot, delta)
+                if FRICTION_REAR:  # both from one misfit (law_excess_var's and oversteer_sigmas')
+                    law_var, oversteer = self.single_track.law_excess_and_oversteer(vx, r_c, ay_c, rdot, delta)
+                else:
+                    law_var = self.single_track.law_excess_var(vx, r_c, ay_c, rdot, delta)
                 if drive_alpha > 0.0:  # the driven rear on its limit: the law's slip angle, not its noise
                     dv = self.single_track.drive_excess_var(vx, ay_c, rdot, drive_alpha)
                     if DRIVE_SLIP_TYRE_FORCE:  # ... and the doubt of the force it rests on (tyre_lateral_force.py)

@@ -280,7 +280,7 @@ class LatencyEstimator:
         # factor for every candidate, so the timing comes from the wheels' own speed changes and
         # not from the filter's ratio (which a slalom at constant speed modulates, and whose
         # errors would then read as timing)
-        c = min(max(int(round(self.delay_s / self.dt)) - 1, 0), self.max_steps)
+        c = candidate_index(self.delay_s, self.dt, self.max_steps)
         s = (k_rx - 1 - c) % hist.n
         ratio = _antenna_to_wheel(hist.X[s:s + 1], hist.aux[s:s + 1], lever, wheels)[0]
         if slip_free:
@@ -509,7 +509,7 @@ class LatencyEstimator:
         # courses placed with the prior for longer (slalom_dry: k_r 30 % off; lat34)
         lr = profile_sum(profiles)
         share = information_share(profiles, self.gnss_var)
-        cur = min(max(int(round(self.delay_s / self.dt)) - 1, 0), len(lr) - 1)
+        cur = candidate_index(self.delay_s, self.dt, len(lr) - 1)
         # Likelihood-ratio statistic of every candidate against the best (lr - lr[i], i its
         # argmin). Its profile gives both the decision (move only when the data reject the
         # current delay) and an honest std (the width of the set of delays the data cannot reject;
@@ -588,6 +588,14 @@ class LatencyEstimator:
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
         self.std_s = max(std, STD_FALL * self.std_s)
+
+
+def candidate_index(delay_s: float, dt: float, max_steps: int) -> int:
+    """The candidate a delay names: candidate m is validity step k_rx - 1 - m (m = 0..max_steps),
+    a delay of d s is m = round(d / dt) - 1, held to the candidates. One rule for the ratio's
+    current candidate (:meth:`LatencyEstimator.observe`), the refinement's (``_refine``) and the
+    timing information's (:meth:`SpeedIntegral.observe`'s ``timing_point``)."""
+    return min(max(int(round(delay_s / dt)) - 1, 0), max_steps)
 
 
 def timing_point(x: np.ndarray, c: int, w: np.ndarray) -> tuple[float, float]:
@@ -969,5 +977,5 @@ class SpeedIntegral:
         info = None
         if TIMING_INFORMATION:
             d = (lat.owner or lat).delay_s  # the receiver's current delay (the owner identifies it)
-            info = timing_point(x, min(max(int(round(d / lat.dt)) - 1, 0), lat.max_steps), lat._slope_w)
+            info = timing_point(x, candidate_index(d, lat.dt, lat.max_steps), lat._slope_w)
         lat.observe_series(x, speed, (0.0,), info)
