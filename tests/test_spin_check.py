@@ -156,3 +156,27 @@ def test_a_car_that_grips_again_is_released_whatever_its_steering(v, delta):
 def test_without_the_steering_the_wheels_test_decides_as_before():
     c = _spun()
     assert _slide(c, 2.0, 0.56, -1.98, -1.95, -0.89, math.nan)
+
+
+def test_a_slide_on_a_wet_road_fires_below_a_dry_roads_grip(monkeypatch):
+    import ecu_daemon.estimator.spin_check as sc
+    # random drive 4288 (AWD, mu 0.33) at 1222.7: r -0.49 rad/s at 21.9 m/s (r vx 10.7 m/s^2, below the
+    # dry road's 1.2 g) against ay -3.35: the sideslip turns 30 deg in a second
+    vx, r, ay = 21.9, -0.49, -3.35
+    assert abs(r * vx) < GRIP_MPS2
+    monkeypatch.setattr(sc, "SLIDE_ROAD_GRIP", True)
+    c = SpinCheck(DT, TRACK)
+    assert _run(c, 1.0, vx, r, ay)[-1] and c.events == 1
+    monkeypatch.setattr(sc, "SLIDE_ROAD_GRIP", False)
+    c = SpinCheck(DT, TRACK)
+    assert not any(_run(c, 1.0, vx, r, ay))  # main 2a5eb36: never fired
+
+
+def test_a_gripping_corner_on_snow_does_not_fire_on_the_roads_grip(monkeypatch):
+    import ecu_daemon.estimator.spin_check as sc
+    monkeypatch.setattr(sc, "SLIDE_ROAD_GRIP", True)
+    c = SpinCheck(DT, TRACK)
+    # 0.3 g at 15 m/s, ay = r vx (plus 0.5 m/s^2 of ay bias): no sideslip change
+    r = 0.3 * 9.80665 / 15.0
+    assert not any(_run(c, 5.0, 15.0, r, r * 15.0 - 0.5))
+    assert c.events == 0

@@ -50,6 +50,19 @@ RELEASE_MPS2 = 1.5
 GRIP_S = 1.0
 #: m/s: below this the check does not fire (r vx is small, the sideslip not meaningful)
 MIN_SPEED = 5.0
+#: A yaw rate beyond the grip of *this* road (issue 7, spin50; random drives 4288, AWD, mu 0.33, and
+#: 4143, RWD, mu 0.41): GRIP_MPS2 is a dry road's grip, so a slide on a wet or snowy road never reached
+#: it: 4288 turned its sideslip by 30 deg in 1 s at r vx 10.2-10.9 m/s^2 (dbeta 7.5-9.4 deg, past
+#: SLIDE_RAD), 4143 by 60 deg at 5.9-7.7 m/s^2, neither fired; the fault detector isolated the good ay
+#: (and in 4288 the gyro) instead, vy stopped following the slide and vx (4288: 2.03 m/s off at 0.17)
+#: and the heading (4143: 4.9 deg off at 1.0) were promised. The road's grip is what the tyres deliver,
+#: and the accelerometer measures it: a car whose path turns (r vx) at ROAD_GRIP_FACTOR times the
+#: lateral acceleration its tyres produce, while its sideslip moves by SLIDE_RAD, is not on its tyres'
+#: path (4288: 3.2 times, 4143: 2.0 times). ROAD_GRIP_FLOOR_MPS2: r vx below it is no slide whatever
+#: ay says (gentle driving, ay's bias and bank errors <= 0.5 m/s^2). Off by default: measured on a small sample only.
+SLIDE_ROAD_GRIP = False
+ROAD_GRIP_FACTOR = 1.8
+ROAD_GRIP_FLOOR_MPS2 = 3.0
 #: The slide is over only when the steering agrees too (issue 7, spin50; random drive 4081: RWD, mu
 #: 0.21). ``|ay - r v_wheels| < RELEASE_MPS2`` is dvy/dt of a gripping car, but a car sliding sideways
 #: slowly on ice decelerates its vy at no more than mu g (2.1 m/s^2 there), and with the wheels' speed
@@ -128,7 +141,9 @@ class SpinCheck:
         if not self.active:
             # the rear wheels' difference confirms a yaw rate of the gyro's sign and at least half its
             # size (rigid-body kinematics, sliding or not): a stuck or offset gyro is no spin
-            if (fast and abs(self.dbeta) > SLIDE_RAD and abs(r * vx) > GRIP_MPS2
+            rvx = abs(r * vx)
+            beyond = rvx > GRIP_MPS2 or (SLIDE_ROAD_GRIP and rvx > max(ROAD_GRIP_FACTOR * abs(ay), ROAD_GRIP_FLOOR_MPS2))
+            if (fast and abs(self.dbeta) > SLIDE_RAD and beyond
                     and r_w * r > 0.5 * r * r):
                 self.active = True
                 self.events += 1
