@@ -102,3 +102,81 @@ def test_a_car_that_spins_out_keeps_no_valid_vx_beyond_its_std(rd, tmp_path):
     assert vx["worst_error_valid"] < 2.0, vx
     ss = d["figures"]["sideslip"]
     assert ss["worst_error_valid"] <= math.radians(2.0), ss  # the sideslip's 2 deg promise
+
+
+WHEELBASE = 2.513
+
+
+def _spun(wheelbase: float = WHEELBASE) -> SpinCheck:
+    c = SpinCheck(DT, TRACK, wheelbase)
+    _run(c, 1.0, 15.0, 1.5, 6.5)  # the rear breaks away (as above): the check fires
+    assert c.active
+    return c
+
+
+def _slide(c: SpinCheck, seconds: float, r: float, ay: float, front: float, rear: float, delta: float,
+           t0: float = 2.0) -> bool:
+    """Feed a car whose front wheels read ``front`` and rear ``rear`` (m/s, mean of the pair; the
+    rear-driven car fuses the undriven fronts); True when the check released."""
+    released = False
+    for i in range(int(round(seconds / DT))):
+        c.step(t0 + i * DT, 18.0, r, ay, front, rear - 0.5 * TRACK * r, rear + 0.5 * TRACK * r, True,
+               delta, front - 0.5 * TRACK * r, front + 0.5 * TRACK * r)
+        released = released or c.released
+    return released
+
+
+@pytest.mark.parametrize("front, rear, delta", [
+    # random drive 4081 (RWD, mu 0.21) at 1232.5: 105 deg sideways (vy 3.5 m/s, both axles ~60 deg
+    # of slip), countersteering 0.335 rad: the axles' slips alike (yaw misfit 0.73 m/s, within its
+    # bound), the steered fronts 0.96 m/s off the rears
+    (-1.95, -0.89, -0.335),
+    # ... and at 1232.0, steering nearly straight: the fronts cannot tell, the yaw rate (L r 1.41 m/s
+    # against v tan(delta) 0.2) can
+    (-2.57, -2.20, -0.078),
+])
+def test_a_car_sliding_sideways_slowly_on_ice_does_not_grip_again(monkeypatch, front, rear, delta):
+    import ecu_daemon.estimator.spin_check as sc
+    r, ay = 0.56, -1.98
+    # the wheels' test alone reads grip: |ay - r v_wheels| < RELEASE_MPS2 (mu g is 2.06 m/s^2 there)
+    assert abs(ay - r * front) < sc.RELEASE_MPS2
+    assert not _slide(_spun(), 3.0, r, ay, front, rear, delta)
+    monkeypatch.setattr(sc, "RELEASE_STEERING", False)
+    assert _slide(_spun(), 3.0, r, ay, front, rear, delta)  # main: released after GRIP_S
+
+
+@pytest.mark.parametrize("v, delta", [(2.0, 0.3), (-2.0, -0.3), (8.0, 0.05), (1.5, 0.6)])
+def test_a_car_that_grips_again_is_released_whatever_its_steering(v, delta):
+    # both axles rolling along their wheels: L r = vx tan(delta), the fronts at vx / cos(delta)
+    r = v * math.tan(delta) / WHEELBASE
+    c = _spun()
+    assert _slide(c, 2.0, r, r * v, v / math.cos(delta), v, delta) and not c.active
+
+
+def test_without_the_steering_the_wheels_test_decides_as_before():
+    c = _spun()
+    assert _slide(c, 2.0, 0.56, -1.98, -1.95, -0.89, math.nan)
+
+
+def test_a_slide_on_a_wet_road_fires_below_a_dry_roads_grip(monkeypatch):
+    import ecu_daemon.estimator.spin_check as sc
+    # random drive 4288 (AWD, mu 0.33) at 1222.7: r -0.49 rad/s at 21.9 m/s (r vx 10.7 m/s^2, below the
+    # dry road's 1.2 g) against ay -3.35: the sideslip turns 30 deg in a second
+    vx, r, ay = 21.9, -0.49, -3.35
+    assert abs(r * vx) < GRIP_MPS2
+    monkeypatch.setattr(sc, "SLIDE_ROAD_GRIP", True)
+    c = SpinCheck(DT, TRACK)
+    assert _run(c, 1.0, vx, r, ay)[-1] and c.events == 1
+    monkeypatch.setattr(sc, "SLIDE_ROAD_GRIP", False)
+    c = SpinCheck(DT, TRACK)
+    assert not any(_run(c, 1.0, vx, r, ay))  # main 2a5eb36: never fired
+
+
+def test_a_gripping_corner_on_snow_does_not_fire_on_the_roads_grip(monkeypatch):
+    import ecu_daemon.estimator.spin_check as sc
+    monkeypatch.setattr(sc, "SLIDE_ROAD_GRIP", True)
+    c = SpinCheck(DT, TRACK)
+    # 0.3 g at 15 m/s, ay = r vx (plus 0.5 m/s^2 of ay bias): no sideslip change
+    r = 0.3 * 9.80665 / 15.0
+    assert not any(_run(c, 5.0, 15.0, r, r * 15.0 - 0.5))
+    assert c.events == 0

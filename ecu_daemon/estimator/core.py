@@ -929,7 +929,7 @@ class Estimator:
         self.gnss_conflict_last_t = -math.inf
         self.lon_scale = LongitudinalScaleCheck(dt)  # wheels vs ax in scale and sign (mapping errors)
         self.lat_scale = LateralScaleCheck(dt)  # ay vs r vx at any speed (mapping errors)
-        self.spin = SpinCheck(dt, veh.track_m)  # a spinning car: nothing promised (spin_check.py)
+        self.spin = SpinCheck(dt, veh.track_m, self.wheelbase)  # a spinning car: nothing promised (spin_check.py)
         self.spin_grip = SpinGrip(dt)  # the grip a spin showed (SPIN_GRIP, fusion/spin_grip.py)
         self.yaw_bias_walk = es.yaw_rate_bias_walk
         # (yaw-rate bias, its variance, t) when the last slide began; what _after_spin carries over
@@ -1480,7 +1480,8 @@ class Estimator:
         kw = xl[KW]
         spin = self.spin
         if spin.step(t, vx, r_g - xl[BR], ay_g - xl[BAY] - xl[GAY] * ay_g,
-                     wheel_z * kw if wheels_ok else math.nan, rl * kw, rr * kw, imu_published):
+                     wheel_z * kw if wheels_ok else math.nan, rl * kw, rr * kw, imu_published, delta,
+                     fl * kw, fr * kw):
             if spin.fired_t == t:
                 # the bias the filter has learned up to the slide (the slide's own steps may teach it wrong)
                 self.spin_bias = (xl[BR], float(P[BR, BR]), t)

@@ -4,4 +4,4 @@
 cdef class SpinCheck:
     cdef dict __dict__
     cdef public object dt, track, _decay, _a, excess, dbeta, release_excess, active, released, events
-    cdef public object peak, fired_t, _grip_steps, _grip_need
+    cdef public object peak, fired_t, _grip_steps, _grip_need, wheelbase, steer_misfit, front_misfit
