@@ -128,6 +128,19 @@ WHEEL_SMOOTH_S = 0.0
 # put LR_REJECT between it and the best: info * (best - current)^2 >= LR_REJECT.
 TIMING_INFORMATION = True
 TIMING_SLOPE_S = 0.25  # s: half the span the regressor's slope is fitted over (its sample noise)
+# The identified delay's std is at least what the timing information supports (_refine): 1 / sqrt(info),
+# the delay error at which the linearised likelihood ratio reaches 1 (the same information that
+# TIMING_INFORMATION gates the refutation with), not only the half-width of the cost profile's 4-sigma
+# set. Why: where the speed's acceleration hardly changes, the profile is mostly the wheels' per-candidate
+# sample noise, ragged, and a ragged profile's 4-sigma set is narrower than the information in it; a
+# delay held because nothing refutes it then claimed a std the data never gave. Random drive 3991 (AWD,
+# low-speed growing circle, prior 0.321 s, true 0.078): held at 0.024 s with a std of 0.011-0.015 s
+# (3.7-4.3 sigma; the profile's width 0.008 s, 1 / sqrt(info) 0.016-0.024 s). Synthetic (a launch of
+# 0 -> 0.3 m/s^2 then a steady ramp, tests/test_latency_information_std.py): the profile's best scatters
+# by 0.19 s over seeds, 1 / sqrt(info) 0.13 s, the std was as low as 0.058 s, now >= 0.093 s. It does not
+# cover a biased clock (wheels or the accelerometer's integrand in a corner: 3974 keeps 0.235 +- 0.011-0.014
+# s for 0.274): the information measures noise, not bias. False: main's behaviour, bit for bit.
+INFORMATION_STD = True
 
 
 _FLOAT_MAX = float(np.finfo(np.float64).max)
@@ -529,10 +542,12 @@ class LatencyEstimator:
         # not contradict them. A broad or stale accelerometer profile passing braked wheels took
         # flying_50_straight 0.032 s off, and wheels in a circle dual_circle 0.036 s.
         refuted = at_cur > LR_REJECT
-        if refuted and TIMING_INFORMATION:
+        info = math.inf
+        if TIMING_INFORMATION and (refuted or INFORMATION_STD):
             # the references' information, what their residuals share counted once (the std's share);
             # a reference without information statistics (a heading receiver's) does not gate
             info = share * sum(owners[id(p)].information(p[2]) if id(p) in owners else math.inf for p in profiles)
+        if refuted and TIMING_INFORMATION:
             refuted = info * (est - self.delay_s) ** 2 >= LR_REJECT
         clean = None  # the clean wheel fixes' (profile, best) while the accelerometer does not reject their best
         if (refuted or self._chasing_clean) and judge is not None:
@@ -584,6 +599,10 @@ class LatencyEstimator:
             self.delay_s += max(-slew, min(slew, 0.3 * (target - self.delay_s)))
             prior_std = math.inf
         data_std = max(width_std, abs(est - self.delay_s))
+        if INFORMATION_STD and TIMING_INFORMATION:
+            # the profile's width is no std where its raggedness, not the information, narrows it:
+            # the data cannot tell apart delays within 1 / sqrt(info) (INFORMATION_STD)
+            data_std = max(data_std, 1.0 / math.sqrt(info) if info > 0.0 else PRIOR_STD_S)
         std = min(PRIOR_STD_S, max(MIN_STD_S, 1.0 / math.sqrt(prior_std ** -2 + data_std ** -2)))
         # rises at once, falls slowly: on real data (RAV4) the profile's second minimum comes
         # and goes from one fix to the next, and a std that followed it would promise too much
