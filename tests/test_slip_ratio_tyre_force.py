@@ -50,6 +50,27 @@ def test_the_slip_ratio_rule_scales_the_tyres_angle_for_the_bank():
     assert abs(math.sqrt(st.brake_excess_var(vx, 0.49, 0.0, ratio, 0.49)) - lin * (ratio - 1.0)) < 1e-3
 
 
+def test_the_split_doubt_of_the_tyres_force_reaches_their_angle_times_the_ratio():
+    # the tyres' force is the specific force less the offset, doubted by the offset's std on a flat road as on a
+    # bank (drive 1481, no bank: its -0.29 m/s^2 offset read as a 1.6 deg bank): at the limit the excess moves with
+    # that force slip_ratio times as fast as the linear law does, so its doubt is the ratio times the law's
+    st = SingleTrackFusion(1114.7, 1542.7, 1.14, 1.299, 118533.8, 100243.2, adapt=False)
+    vx, ratio, sd, d = 21.0, 4.35, 0.2, 1e-3
+    slope = (math.sqrt(st.brake_excess_var(vx, 0.49 + d, 0.0, ratio, 0.0))
+             - math.sqrt(st.brake_excess_var(vx, 0.49, 0.0, ratio, 0.0))) / d
+    assert abs(math.sqrt(st.split_var(vx, sd * sd, ratio, False)) - slope * sd) < 1e-6
+    assert abs(math.sqrt(st.split_var(vx, sd * sd, ratio, False)) - ratio * math.sqrt(st.force_var(vx, sd * sd))) < 1e-9
+    # the tyres' force's law (MODEL_TYRE_FORCE) carries 1x of it, fused with the law: the excess the rest, the
+    # two summing to the tyres' angle's doubt (not ratio^2 + 1 of it)
+    slope_t = (math.sqrt(st.brake_excess_var(vx, 0.49 + d, 0.0, ratio, 0.49 + d))
+               - math.sqrt(st.brake_excess_var(vx, 0.49, 0.0, ratio, 0.49))) / d
+    assert abs(slope_t - slope * (ratio - 1.0) / ratio) < 2e-3  # the excess itself moves (ratio - 1) x (the law's k3)
+    total = st.force_var(vx, sd * sd) + st.split_var(vx, sd * sd, ratio, True)
+    assert abs(total - st.split_var(vx, sd * sd, ratio, False)) < 1e-12
+    # inside the grip (ratio 1) the law's own doubt is all of it
+    assert st.split_var(vx, sd * sd, 1.0, True) == 0.0
+
+
 def test_a_car_crabbing_at_its_limit_on_a_bank_keeps_the_sideslip_promise(tmp_path, monkeypatch):
     monkeypatch.setattr(core, "SLIP_RATIO_TYRE_FORCE", True)
     sc = ACCELERATING_ON_A_BANK_ON_ICE

@@ -483,6 +483,13 @@ BANK_LAG_STD = True
 # with the suite's 0.15 m/s^2 offset (1.5 sigma of its 0.1 prior) the model's force is 0.15 off
 # (dual_circle 0.096 vs 0.091 off; tests/test_fault_detection.py yaw_rate_stuck: b_ay 0.0315 off after
 # the gyro's isolation (0.0253 off), 0.0278 with the offset set to its true value) (tyre48 report).
+# Its cost on random drive 3655 (flying, 3.8 deg bank, 8 m circle at 5.3 m/s; valid above 5 m/s 0.984 -> 0.585,
+# crab50) is the law's own doubt at the force the tyres carry: on the circle P's sideslip std is 1.3-1.5 deg
+# (heading unaligned, 8 deg) and the published one is the model's bound (MODEL_BOUND), whose parameter term
+# (the configured law's prior: below 8 m/s the law never learns) grows with the force, 3.9 -> 4.6 m/s^2 with the
+# bank's 0.73 in: bias std 0.043 -> 0.055 m/s, the bound 0.55-0.57 -> 0.65-0.69 deg, past the 0.667 limit. The
+# error in the withheld 1203.6-1213 s was 0.0-0.1 deg (main 0.2-0.35, valid at 0.59-0.62): right by the law's
+# stated doubt at the right force (main stated it at the wrong one), not a defect of the force.
 MODEL_TYRE_FORCE = False
 # The slip-ratio rule (SLIP_RATIO_LIMIT) scales the rear law's linear angle by the wheels' slip ratio over a
 # linear tyre's, and took that angle for the kinematic ay (b_ay holds the bank's g sin(phi)): on a banked
@@ -497,7 +504,12 @@ MODEL_TYRE_FORCE = False
 # joins it, times the ratio. Off: 3876 439 -> 0 and 85 low-friction dev drives 52 -> 52 rows beyond 3
 # sigma at -0.07 % valid rows (crab49), but tests/test_slip_ratio_limit.py's drive 1481 (AWD braking on
 # ice downhill, no bank) loses sideslip validity above 5 m/s 1.000 -> 0.917: the offset's doubt times the
-# ratio squared (4.5^2) widens where no bank is (stop 49 CI). False: stop 48's bits.
+# ratio squared (4.5^2) widens where no bank is (stop 49 CI). That doubt is right, flat road or not (crab50):
+# 1481's -0.29 m/s^2 offset sits in road.py's split as a 1.6 deg bank (the bank's prior is the wider), so the
+# tyres' force was taken 0.28 m/s^2 off while the rear slid 1.0-1.6 deg at ratio 4.4 (the excess 0.03 m/s at
+# 1246.7 s against a true 0.41); without the doubt 494 valid rows beyond 3 sigma, worst 1.27 deg (breaks);
+# with it 0, worst 0.86, at 0.92 valid. Its share when MODEL_TYRE_FORCE's law carries 1x of it already:
+# SingleTrackFusion.split_var. False: stop 48's bits.
 SLIP_RATIO_TYRE_FORCE = False
 # A standstill is declared from the wheels reading ~0, and a wheel sensor sees no pulses below its floor
 # (~0.15 m/s, fusion/standstill.WHEEL_PULSE_FLOOR_MPS): "every wheel 0" says |v| below that floor, not v = 0,
@@ -1602,10 +1614,12 @@ class Estimator:
                     slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off, fy_t)
                     if slip_ratio > 1.0:
                         # the angle the tyres take for that force, against the law as it is fused (the
-                        # kinematic ay's, or MODEL_TYRE_FORCE's), and the bank/offset split's doubt of it
+                        # kinematic ay's, or MODEL_TYRE_FORCE's), and the bank/offset split's doubt of the
+                        # part of that angle the law as fused does not carry (SingleTrackFusion.split_var)
                         law_var = max(law_var, self.single_track.brake_excess_var(
                             vx, fy_t, rdot, slip_ratio, fy_t if MODEL_TYRE_FORCE else ay_c)
-                            + self.single_track.force_var(vx, self.road.bank.P.item(1, 1)) * slip_ratio ** 2)
+                            + self.single_track.split_var(vx, self.road.bank.P.item(1, 1), slip_ratio,
+                                                          MODEL_TYRE_FORCE))
                 else:
                     slip_ratio = self.slip_ratio_limit.step(vx, self.slip_witness.ratio, ax_m - ax_off, ay_c)
                     if slip_ratio > 1.0:

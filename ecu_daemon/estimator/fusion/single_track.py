@@ -257,6 +257,19 @@ class SingleTrackFusion:
         d = vx * max(float(self.rear.k[0]), self.rear.k10) * self.lf / self.L
         return d * d * force_var
 
+    def split_var(self, vx: float, offset_var: float, ratio: float, law_force: bool) -> float:
+        """Variance (m/s)^2 of the slip-ratio rule's excess from the bank/offset split's doubt
+        ``offset_var`` (m/s^2)^2 (core.SLIP_RATIO_TYRE_FORCE). The tyres' force is the specific force
+        less the sensor's offset, and the offset is known to its std on a flat road as on a bank: no
+        sensor tells a standing offset from a bank (road.py), so a flat road's offset may sit in the
+        split's bank and the tyres' force be off by it (random drive 1481, no bank: the -0.29 m/s^2
+        offset read as a 1.6 deg bank, the force 0.28 m/s^2 off). At the limit the angle a force takes
+        is ``ratio`` times the linear one, so the tyres' angle is doubted by ratio^2 times
+        :meth:`force_var`, on a flat road too. The kinematic ay's law carries none of that doubt;
+        the tyres' force's law (``law_force``, core.MODEL_TYRE_FORCE) carries 1x of it already, fused
+        with the law: the excess then carries the rest, ratio^2 - 1, and the two sum to the angle's."""
+        return self.force_var(vx, offset_var) * (ratio ** 2 - (1.0 if law_force else 0.0))
+
     def pseudo_measurement(self, vx: float, r: float, ay: float, rdot: float) -> tuple[float, float]:
         """(vy_model, variance per 6 ms fusion) for the rear-axle relation at this instant.
 
