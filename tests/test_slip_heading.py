@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from ecu_daemon.estimator import slip_heading
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.sensors import GnssParams, SensorParams
@@ -73,3 +75,28 @@ def test_braking_at_the_limit_does_not_publish_the_heading_the_slipping_wheels_t
     assert row["heading_worst_valid_deg"] < 3.0, row["heading_worst_valid_deg"]
     # the rest of the drive keeps its heading (main: 0.546 above 5 m/s)
     assert row["heading_valid_above_5mps"] > 0.5, row["heading_valid_above_5mps"]
+
+
+def test_the_split_bound_covers_the_sideslip_a_slow_vx_leaves_a_matched_speed():
+    """core.SLIP_SPLIT (slip_heading.split_sideslip_error): a filter that matched the GNSS speed S
+    with a vx slow by b holds vy^2 = S^2 - (vx - b)^2; the bound at b covers the sideslip it shows
+    beyond the truth, at equality when the wheels are the whole bound slow, and nothing is in doubt
+    without braking slip."""
+    for vx_t, vy_t in ((14.8, 1.3), (14.8, 0.0), (10.0, -2.0), (25.0, 0.5)):
+        s = math.hypot(vx_t, vy_t)
+        for b in (0.1, 0.3, 0.65, 1.5):
+            for share in (0.5, 1.0):  # the wheels slow by half the bound, by all of it
+                vx_e = vx_t - share * b
+                vy_e = math.copysign(math.sqrt(s * s - vx_e * vx_e), vy_t if vy_t else 1.0)
+                excess = abs(math.atan2(vy_e, vx_e)) - abs(math.atan2(vy_t, vx_t))
+                e = slip_heading.split_sideslip_error(b, vx_e, vy_e)
+                assert e >= excess - 1e-7, (vx_t, vy_t, b, share)  # rounding at lo2 = 0
+                if share == 1.0 and vy_t != 0.0 and vy_e ** 2 > 2 * abs(vx_e) * b + b * b:
+                    assert e == pytest.approx(excess, rel=1e-6, abs=1e-7)
+    # 4085's rows at 1265 s: vy 3.96 m/s at vx 12.82, the wheels 0.65 m/s slow: the truth's 5.1 deg
+    # lies inside the bound from the 17.2 deg the filter shows
+    e = slip_heading.split_sideslip_error(0.65, 12.82, 3.96)
+    assert math.degrees(math.atan2(3.96, 12.82) - e) <= 5.1
+    assert slip_heading.split_sideslip_error(0.0, 12.82, 3.96) == 0.0
+    # a vy below sqrt(2 vx b) is all in doubt: the speed cannot tell it from the slow wheels
+    assert slip_heading.split_sideslip_error(0.65, 14.8, 2.0) == pytest.approx(math.atan2(2.0, 14.8))

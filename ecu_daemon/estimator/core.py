@@ -542,6 +542,16 @@ GNSS_VX_NEEDS_SIDESLIP = True
 # (slip_heading.py).
 # False: main's behaviour, bit for bit.
 SLIP_HEADING = True
+# The same split seen from the sideslip: braking wheels slow by up to b leave a GNSS speed that only vy
+# can reach, so the fixes (where the single-track law no longer holds vy) grow |vy| to
+# sqrt(S^2 - vx^2): random drive 4085 (a FWD ploughing on a 0.187 circle, braking at -0.6 m/s^2, the
+# wheels 0.65 m/s slow) reached 15-17 deg of sideslip against the true 3-5 at a 0.9 deg std, and the
+# heading turned by the same 12 deg, valid (964 rows beyond 3 sigma). The geometric bound of that
+# split (slip_heading.split_sideslip_error: the true vy^2 is at least vy^2 - 2 |vx| b - b^2), as a
+# uniform bias on the sideslip's std while the braking slip bound exceeds P's vx std and the
+# heading rests on courses; the heading floor of SLIP_HEADING then carries it to the heading.
+# False: main's behaviour, bit for bit.
+SLIP_SPLIT = False
 # The fault detector isolated a right gyro in 21 of 240 random drives without a fault (1201-1440,
 # 16 of them all-wheel drive): its two witnesses, the slipping wheels and ay / vx off by the
 # sideslip's rate, each disagreed with it by its own error, and far from each other (scale slopes
@@ -978,6 +988,7 @@ class Estimator:
         self.align_psi_var = 0.0
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
+        self.brake_slip_hold = 0.0  # the same, refreshed only while braking (SLIP_SPLIT)
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
         self.speed_gap = GnssSpeedGap(GNSS_WHEEL_TOL_MPS, GNSS_WHEEL_TOL_REL)  # GNSS_SPEED_GAP
         # each history slot's widening of the speed bound, (|(ax, ay)| + ACCEL_ERR) dt from the aux row
@@ -1665,6 +1676,9 @@ class Estimator:
             # that would latch both for good, SLIP_RATIO_LIMIT)
             ax_m - ax_off, ay_m - ay_off, law_var_seen > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
+        if SLIP_SPLIT:  # wheels slow under braking: the fixes' speed excess goes to vy (slip_heading.py)
+            self.brake_slip_hold = max(max(wheels.slip_bound(vx, ax), seen) if ax < 0.0 else 0.0,
+                                       self.brake_slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
             sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
                                                   self.mass_lf * ay - self.yaw_inertia * rdot,
@@ -2064,8 +2078,16 @@ class Estimator:
         # Wheel slip under braking: a bias over the whole manoeuvre that the wheel updates pass
         # into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         slip_std = self.slip_hold / math.sqrt(3.0)
+        beta_held = beta_std  # the sideslip std that says whether the fixes hold the heading
+        if SLIP_SPLIT and floor and sp2 > 0.25 and self.brake_slip_hold / math.sqrt(3.0) > sd_vx:
+            e = slip_heading.split_sideslip_error(self.brake_slip_hold, vx, vy) / math.sqrt(3.0)
+            if e > 0.0:
+                var_b += e * e
+                beta_std = math.sqrt(var_b)
+                vy_std = math.hypot(vy_std, e * sp2 / abs(vx))
         if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
-            psi_std = max(psi_std, slip_heading.heading_floor(slip_std, sd_vx, beta_std, sd_psi))
+            if slip_heading.heading_floor(slip_std, sd_vx, beta_held, sd_psi) > 0.0:
+                psi_std = max(psi_std, beta_std)
         if COURSE_SLIDE_HEADING and COURSE_SLIDE:  # the model shown off by the courses (course_slide.py)
             if self.course_slide.excess_var(t) > 0.0:
                 self.course_slide_psi = max(self.course_slide_psi, beta_std)
