@@ -19,7 +19,7 @@ import math
 
 import pytest
 
-from ecu_daemon.estimator import slip_heading
+from ecu_daemon.estimator import core, slip_heading
 from ecu_daemon.sim.scenario import Scenario
 from ecu_daemon.sim.sensors import GnssParams, SensorParams
 from ecu_daemon.sim.suite import SuiteCase
@@ -51,6 +51,30 @@ BRAKING_AT_THE_LIMIT_ON_A_CIRCLE = Scenario(name='random_v1_s1006', manoeuvre='s
     nmea_altitude=True), gnss2=None, seed=1006, duration_s=None, heading0_rad=5.83456,
     description='random drive seed 1006, generator v1', params=(('radius_m', 141.0), ('left',
     True)), config_errors=(('mass', 1.295), ('cr', 1.002)), latency_prior_s=None,
+    imu_in_config=True, relaxation_in_config=False)
+
+
+PLOUGH_BRAKING_ON_A_CIRCLE = Scenario(name='random_v1_s4085', manoeuvre='steady_circle', mu=0.339, mu_change=(11.1, 0.187),
+    bank_rad=0.03665, grade_rad=-0.04138, vehicle=VehicleParams(mass_kg=1357.5, yaw_inertia_kgm2=2112.3,
+    lf_m=1.038, lr_m=1.46, track_m=1.457, cg_height_m=0.627, wheel_radius_m=0.3524, wheel_inertia_kgm2=1.2,
+    steering_ratio=14.85, ackermann=1.0, roll_stiffness_front_share=0.609, roll_gradient_rad_per_g=0.03584,
+    suspension_lag_s=0.05, tyre_front=TyreParams(fz0_n=4000.0, ky1=11.45, ky2=2.0, kx1=18.0, shape_c=1.3,
+    curv_e=-1.5, relaxation_length_m=0.0), tyre_rear=TyreParams(fz0_n=4000.0, ky1=18.27, ky2=2.0, kx1=18.0,
+    shape_c=1.3, curv_e=-1.5, relaxation_length_m=0.0), driven_axle='front', max_drive_power_w=97000.0,
+    max_drive_force_n=7000.0, brake_front_share=0.65, drag_area_m2=0.68, air_density=1.2,
+    rolling_resistance=0.012), sensors=SensorParams(can_rate_hz=None, jitter_s=0.00072, usb_batch_s=0.0,
+    yaw_rate_bias_radps=0.005568, accel_x_bias_mps2=-0.031, accel_y_bias_mps2=-0.027, wheel_scale=0.9898,
+    steering_offset_rad=-0.03876, yaw_rate_noise_radps=0.000982, accel_noise_mps2=0.047,
+    wheel_speed_noise_mps=0.014, steering_noise_rad=0.003912, wheel_speed_min_mps=0.15, wheel_lag_s=0.0,
+    faults=(), magnetometer=None, roll_rate=False, roll_rate_bias_radps=0.005235987755982988,
+    roll_rate_noise_radps=0.0013962634015954637, imu_position_m=(0.0, 0.0, 0.0),
+    imu_mounting_rpy_deg=(0.0, 0.0, 0.0)), gnss=GnssParams(protocol='ubx', rate_hz=8.0, latency_s=0.331,
+    latency_jitter_s=0.0152, vel_noise_mps=0.049, speed_acc_mps=0.067, lever_arm_m=(-0.25, -0.1),
+    pos_noise_m=2.64, pos_tau_s=26.3, num_sv=16, nmea_stagger_s=0.004, lat0_deg=48.137, lon0_deg=11.575,
+    height_m=520.0, faults=(), dual_antenna=False, baseline_m=1.2, baseline_offset_deg=0.0,
+    heading_noise_deg_1m=0.2, down_noise_m=0.007, fuse_elevation=False, alt_noise_m=1.2, nmea_altitude=True),
+    gnss2=None, seed=4085, duration_s=None, heading0_rad=0.15507, description='random drive seed 4085, generator v1',
+    params=(('radius_m', 99.1), ('left', False)), config_errors=(('inertia', 1.241),), latency_prior_s=None,
     imu_in_config=True, relaxation_in_config=False)
 
 
@@ -100,3 +124,22 @@ def test_the_split_bound_covers_the_sideslip_a_slow_vx_leaves_a_matched_speed():
     assert slip_heading.split_sideslip_error(0.0, 12.82, 3.96) == 0.0
     # a vy below sqrt(2 vx b) is all in doubt: the speed cannot tell it from the slow wheels
     assert slip_heading.split_sideslip_error(0.65, 14.8, 2.0) == pytest.approx(math.atan2(2.0, 14.8))
+
+
+def test_a_plough_braked_at_the_limit_does_not_publish_the_heading_the_split_turned(tmp_path, monkeypatch):
+    """Random drive 4085 (generator v1, written out above; the lead's never-seen range, main 2a5eb36):
+    a front-driven car on a 99 m circle, friction 0.339 dropping to 0.187 at 11.1 s, speeding up
+    until the front ploughs (true front slip 12-27 deg), then braking at -0.6 m/s^2 at the limit
+    (1262-1270 s): the wheels 0.5-0.67 m/s slow, the single-track law out, each fix matched its
+    speed with vy (3.9 m/s against the true 1.3), the sideslip 15-17 deg against 3-5 (std 0.9,
+    invalid) and the heading 12-13 deg off at 0.75-0.9 deg, valid: 964 rows beyond 3 sigma, worst
+    13.14 deg (core.SLIP_SPLIT off: this test fails). With SLIP_SPLIT the split's bound widens the
+    sideslip's std to 5-9 deg and SLIP_HEADING's floor carries it to the heading (0 rows, worst
+    valid 0.78 deg)."""
+    monkeypatch.setattr(core, "SLIP_SPLIT", True)
+    sc = PLOUGH_BRAKING_ON_A_CIRCLE
+    row = run_case(SuiteCase(sc.name, "random", sc), tmp_path)
+    assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
+    assert row["heading_coverage_3sigma"] >= 0.99, row["heading_coverage_3sigma"]
+    assert row["heading_worst_valid_deg"] <= 5.0, row["heading_worst_valid_deg"]
+    assert row["sideslip_coverage_3sigma"] >= 0.99, row["sideslip_coverage_3sigma"]
