@@ -2080,7 +2080,8 @@ class Estimator:
         slip_std = self.slip_hold / math.sqrt(3.0)
         beta_held = beta_std  # the sideslip std that says whether the fixes hold the heading
         if SLIP_SPLIT and floor and sp2 > 0.25 and self.brake_slip_hold / math.sqrt(3.0) > sd_vx:
-            e = slip_heading.split_sideslip_error(self.brake_slip_hold, vx, vy) / math.sqrt(3.0)
+            room = abs(vy - self.single_track.model_vy(vx, r, self.model_ay, self.rdot))  # the fixes' departure
+            e = slip_heading.split_sideslip_error(self.brake_slip_hold, vx, vy, room) / math.sqrt(3.0)
             if e > 0.0:
                 var_b += e * e
                 beta_std = math.sqrt(var_b)
