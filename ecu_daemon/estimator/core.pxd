@@ -37,7 +37,7 @@ cdef class Estimator:
     cdef public object course_slide_psi, course_slide_psi_t, friction, friction_var, input_age
     cdef public object law_bound, lever_flagged, mass_lf, readmit, sideslip_vouched, slide_rate
     cdef public object slip_witness, speed_run_grade, steer_vy_hold, velocity_vouched, wheelbase
-    cdef public object yaw_inertia, model_fy_var
+    cdef public object yaw_inertia, model_fy_var, brake_slip_hold, fix_turn, wheel_bias_t
 
     # The published fields of every step: floating-point locals as C doubles (the same IEEE
     # operations as Python floats, -ffp-contract=off; an expression with an object operand is still

@@ -554,6 +554,27 @@ GNSS_VX_NEEDS_SIDESLIP = True
 # (slip_heading.py).
 # False: main's behaviour, bit for bit.
 SLIP_HEADING = True
+# The same split seen from the sideslip: braking wheels slow by up to b leave a GNSS speed that only vy
+# can reach, so the fixes (where the single-track law no longer holds vy) grow |vy| to
+# sqrt(S^2 - vx^2): random drive 4085 (a FWD ploughing on a 0.187 circle, braking at -0.6 m/s^2, the
+# wheels 0.65 m/s slow) reached 15-17 deg of sideslip against the true 3-5 at a 0.9 deg std, and the
+# heading turned by the same 12 deg, valid (964 rows beyond 3 sigma). The geometric bound of that
+# split (slip_heading.split_sideslip_error: the true vy^2 is at least vy^2 - 2 |vx| b - b^2), as a
+# uniform bias on the sideslip's std while the braking slip bound exceeds P's vx std and the
+# heading rests on courses; the heading floor of SLIP_HEADING then carries it to the heading.
+# False: main's behaviour, bit for bit.
+SLIP_SPLIT = False
+# Every vx error the wheel updates pass into vx that P does not carry (the slip bound, the steered
+# pair's missed vy STEERED_WHEEL_VY, an AWD's drive slip AWD_LIMIT_SLIP) is split by each fix into the
+# sideslip and the heading; a persistent one turns the heading fix after fix, whatever one fix's share
+# (SLIP_HEADING's HELD_SHARE). Random drive 4217 (a RWD spun out on a 0.237 circle, sliding on at -64
+# deg of sideslip on power, rear wheels 0.7 m/s fast, slip bound 0, steered-wheel bound 2.0 m/s): the
+# fixes after the spin's rejected ones turned the heading +1.85, +0.49, +0.42 ... deg, 4.1 deg off at
+# a 1.0-1.3 deg std, valid (634 rows beyond 3 sigma). While such a bias exceeds P's vx std, the heading
+# std is at least the smaller of the sideslip's std and the net turn the fused fixes gave the heading
+# since the bias began (the split's part of the heading error is at most what the fixes moved it).
+# False: main's behaviour, bit for bit.
+WHEEL_BIAS_HEADING = False
 # The fault detector isolated a right gyro in 21 of 240 random drives without a fault (1201-1440,
 # 16 of them all-wheel drive): its two witnesses, the slipping wheels and ay / vx off by the
 # sideslip's rate, each disagreed with it by its own error, and far from each other (scale slopes
@@ -990,6 +1011,9 @@ class Estimator:
         self.align_psi_var = 0.0
         self._lp_turn = dt / (TURN_MEMORY_S + dt)
         self.slip_hold = 0.0  # peak-held wheel-slip bound (m/s), see ``_estimate``
+        self.brake_slip_hold = 0.0  # the same, refreshed only while braking (SLIP_SPLIT)
+        self.fix_turn = 0.0  # net heading turn of fused fixes while a wheel bias beyond P's vx std lasts (WHEEL_BIAS_HEADING)
+        self.wheel_bias_t = -math.inf  # last step such a bias was published (WHEEL_BIAS_HEADING)
         self._slip_decay = math.exp(-dt / SLIP_MEMORY_S)
         self.speed_gap = GnssSpeedGap(GNSS_WHEEL_TOL_MPS, GNSS_WHEEL_TOL_REL)  # GNSS_SPEED_GAP
         # each history slot's widening of the speed bound, (|(ax, ay)| + ACCEL_ERR) dt from the aux row
@@ -1168,6 +1192,15 @@ class Estimator:
         """A GNSS sample at step k. Input samples (~5 per step) are applied inline in
         ``advance_to``, the one place they enter ``held``."""
         if isinstance(s, GnssSample):
+            if WHEEL_BIAS_HEADING and self.initialized:  # the fix's turn of the present heading
+                h = self.hist
+                last0 = h.last
+                psi0 = h.X.item(h.slot(last0), PSI)
+                self._on_gnss(s, k)
+                if self.initialized and h.last == last0 and k * self.dt - self.wheel_bias_t <= TURN_MEMORY_S:
+                    d = (h.X.item(h.slot(last0), PSI) - psi0 + math.pi) % (2.0 * math.pi) - math.pi
+                    self.fix_turn += d
+                return
             self._on_gnss(s, k)
         elif type(s) is GnssHeadingSample:
             self._on_heading(s, k)
@@ -1681,6 +1714,9 @@ class Estimator:
             # that would latch both for good, SLIP_RATIO_LIMIT)
             ax_m - ax_off, ay_m - ay_off, law_var_seen > 0.0)
         self.slip_hold = max(wheels.slip_bound(vx, ax), seen, self.slip_hold * self._slip_decay)
+        if SLIP_SPLIT:  # wheels slow under braking: the fixes' speed excess goes to vy (slip_heading.py)
+            self.brake_slip_hold = max(max(wheels.slip_bound(vx, ax), seen) if ax < 0.0 else 0.0,
+                                       self.brake_slip_hold * self._slip_decay)
         if STEERED_WHEEL_VY:
             sv = (steered_wheel_vx.vx_error_bound(wheels.frac, vx, r, delta, self.wheelbase,
                                                   self.mass_lf * ay - self.yaw_inertia * rdot,
@@ -2080,8 +2116,26 @@ class Estimator:
         # Wheel slip under braking: a bias over the whole manoeuvre that the wheel updates pass
         # into vx; published as a uniform bias up to its bound (std = bound / sqrt 3).
         slip_std = self.slip_hold / math.sqrt(3.0)
+        beta_held = beta_std  # the sideslip std that says whether the fixes hold the heading
+        if SLIP_SPLIT and floor and sp2 > 0.25 and self.brake_slip_hold / math.sqrt(3.0) > sd_vx:
+            room = abs(vy - self.single_track.model_vy(vx, r, self.model_ay, self.rdot))  # the fixes' departure
+            e = slip_heading.split_sideslip_error(self.brake_slip_hold, vx, vy, room) / math.sqrt(3.0)
+            if e > 0.0:
+                var_b += e * e
+                beta_std = math.sqrt(var_b)
+                vy_std = math.hypot(vy_std, e * sp2 / abs(vx))
         if SLIP_HEADING and floor:  # wheel slip in vx split into the sideslip and heading (slip_heading.py)
-            psi_std = max(psi_std, slip_heading.heading_floor(slip_std, sd_vx, beta_std, sd_psi))
+            if slip_heading.heading_floor(slip_std, sd_vx, beta_held, sd_psi) > 0.0:
+                psi_std = max(psi_std, beta_std)
+            if WHEEL_BIAS_HEADING:  # every wheel bias vx's std carries and P does not, turning it fix by fix
+                bias_std = math.hypot(math.hypot(slip_std, self.steer_vy_hold if STEERED_WHEEL_VY else 0.0),
+                                      self.awd_slip_hold / math.sqrt(3.0) if AWD_LIMIT_SLIP else 0.0)
+                if bias_std > sd_vx:
+                    if t - self.wheel_bias_t > TURN_MEMORY_S:
+                        self.fix_turn = 0.0  # a new bias: its turn starts now
+                    self.wheel_bias_t = t
+                if t - self.wheel_bias_t <= TURN_MEMORY_S:
+                    psi_std = max(psi_std, min(beta_std, abs(self.fix_turn)))
         if COURSE_SLIDE_HEADING and COURSE_SLIDE:  # the model shown off by the courses (course_slide.py)
             if self.course_slide.excess_var(t) > 0.0:
                 self.course_slide_psi = max(self.course_slide_psi, beta_std)

@@ -47,3 +47,35 @@ def heading_floor(slip_std: float, vx_std_filter: float, sideslip_std: float,
     if slip_std > vx_std_filter and heading_std_filter >= HELD_SHARE * sideslip_std:
         return sideslip_std
     return 0.0
+
+
+def split_sideslip_error(brake_slip: float, vx: float, vy: float, room: float = math.inf) -> float:
+    """How much larger (rad) the sideslip's magnitude may be than the truth because the fixes have
+    split a GNSS speed the braking wheels' vx cannot reach into vy (``core.SLIP_SPLIT``), given the
+    wheels' held braking-slip bound ``brake_slip`` (m/s: the wheels, so vx, slow by at most that).
+
+    Why (issue 7, random drive 4085: a FWD ploughing at the limit of a 0.187 road on a circle, the
+    driver braking at -0.6 m/s^2): the wheels read vx 0.65 m/s slow and the single-track law no
+    longer held vy (the front 12-20 deg past its law), so each fix matched its speed S with vy:
+    vy^2 = S^2 - vx^2 grew from the true 1.3 to 3.9 m/s (sideslip 15-17 deg against the true 3-5),
+    and the heading turned by the same 12 deg to keep the course, at a 0.9 deg std, valid.
+    The split is geometry: with the filter's speed S matched and vx slow by up to b, the true
+    vx is at most vx + b, so the true vy^2 is at least vy^2 - 2 |vx| b - b^2. A small vy cannot be
+    told from a slow vx at all (the speed is vx + vy^2 / 2 vx): vy below sqrt(2 |vx| b) is all in
+    doubt. One-sided: a speed the wheels overshoot (traction) cannot be matched by a larger vy,
+    so this applies to braking slip only. A bias uniform up to this angle, as ``slip_hold``'s on vx
+    (std = angle / sqrt 3, by the caller).
+
+    ``room`` (m/s): how far the fixes have taken |vy| from the single-track model's vy. The split
+    works against the model's pseudo-measurement, so the part of vy it made is at most that
+    departure (the rest is the model's own error, which its std carries): random drive 3847 (a
+    circle braked at the limit of its law, vy -0.22 m/s on the model's) lost 2.4 points of sideslip
+    validity to the geometric bound alone, with vy where the model held it."""
+    avx = abs(vx)
+    avy = abs(vy)
+    if not (brake_slip > 0.0 and avx > 0.0):
+        return 0.0
+    lo2 = avy * avy - 2.0 * avx * brake_slip - brake_slip * brake_slip
+    vy_lo = max(math.sqrt(lo2) if lo2 > 0.0 else 0.0, avy - room)
+    beta_lo = math.atan2(vy_lo, avx + brake_slip)
+    return max(math.atan2(avy, avx) - beta_lo, 0.0)
