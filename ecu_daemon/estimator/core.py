@@ -573,8 +573,9 @@ SLIP_SPLIT = False
 # a 1.0-1.3 deg std, valid (634 rows beyond 3 sigma). While such a bias exceeds P's vx std, the heading
 # std is at least the smaller of the sideslip's std and the net turn the fused fixes gave the heading
 # since the bias began (the split's part of the heading error is at most what the fixes moved it).
-# False: main's behaviour, bit for bit.
-WHEEL_BIAS_HEADING = False
+# ON since stop 50 (no metric moved on 18 dev drives where such a bias arose, plough50). False: the
+# behaviour before, bit for bit.
+WHEEL_BIAS_HEADING = True
 # The fault detector isolated a right gyro in 21 of 240 random drives without a fault (1201-1440,
 # 16 of them all-wheel drive): its two witnesses, the slipping wheels and ay / vx off by the
 # sideslip's rate, each disagreed with it by its own error, and far from each other (scale slopes
