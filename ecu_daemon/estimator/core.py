@@ -1193,12 +1193,13 @@ class Estimator:
         """A GNSS sample at step k. Input samples (~5 per step) are applied inline in
         ``advance_to``, the one place they enter ``held``."""
         if isinstance(s, GnssSample):
-            if WHEEL_BIAS_HEADING and self.initialized:  # the fix's turn of the present heading
+            if (WHEEL_BIAS_HEADING and self.initialized
+                    and k * self.dt - self.wheel_bias_t <= TURN_MEMORY_S):  # the fix's turn of the present heading
                 h = self.hist
                 last0 = h.last
                 psi0 = h.X.item(h.slot(last0), PSI)
                 self._on_gnss(s, k)
-                if self.initialized and h.last == last0 and k * self.dt - self.wheel_bias_t <= TURN_MEMORY_S:
+                if self.initialized and h.last == last0:
                     d = (h.X.item(h.slot(last0), PSI) - psi0 + math.pi) % (2.0 * math.pi) - math.pi
                     self.fix_turn += d
                 return

@@ -223,6 +223,20 @@ class LaggedModelInputs:
         return r_c, ay_c, shift
 
 
+def _excess_beyond_law(e: float, var: float) -> float:
+    """The understeer misfit ``e`` (m/s, variance ``var``) beyond LAW_HOLDS_SIGMA of it, squared
+    (:meth:`SingleTrackFusion.law_excess_var`)."""
+    a = abs(e)
+    lim = LAW_HOLDS_SIGMA * math.sqrt(var)
+    return (a - lim) ** 2 if a > lim else 0.0
+
+
+def _oversteer_side(e: float, var: float, ay: float) -> float:
+    """The misfit in its own sigmas, signed by the corner's side ``ay`` (non-zero)
+    (:meth:`SingleTrackFusion.oversteer_sigmas`)."""
+    return (e if ay > 0.0 else -e) / math.sqrt(var)
+
+
 class SingleTrackFusion:
     def __init__(self, mass: float, yaw_inertia: float, lf: float, lr: float, cf: float, cr: float,
                  adapt: bool, learned: dict | None = None, relaxation_length: float = 0.0):
@@ -349,10 +363,7 @@ class SingleTrackFusion:
         (``core.LAW_EXCESS``), where the model's vy would otherwise be vouched for by the heading."""
         if not vx >= MIN_SPEED or not math.isfinite(delta):
             return 0.0
-        e, var = self._understeer_misfit(vx, r, ay, rdot, delta)
-        e = abs(e)
-        lim = LAW_HOLDS_SIGMA * math.sqrt(var)
-        return (e - lim) ** 2 if e > lim else 0.0
+        return _excess_beyond_law(*self._understeer_misfit(vx, r, ay, rdot, delta))
 
     def law_excess_and_oversteer(self, vx: float, r: float, ay: float, rdot: float,
                                  delta: float) -> tuple[float, float]:
@@ -363,12 +374,7 @@ class SingleTrackFusion:
         if not vx >= MIN_SPEED or not math.isfinite(delta):
             return 0.0, math.nan
         e, var = self._understeer_misfit(vx, r, ay, rdot, delta)
-        a = abs(e)
-        lim = LAW_HOLDS_SIGMA * math.sqrt(var)
-        excess = (a - lim) ** 2 if a > lim else 0.0
-        if ay == 0.0:
-            return excess, math.nan
-        return excess, (e if ay > 0.0 else -e) / math.sqrt(var)
+        return _excess_beyond_law(e, var), (math.nan if ay == 0.0 else _oversteer_side(e, var, ay))
 
     def oversteer_sigmas(self, vx: float, r: float, ay: float, rdot: float, delta: float) -> float:
         """The understeer relation's misfit (:meth:`law_holds`) on the oversteer side, in its own
@@ -381,7 +387,7 @@ class SingleTrackFusion:
         if not vx >= MIN_SPEED or not math.isfinite(delta) or ay == 0.0:
             return math.nan
         e, var = self._understeer_misfit(vx, r, ay, rdot, delta)
-        return (e if ay > 0.0 else -e) / math.sqrt(var)
+        return _oversteer_side(e, var, ay)
 
     def drive_excess_var(self, vx: float, ay: float, rdot: float, alpha: float) -> float:
         """Variance (m/s)^2 the rear law's vy is off by when the driven rear axle is on its friction
