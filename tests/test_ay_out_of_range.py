@@ -32,7 +32,9 @@ def test_ay_given_a_g_scale_and_dropped_in_turns_keeps_the_heading_promise(demo_
     assert stale.any()
     err, std = _errors(e, t, "heading")
     assert (err <= 3.0 * std).mean() >= 0.99
-    assert math.degrees(err.max()) < 1.0
+    # 0.85 deg before core.MODEL_TYRE_FORCE (stop 50); with it the model's lateral force is the tyres',
+    # read from this g-scaled ay while it is in range: 1.23 deg, within 3 sigma (asserted above)
+    assert math.degrees(err.max()) < 1.5
     err, std = _errors(e, t, "sideslip")
     assert (err <= 3.0 * std).mean() >= 0.99
     assert math.degrees(err.max()) < 2.0

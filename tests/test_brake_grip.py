@@ -114,7 +114,9 @@ def test_braking_in_a_corner_keeps_the_sideslip_promise(tmp_path):
     err = np.abs(est["sideslip_rad"] - np.interp(t, truth["t"], truth["sideslip_rad"]))
     # the rows braking in the corner (both brakings, 24-26 s and 42-44 s of the drive), flagged valid
     braking = (ax < -1.0) & (np.abs(ay) > 1.0) & (est["sideslip_valid"] > 0.5)
-    assert braking.sum() > 150, braking.sum()
+    # enough valid braking rows for the check below to mean something (since core.SIDESLIP_LATENCY_SENS,
+    # stop 50, the latency's share withholds some: 131 of them valid)
+    assert braking.sum() > 100, braking.sum()
     beyond = int(np.sum(err[braking] > 3.0 * est["sideslip_std_rad"][braking]))
     # main (BRAKE_GRIP off): 251 of them beyond 3 sigma (seen), up to 2.55 deg off at a 0.45 deg std
     assert beyond == 0, beyond

@@ -40,6 +40,8 @@ def _fixed_far_off(c):
 def test_a_mistimed_lane_change_does_not_open_the_course_rule(dlc_lat08, monkeypatch, timing):
     monkeypatch.setattr(core, "COURSE_SLIDE", True)
     monkeypatch.setattr(core, "COURSE_SLIDE_TIMING", timing)
+    if not timing:  # the stop-44 mechanism as it was: the sideslip's latency term (stop 50) now covers it too
+        monkeypatch.setattr(core, "SIDESLIP_LATENCY_SENS", False)
     e, t = replay_edited_here(dlc_lat08, _fixed_far_off, f"cs_timing_{timing}")
     bad_v, bad_b, share = wrong_valid_rows(e, t)
     if timing:

@@ -80,5 +80,6 @@ def test_a_small_brake_excess_on_a_dry_circle_leaves_the_right_sideslip_valid(tm
     assert v["valid_beyond_3sigma"] == 0, v
     assert v["worst_error_valid"] < 0.01, v  # rad
     # main (LAW_EXCESS_BOUND off): 0.738 of the rows above 5 m/s (4682 valid rows); on: 0.793 (4965)
-    # (the whole 65 s drive: 0.321 -> 0.480, the circle's later half withheld on main)
-    assert v["valid_fraction_above_5mps"] >= 0.77, v
+    # (the whole 65 s drive: 0.321 -> 0.480, the circle's later half withheld on main); since stop 50
+    # (core.SIDESLIP_LATENCY_SENS, MODEL_TYRE_FORCE): off 0.672, on 0.747
+    assert v["valid_fraction_above_5mps"] >= 0.72, v
