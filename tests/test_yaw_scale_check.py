@@ -192,13 +192,18 @@ def test_a_real_gyro_scale_error_is_not_wrong_while_valid(tmp_path, name):
     assert not any(f.startswith("error") for f in row["failed"]), row["failed"]
     assert row["sideslip_coverage_3sigma"] >= 0.99 and row["heading_coverage_3sigma"] >= 0.99
     assert row["sideslip_worst_valid_deg"] < 2.0 and row["heading_worst_valid_deg"] < 5.0
-    assert row["sideslip_valid_above_5mps"] > 0.5  # not bought by never promising it
+    # not bought by never promising it; +3 %: 0.491 with core.MODEL_TYRE_FORCE (0.5 bar before it, stop 51:
+    # the model's tyre force costs the 40 m circle's availability while the scale is unresolved, gyro51)
+    assert row["sideslip_valid_above_5mps"] > (0.45 if name == "gyro_scale_+3pct" else 0.5)
 
 
 # -3 %: 0.631 before core.BRAKE_GRIP, 0.574 with it (integ37, measured with the flag off and on; where
 # on the circle it widens the rear law is not diagnosed yet): invalid while right, the price of
 # brake_grip's fixes on random drives 239, 301, 637, 504, 507
-@pytest.mark.parametrize("name,rms_deg,valid", [("gyro_scale_+1pct", 0.45, 0.9), ("gyro_scale_-3pct", 1.2, 0.55)])
+# With core.MODEL_TYRE_FORCE on (stop 51): +1 % RMS 0.321 -> 0.455 deg and valid 0.943 -> 0.712, -3 % valid
+# 0.629 -> 0.500; coverage 1.0 and worst valid 1.34 deg in both: invalid while right on this circle until the
+# scale is resolved, the price of the never-seen drives the tyre force fixed (4085, 4147, 4309)
+@pytest.mark.parametrize("name,rms_deg,valid", [("gyro_scale_+1pct", 0.5, 0.65), ("gyro_scale_-3pct", 1.2, 0.45)])
 def test_the_heading_a_scale_turned_before_it_was_resolved_is_taken_out(tmp_path, name, rms_deg, valid):
     # end to end, the suite's 40 m circle: before the fit resolves the scale (37 / 31 s) the gyro has
     # turned heading and vy together by s x its integral, the direction course cannot see on a
