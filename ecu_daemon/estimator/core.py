@@ -490,7 +490,8 @@ BANK_LAG_STD = True
 # bank's 0.73 in: bias std 0.043 -> 0.055 m/s, the bound 0.55-0.57 -> 0.65-0.69 deg, past the 0.667 limit. The
 # error in the withheld 1203.6-1213 s was 0.0-0.1 deg (main 0.2-0.35, valid at 0.59-0.62): right by the law's
 # stated doubt at the right force (main stated it at the wrong one), not a defect of the force.
-# ON since stop 50: dev 3841-3931 (crab50) sideslip rows beyond 3 sigma 619 -> 0 and heading 930 -> 0 for
+# ON since stop 51 (chosen at stop 50): dev 3841-3931 (crab50) sideslip rows beyond 3 sigma 619 -> 0 and
+# heading 930 -> 0 for
 # -1.7 % valid sideslip rows; the never-seen 4081-4320 drives 4085 (a plough on ice: heading 13.1 deg off,
 # valid), 4147 and 4309 clear with it.
 MODEL_TYRE_FORCE = True
@@ -704,7 +705,7 @@ SIDESLIP_SCALE_SENS = False
 # also withholds right sideslips wherever the latency is not identified yet (its std the prior's
 # 0.10-0.15 s) and a transient makes S_vy large: on the 60 low-friction drives of 3121-3360 sideslip
 # valid rows -0.6 %, 3124 (double lane change, latency 0.057 s off at a std of 0.106, worst 0.57 deg)
-# valid above 5 m/s 0.937 -> 0.732 (tests/test_sideslip_latency_sens.py runs it on). ON since stop 50,
+# valid above 5 m/s 0.937 -> 0.732 (tests/test_sideslip_latency_sens.py runs it on). ON since stop 51,
 # with latency.INFORMATION_STD (the delay's std no narrower than the data's timing information): a
 # wrong configured latency is a wrong configuration users make, and it was the mechanism of 4 of the
 # last 13 never-seen breaks (3991, 4147, 4199, 3846: sideslip valid 1.1-2.8 deg off at a 0.3-0.66 std);
